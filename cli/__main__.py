@@ -1,0 +1,5 @@
+import sys
+
+from wearbench.cli import main
+
+sys.exit(main())

@@ -1,0 +1,71 @@
+"""`wearbench bench`: list the shipped bench files, check a bench file, show what it describes."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from rich.console import Console
+from rich.table import Table
+
+from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="list, check or show bench definition files",
+        description="Bench files (TOML) describe a test bed: mechanism, clearance joints, drivers, "
+        "sensors and hardware backend. 'check' validates every key and that the mechanism assembles.",
+    )
+    verbs = p.add_subparsers(dest="verb", metavar="VERB", required=True)
+    verbs.add_parser("list", help="list the bench files shipped with wearbench").set_defaults(func=_list)
+    c = verbs.add_parser("check", help="validate bench files and assemble their mechanisms")
+    c.add_argument("files", nargs="+", metavar="BENCH.toml")
+    c.set_defaults(func=_check)
+    s = verbs.add_parser("show", help="print bodies, joints, clearances, drivers and sensors")
+    s.add_argument("file", metavar="BENCH.toml")
+    s.set_defaults(func=_show)
+
+
+def _list(args: argparse.Namespace) -> int:
+    for path in sorted(BENCH_DIR.glob("*.toml")):
+        bench = load_bench(path)
+        print(f"{path}  {bench.description}")
+    return 0
+
+
+def _check(args: argparse.Namespace) -> int:
+    from wearbench.model import build_scene
+
+    for file in args.files:
+        bench = load_bench(file)
+        scene = build_scene(bench)
+        print(f"{file}: ok ({bench.name}: {len(bench.bodies)} bodies, {len(bench.joints)} joints, "
+              f"{scene.dof} degrees of freedom with drivers released: {scene.description})")
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    bench: Bench = load_bench(args.file)
+    console = Console()
+    console.print(f"[bold]{bench.name}[/bold]: {bench.description}")
+    console.print(f"motor speed {bench.speed:.4g} rad/s ({bench.speed * 30 / math.pi:.4g} rpm), "
+                  f"backend {bench.hardware.backend}")
+    bodies = Table("body", "mass [kg]", "inertia [kg m^2]", "length [mm]", "points")
+    for b in bench.bodies:
+        bodies.add_row(b.name, f"{b.mass:.4g}", f"{b.inertia:.4g}",
+                       "" if b.length is None else f"{b.length * 1e3:.4g}", ", ".join(b.points))
+    console.print(bodies)
+    joints = Table("joint", "type", "bodies", "clearance [mm]", "bearing / journal radius [mm]")
+    for j in bench.joints:
+        c = j.clearance
+        joints.add_row(j.name, j.kind, " - ".join(j.bodies),
+                       "ideal" if c is None else f"{c.radial_clearance * 1e3:.4g}",
+                       "" if c is None else f"{c.bearing_radius * 1e3:.4g} / {c.journal_radius * 1e3:.4g}")
+    console.print(joints)
+    for d in bench.drivers:
+        console.print(f"driver {d.joint}: {d.ratio:+g} x motor speed, phase {math.degrees(d.phase):.4g} deg")
+    for s in bench.sensors:
+        console.print(f"sensor {s.name}: {s.kind} at {s.sample_rate:g} Hz")
+    return 0

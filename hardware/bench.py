@@ -1,0 +1,617 @@
+"""Bench definitions: the TOML file that describes a test bed, read into frozen dataclasses.
+
+A bench file holds the mechanism (bodies, ground points, joints, which revolute joints have
+clearance and with what radii and materials), the drivers, the sensors, the wear settings and the
+hardware backend. Every value is validated on load; a mistake raises :class:`BenchError` naming
+the file, the key, the value and what was expected. Values are SI inside.
+
+Whether the mechanism assembles is checked by ``wearbench.model`` when it builds a scene (it owns
+the kinematics); this module imports only :mod:`wearbench.hardware.units`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+from wearbench.hardware.units import QuantityError, parse_quantity
+
+__all__ = [
+    "BENCH_DIR", "BenchError", "Bench", "Body", "Joint", "Clearance", "ContactLaw", "Material",
+    "Driver", "Sensor", "WearSettings", "Motor", "Hardware", "load_bench", "shipped_bench",
+]
+
+BENCH_DIR = Path(__file__).parent / "benches"
+GROUND = "frame"
+CONTACT_LAWS = ("lankarani-nikravesh", "flores", "hertz")
+STIFFNESS_FORMS = ("conformal", "paper")
+BACKENDS = ("sim", "serial", "can", "canopen", "nidaqmx")
+
+
+class BenchError(ValueError):
+    """A bench file is wrong: names the file, the key, the value and what was expected."""
+
+    def __init__(self, path: str | Path, key: str, value: Any, expected: str):
+        self.path, self.key, self.value, self.expected = str(path), key, value, expected
+        super().__init__(f"{path}: {key} = {value!r}: {expected}")
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    youngs_modulus: float  # Pa
+    poisson_ratio: float
+    hardness: float  # Pa
+    density: float | None = None  # kg/m^3
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    law: str = "lankarani-nikravesh"
+    stiffness: str = "conformal"
+    restitution: float = 0.9
+    exponent: float = 1.5
+    friction_coefficient: float = 0.1
+    friction_v0: float = 1e-4  # m/s
+    friction_vm: float = 1e-3  # m/s
+
+
+@dataclass(frozen=True)
+class Clearance:
+    bearing_body: str
+    journal_body: str
+    bearing_radius: float  # m
+    journal_radius: float  # m
+    bearing_material: Material
+    journal_material: Material
+    axial_length: float  # m
+    contact: ContactLaw
+    surfaces: Path | None = None  # saved worn surfaces, if the bench names a worn state
+
+    @property
+    def radial_clearance(self) -> float:
+        return self.bearing_radius - self.journal_radius
+
+
+@dataclass(frozen=True)
+class Body:
+    name: str
+    mass: float  # kg
+    inertia: float  # kg m^2 about the centre of mass
+    points: Mapping[str, tuple[float, float]]  # local coordinates from the centre of mass, m
+    length: float | None = None  # m, for bars
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    kind: str  # "revolute" | "prismatic"
+    bodies: tuple[str, ...]  # two, or more for one pin shared by several bodies (revolute only)
+    points: tuple[str, ...]
+    axis: float | None = None  # prismatic: guide direction in the first body's frame, rad
+    clearance: Clearance | None = None
+
+
+@dataclass(frozen=True)
+class Driver:
+    joint: str
+    ratio: float
+    phase: float  # rad: angle at t = 0
+
+
+@dataclass(frozen=True)
+class Sensor:
+    name: str
+    kind: str  # "accelerometer" | "encoder"
+    sample_rate: float  # Hz
+    body: str | None = None
+    point: str | None = None
+    axis: float | None = None  # rad, measuring direction in the body frame
+    range: float | None = None  # m/s^2
+    sensitivity: float | None = None  # V per m/s^2
+    joint: str | None = None
+    counts_per_rev: int | None = None
+
+
+@dataclass(frozen=True)
+class WearSettings:
+    coefficient: float = 5e-15  # 1/Pa
+    regions: int = 1000
+    cycles_per_stage: int = 100
+    stage_scale: float = 2000.0
+    split: float = 0.5
+
+
+@dataclass(frozen=True)
+class Motor:
+    max_speed: float = 62.83  # rad/s
+    max_acceleration: float = 200.0  # rad/s^2
+
+
+@dataclass(frozen=True)
+class Hardware:
+    backend: str = "sim"
+    options: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)  # per backend, raw
+
+
+@dataclass(frozen=True)
+class Bench:
+    name: str
+    description: str
+    path: Path | None
+    source: str  # the file's text, for MCAP attachments
+    sha256: str
+    speed: float  # rad/s, motor speed; driver i turns at ratio_i * speed
+    gravity: tuple[float, float]
+    ground_points: Mapping[str, tuple[float, float]]
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    drivers: tuple[Driver, ...]
+    sensors: tuple[Sensor, ...]
+    materials: Mapping[str, Material]
+    contact: ContactLaw
+    wear: WearSettings
+    motor: Motor
+    hardware: Hardware
+    assembly: Mapping[str, tuple[float, float]]  # joint name -> position at t = 0
+    emulator: Mapping[str, Any] = field(default_factory=dict)  # raw [emulator] table (hardware/)
+
+    def body(self, name: str) -> Body:
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise KeyError(name)
+
+    def joint(self, name: str) -> Joint:
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise KeyError(name)
+
+    def sensor(self, kind: str) -> Sensor:
+        """The first sensor of ``kind`` ("accelerometer" or "encoder")."""
+        for s in self.sensors:
+            if s.kind == kind:
+                return s
+        raise KeyError(f"{self.name}: no {kind} sensor")
+
+    @property
+    def clearance_joints(self) -> tuple[Joint, ...]:
+        return tuple(j for j in self.joints if j.clearance is not None)
+
+    def with_speed(self, speed: float) -> "Bench":
+        """The same bench at motor speed ``speed`` (rad/s)."""
+        return replace(self, speed=float(speed))
+
+    def with_clearances(self, clearances: Mapping[str, float | None]) -> "Bench":
+        """The same bench with radial clearances (m) by joint name; ``None`` makes a joint ideal.
+
+        The bearing radius is kept and the journal radius becomes bearing radius - clearance.
+        """
+        joints = []
+        names = {j.name for j in self.clearance_joints}
+        unknown = set(clearances) - names
+        if unknown:
+            raise KeyError(f"{self.name}: no clearance joint {sorted(unknown)}; joints with clearance: {sorted(names)}")
+        for j in self.joints:
+            if j.name in clearances:
+                c = clearances[j.name]
+                if c is None:
+                    j = replace(j, clearance=None)
+                else:
+                    if not 0 < c < j.clearance.bearing_radius:
+                        raise ValueError(f"{self.name}: clearance {j.name} = {c} m: expected 0 < c < bearing radius "
+                                         f"{j.clearance.bearing_radius} m")
+                    j = replace(j, clearance=replace(j.clearance, journal_radius=j.clearance.bearing_radius - c))
+            joints.append(j)
+        return replace(self, joints=tuple(joints))
+
+
+# ----------------------------------------------------------------------------------------------
+# reading
+
+
+class _Reader:
+    """Walks the parsed TOML with the file name at hand, so every error can name file and key."""
+
+    def __init__(self, path: str | Path):
+        self.path = path
+
+    def fail(self, key: str, value: Any, expected: str) -> BenchError:
+        return BenchError(self.path, key, value, expected)
+
+    def table(self, data: Any, key: str) -> dict:
+        if not isinstance(data, dict):
+            raise self.fail(key, data, "expected a table")
+        return data
+
+    def keys(self, data: dict, key: str, required: set[str], optional: set[str] = frozenset()) -> None:
+        allowed = required | set(optional)
+        for k in data:
+            if k not in allowed:
+                raise self.fail(f"{key}.{k}" if key else k, data[k],
+                                f"unknown key; expected one of {sorted(allowed)}")
+        for k in sorted(required):
+            if k not in data:
+                raise self.fail(f"{key}.{k}" if key else k, None, "missing required key")
+
+    def quantity(self, data: dict, key: str, name: str, dimension: str, *, positive: bool = False,
+                 nonnegative: bool = False, default: float | None = None) -> float:
+        if name not in data:
+            if default is None:
+                raise self.fail(f"{key}.{name}", None, f"missing required {dimension}")
+            return default
+        raw = data[name]
+        try:
+            value = parse_quantity(raw, dimension)
+        except QuantityError as exc:
+            raise self.fail(f"{key}.{name}", raw, str(exc)) from None
+        if positive and not value > 0:
+            raise self.fail(f"{key}.{name}", raw, f"expected a positive {dimension}")
+        if nonnegative and value < 0:
+            raise self.fail(f"{key}.{name}", raw, f"expected a non-negative {dimension}")
+        return value
+
+    def number(self, data: dict, key: str, name: str, *, low: float | None = None, high: float | None = None,
+               default: float | None = None, integer: bool = False, open_low: bool = False) -> float:
+        if name not in data:
+            if default is None:
+                raise self.fail(f"{key}.{name}", None, "missing required number")
+            return default
+        raw = data[name]
+        if isinstance(raw, bool) or not isinstance(raw, (int, float)) or (integer and not isinstance(raw, int)):
+            kind = "an integer" if integer else "a plain number (dimensionless)"
+            raise self.fail(f"{key}.{name}", raw, f"expected {kind}")
+        if not math.isfinite(raw):
+            raise self.fail(f"{key}.{name}", raw, "expected a finite number")
+        bad_low = low is not None and (raw <= low if open_low else raw < low)
+        if bad_low or (high is not None and raw > high):
+            lo = "(" if open_low else "["
+            raise self.fail(f"{key}.{name}", raw, f"expected a number in {lo}{low}, {high}]")
+        return raw
+
+    def text(self, data: dict, key: str, name: str, *, choices: tuple[str, ...] | None = None,
+             default: str | None = None) -> str:
+        if name not in data:
+            if default is None:
+                raise self.fail(f"{key}.{name}", None, "missing required text")
+            return default
+        raw = data[name]
+        if not isinstance(raw, str) or not raw:
+            raise self.fail(f"{key}.{name}", raw, "expected non-empty text")
+        if choices is not None and raw not in choices:
+            raise self.fail(f"{key}.{name}", raw, f"expected one of {list(choices)}")
+        return raw
+
+    def point(self, raw: Any, key: str) -> tuple[float, float]:
+        if not isinstance(raw, list) or len(raw) != 2:
+            raise self.fail(key, raw, "expected a point [x, y] with units, e.g. ['0.1 m', '0 m']")
+        try:
+            return (parse_quantity(raw[0], "length"), parse_quantity(raw[1], "length"))
+        except QuantityError as exc:
+            raise self.fail(key, raw, str(exc)) from None
+
+    def name_list(self, data: dict, key: str, name: str, length: int | None = None) -> tuple[str, ...]:
+        raw = data.get(name)
+        if not isinstance(raw, list) or not raw or not all(isinstance(x, str) and x for x in raw):
+            raise self.fail(f"{key}.{name}", raw, "expected a list of names")
+        if length is not None and len(raw) != length:
+            raise self.fail(f"{key}.{name}", raw, f"expected {length} names")
+        return tuple(raw)
+
+
+def _contact(r: _Reader, data: dict, key: str, base: ContactLaw) -> ContactLaw:
+    fields = {"law", "stiffness", "restitution", "exponent", "friction_coefficient", "friction_v0", "friction_vm"}
+    r.keys(data, key, set(), fields)
+    v0 = r.quantity(data, key, "friction_v0", "speed", positive=True, default=base.friction_v0)
+    vm = r.quantity(data, key, "friction_vm", "speed", positive=True, default=base.friction_vm)
+    if not vm > v0:
+        raise r.fail(f"{key}.friction_vm", data.get("friction_vm", vm), f"expected friction_vm > friction_v0 = {v0} m/s")
+    return ContactLaw(
+        law=r.text(data, key, "law", choices=CONTACT_LAWS, default=base.law),
+        stiffness=r.text(data, key, "stiffness", choices=STIFFNESS_FORMS, default=base.stiffness),
+        restitution=r.number(data, key, "restitution", low=0.0, high=1.0, default=base.restitution, open_low=True),
+        exponent=r.number(data, key, "exponent", low=1.0, high=3.0, default=base.exponent),
+        friction_coefficient=r.number(data, key, "friction_coefficient", low=0.0, high=2.0,
+                                      default=base.friction_coefficient),
+        friction_v0=v0,
+        friction_vm=vm,
+    )
+
+
+def _material(r: _Reader, name: str, data: dict) -> Material:
+    key = f"materials.{name}"
+    r.table(data, key)
+    r.keys(data, key, {"youngs_modulus", "poisson_ratio", "hardness"}, {"density"})
+    return Material(
+        name=name,
+        youngs_modulus=r.quantity(data, key, "youngs_modulus", "pressure", positive=True),
+        poisson_ratio=r.number(data, key, "poisson_ratio", low=0.0, high=0.5, open_low=False),
+        hardness=r.quantity(data, key, "hardness", "pressure", positive=True),
+        density=r.quantity(data, key, "density", "density", positive=True) if "density" in data else None,
+    )
+
+
+def _body(r: _Reader, i: int, data: dict) -> Body:
+    key = f"body[{i}]"
+    r.table(data, key)
+    r.keys(data, key, {"name", "mass", "inertia"}, {"length", "points"})
+    name = r.text(data, key, "name")
+    key = f"body[{i}] ({name})"
+    if name == GROUND:
+        raise r.fail(f"{key}.name", name, f"'{GROUND}' is the ground; describe its points under [frame]")
+    length = r.quantity(data, key, "length", "length", positive=True) if "length" in data else None
+    points: dict[str, tuple[float, float]] = {}
+    if length is not None:
+        points = {"start": (-length / 2, 0.0), "end": (length / 2, 0.0)}
+    for pname, raw in r.table(data.get("points", {}), f"{key}.points").items():
+        if pname in points:
+            raise r.fail(f"{key}.points.{pname}", raw, "this point is already defined by the bar's length")
+        points[pname] = r.point(raw, f"{key}.points.{pname}")
+    if not points:
+        raise r.fail(f"{key}.points", None, "a body needs a length (a bar) or named points")
+    return Body(
+        name=name,
+        mass=r.quantity(data, key, "mass", "mass", positive=True),
+        inertia=r.quantity(data, key, "inertia", "inertia", positive=True),
+        points=points,
+        length=length,
+    )
+
+
+def _clearance(r: _Reader, key: str, data: dict, bodies: tuple[str, ...], materials: dict[str, Material],
+               contact: ContactLaw, base_dir: Path | None) -> Clearance:
+    r.table(data, key)
+    r.keys(data, key, {"bearing_body", "bearing_radius", "journal_radius", "bearing_material",
+                       "journal_material", "axial_length"}, {"contact", "surfaces"})
+    if len(bodies) != 2:
+        raise r.fail(key, bodies, "a clearance joint connects exactly two bodies")
+    bearing_body = r.text(data, key, "bearing_body", choices=bodies)
+    journal_body = bodies[1] if bearing_body == bodies[0] else bodies[0]
+    r1 = r.quantity(data, key, "bearing_radius", "length", positive=True)
+    r2 = r.quantity(data, key, "journal_radius", "length", positive=True)
+    if not r2 < r1:
+        raise r.fail(f"{key}.journal_radius", data["journal_radius"],
+                     f"expected a journal smaller than its bearing (bearing radius {r1 * 1e3:g} mm)")
+    mats = {}
+    for side in ("bearing_material", "journal_material"):
+        mname = r.text(data, key, side)
+        if mname not in materials:
+            raise r.fail(f"{key}.{side}", mname, f"expected a material defined under [materials]: {sorted(materials)}")
+        mats[side] = materials[mname]
+    surfaces = None
+    if "surfaces" in data:
+        raw = r.text(data, key, "surfaces")
+        surfaces = Path(raw) if base_dir is None else (base_dir / raw)
+        if not surfaces.exists():
+            raise r.fail(f"{key}.surfaces", raw, f"expected a saved worn-surface file; {surfaces} does not exist")
+    return Clearance(
+        bearing_body=bearing_body,
+        journal_body=journal_body,
+        bearing_radius=r1,
+        journal_radius=r2,
+        bearing_material=mats["bearing_material"],
+        journal_material=mats["journal_material"],
+        axial_length=r.quantity(data, key, "axial_length", "length", positive=True),
+        contact=_contact(r, r.table(data.get("contact", {}), f"{key}.contact"), f"{key}.contact", contact),
+        surfaces=surfaces,
+    )
+
+
+def _joint(r: _Reader, i: int, data: dict, bodies: dict[str, Body], ground: dict, materials: dict,
+           contact: ContactLaw, base_dir: Path | None) -> Joint:
+    key = f"joint[{i}]"
+    r.table(data, key)
+    r.keys(data, key, {"name", "type", "bodies", "points"}, {"axis", "clearance"})
+    name = r.text(data, key, "name")
+    key = f"joint[{i}] ({name})"
+    kind = r.text(data, key, "type", choices=("revolute", "prismatic"))
+    names = r.name_list(data, key, "bodies")
+    pts = r.name_list(data, key, "points", len(names))
+    if len(names) < 2 or (kind == "prismatic" and len(names) != 2):
+        raise r.fail(f"{key}.bodies", list(names), "expected two bodies (a revolute pin may join more)")
+    if len(set(names)) != len(names):
+        raise r.fail(f"{key}.bodies", list(names), "expected distinct bodies")
+    for b, p in zip(names, pts):
+        if b == GROUND:
+            known = ground
+        elif b in bodies:
+            known = bodies[b].points
+        else:
+            raise r.fail(f"{key}.bodies", b, f"expected '{GROUND}' or a body: {sorted(bodies)}")
+        if p not in known:
+            raise r.fail(f"{key}.points", p, f"expected a point of {b}: {sorted(known)}")
+    axis = None
+    if kind == "prismatic":
+        axis = r.quantity(data, key, "axis", "angle")
+    elif "axis" in data:
+        raise r.fail(f"{key}.axis", data["axis"], "only a prismatic joint has an axis")
+    clearance = None
+    if "clearance" in data:
+        if kind != "revolute":
+            raise r.fail(f"{key}.clearance", data["clearance"], "only a revolute joint can have clearance")
+        clearance = _clearance(r, f"{key}.clearance", data["clearance"], names, materials, contact, base_dir)
+    return Joint(name=name, kind=kind, bodies=names, points=pts, axis=axis, clearance=clearance)
+
+
+def _sensor(r: _Reader, i: int, data: dict, bodies: dict[str, Body], joints: dict[str, Joint]) -> Sensor:
+    key = f"sensor[{i}]"
+    r.table(data, key)
+    kind = r.text(data, key, "kind", choices=("accelerometer", "encoder"))
+    if kind == "accelerometer":
+        r.keys(data, key, {"name", "kind", "body", "point", "axis", "range", "sample_rate"}, {"sensitivity"})
+        body = r.text(data, key, "body", choices=tuple(bodies))
+        point = r.text(data, key, "point", choices=tuple(bodies[body].points))
+        return Sensor(
+            name=r.text(data, key, "name"), kind=kind, body=body, point=point,
+            axis=r.quantity(data, key, "axis", "angle"),
+            range=r.quantity(data, key, "range", "acceleration", positive=True),
+            sample_rate=r.quantity(data, key, "sample_rate", "frequency", positive=True),
+            sensitivity=(r.quantity(data, key, "sensitivity", "sensitivity", positive=True)
+                         if "sensitivity" in data else None),
+        )
+    r.keys(data, key, {"name", "kind", "joint", "counts_per_rev", "sample_rate"})
+    joint = r.text(data, key, "joint", choices=tuple(j for j, v in joints.items() if v.kind == "revolute"))
+    return Sensor(
+        name=r.text(data, key, "name"), kind=kind, joint=joint,
+        counts_per_rev=int(r.number(data, key, "counts_per_rev", low=1, integer=True)),
+        sample_rate=r.quantity(data, key, "sample_rate", "frequency", positive=True),
+    )
+
+
+def _hardware(r: _Reader, data: dict) -> Hardware:
+    r.table(data, "hardware")
+    r.keys(data, "hardware", {"backend"}, set(BACKENDS))
+    backend = r.text(data, "hardware", "backend", choices=BACKENDS)
+    options = {name: r.table(data[name], f"hardware.{name}") for name in BACKENDS if name in data}
+    return Hardware(backend=backend, options=options)
+
+
+_TOP = {"bench", "operating", "motor", "materials", "contact", "wear", "frame", "body", "joint", "driver",
+        "assembly", "sensor", "hardware", "emulator"}
+
+
+def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
+    """Read a bench from TOML ``text``; ``path`` names it in errors and anchors relative file names."""
+    r = _Reader(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise r.fail("(syntax)", None, f"not valid TOML: {exc}") from None
+    r.keys(data, "", {"bench", "body", "joint", "driver"}, _TOP)
+    base_dir = Path(path).parent if str(path) != "<bench>" else None
+
+    head = r.table(data["bench"], "bench")
+    r.keys(head, "bench", {"name"}, {"description"})
+
+    op = r.table(data.get("operating", {}), "operating")
+    r.keys(op, "operating", {"speed"}, {"gravity"})
+    speed = r.quantity(op, "operating", "speed", "angular_speed")
+    gravity_raw = op.get("gravity", ["0 m/s^2", "0 m/s^2"])
+    if not isinstance(gravity_raw, list) or len(gravity_raw) != 2:
+        raise r.fail("operating.gravity", gravity_raw, "expected [gx, gy] with units, e.g. ['0 m/s^2', '-9.81 m/s^2']")
+    try:
+        gravity = tuple(parse_quantity(g, "acceleration") for g in gravity_raw)
+    except QuantityError as exc:
+        raise r.fail("operating.gravity", gravity_raw, str(exc)) from None
+
+    motor_raw = r.table(data.get("motor", {}), "motor")
+    r.keys(motor_raw, "motor", set(), {"max_speed", "max_acceleration"})
+    motor = Motor(
+        max_speed=r.quantity(motor_raw, "motor", "max_speed", "angular_speed", positive=True, default=Motor.max_speed),
+        max_acceleration=r.quantity(motor_raw, "motor", "max_acceleration", "angular_acceleration",
+                                    positive=True, default=Motor.max_acceleration),
+    )
+    if abs(speed) > motor.max_speed:
+        raise r.fail("operating.speed", op["speed"], f"expected at most the motor's max_speed {motor.max_speed:.4g} rad/s")
+
+    materials = {n: _material(r, n, m) for n, m in r.table(data.get("materials", {}), "materials").items()}
+    contact = _contact(r, r.table(data.get("contact", {}), "contact"), "contact", ContactLaw())
+
+    wear_raw = r.table(data.get("wear", {}), "wear")
+    r.keys(wear_raw, "wear", set(), {"coefficient", "regions", "cycles_per_stage", "stage_scale", "split"})
+    d = WearSettings()
+    wear = WearSettings(
+        coefficient=r.quantity(wear_raw, "wear", "coefficient", "wear_coefficient", nonnegative=True,
+                               default=d.coefficient),
+        regions=int(r.number(wear_raw, "wear", "regions", low=8, integer=True, default=d.regions)),
+        cycles_per_stage=int(r.number(wear_raw, "wear", "cycles_per_stage", low=1, integer=True,
+                                      default=d.cycles_per_stage)),
+        stage_scale=float(r.number(wear_raw, "wear", "stage_scale", low=1.0, default=d.stage_scale)),
+        split=float(r.number(wear_raw, "wear", "split", low=0.0, high=1.0, default=d.split)),
+    )
+
+    frame = r.table(data.get("frame", {}), "frame")
+    r.keys(frame, "frame", {"points"})
+    ground = {p: r.point(v, f"frame.points.{p}") for p, v in r.table(frame["points"], "frame.points").items()}
+
+    body_list = data["body"]
+    if not isinstance(body_list, list):
+        raise r.fail("body", body_list, "expected an array of tables [[body]]")
+    bodies: dict[str, Body] = {}
+    for i, raw in enumerate(body_list):
+        b = _body(r, i, raw)
+        if b.name in bodies:
+            raise r.fail(f"body[{i}].name", b.name, "expected a unique body name")
+        bodies[b.name] = b
+
+    joint_list = data["joint"]
+    if not isinstance(joint_list, list):
+        raise r.fail("joint", joint_list, "expected an array of tables [[joint]]")
+    joints: dict[str, Joint] = {}
+    for i, raw in enumerate(joint_list):
+        j = _joint(r, i, raw, bodies, ground, materials, contact, base_dir)
+        if j.name in joints:
+            raise r.fail(f"joint[{i}].name", j.name, "expected a unique joint name")
+        joints[j.name] = j
+
+    drivers = []
+    for i, raw in enumerate(data["driver"] if isinstance(data["driver"], list) else [data["driver"]]):
+        key = f"driver[{i}]"
+        r.table(raw, key)
+        r.keys(raw, key, {"joint", "phase"}, {"ratio"})
+        jname = r.text(raw, key, "joint", choices=tuple(joints))
+        if joints[jname].kind != "revolute" or GROUND not in joints[jname].bodies:
+            raise r.fail(f"{key}.joint", jname, "expected a revolute joint to the frame (a crank pivot)")
+        if joints[jname].clearance is not None:
+            raise r.fail(f"{key}.joint", jname, "a driven pivot cannot have clearance")
+        drivers.append(Driver(joint=jname, ratio=float(r.number(raw, key, "ratio", default=1.0)),
+                              phase=r.quantity(raw, key, "phase", "angle")))
+    if len({d.joint for d in drivers}) != len(drivers):
+        raise r.fail("driver", [d.joint for d in drivers], "expected each driven joint once")
+
+    assembly_raw = r.table(data.get("assembly", {}), "assembly")
+    assembly = {}
+    for jname, raw in assembly_raw.items():
+        if jname not in joints:
+            raise r.fail(f"assembly.{jname}", raw, f"expected a joint name: {sorted(joints)}")
+        assembly[jname] = r.point(raw, f"assembly.{jname}")
+
+    sensors = tuple(_sensor(r, i, raw, bodies, joints) for i, raw in enumerate(data.get("sensor", [])))
+    hardware = _hardware(r, data.get("hardware", {"backend": "sim"}))
+    emulator = r.table(data.get("emulator", {}), "emulator")
+
+    return Bench(
+        name=r.text(head, "bench", "name"),
+        description=head.get("description", ""),
+        path=Path(path) if base_dir is not None else None,
+        source=text,
+        sha256=hashlib.sha256(text.encode()).hexdigest(),
+        speed=speed,
+        gravity=gravity,
+        ground_points=ground,
+        bodies=tuple(bodies.values()),
+        joints=tuple(joints.values()),
+        drivers=tuple(drivers),
+        sensors=sensors,
+        materials=materials,
+        contact=contact,
+        wear=wear,
+        motor=motor,
+        hardware=hardware,
+        assembly=assembly,
+        emulator=emulator,
+    )
+
+
+def load_bench(path: str | Path) -> Bench:
+    """Read and validate the bench file at ``path`` (see the shipped files in ``BENCH_DIR``)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise BenchError(path, "(file)", None, f"cannot read the bench file: {exc.strerror}") from None
+    return parse_bench(text, path)
+
+
+def shipped_bench(name: str) -> Path:
+    """Path of a bench file shipped with wearbench, by name ("ninebar", "slider-crank", ...)."""
+    path = BENCH_DIR / f"{name}.toml"
+    if not path.exists():
+        known = sorted(p.stem for p in BENCH_DIR.glob("*.toml"))
+        raise FileNotFoundError(f"no shipped bench {name!r}; shipped: {known}")
+    return path
