@@ -36,10 +36,10 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _check(args: argparse.Namespace) -> int:
-    from wearbench.model import build_scene
-
     for file in args.files:
         bench = load_bench(file)
+        from wearbench.model import build_scene  # the model owns the kinematics of assembly
+
         scene = build_scene(bench)
         print(f"{file}: ok ({bench.name}: {len(bench.bodies)} bodies, {len(bench.joints)} joints, "
               f"{scene.dof} degrees of freedom with drivers released: {scene.description})")

@@ -339,9 +339,9 @@ def _material(r: _Reader, name: str, data: dict) -> Material:
 def _body(r: _Reader, i: int, data: dict) -> Body:
     key = f"body[{i}]"
     r.table(data, key)
-    r.keys(data, key, {"name", "mass", "inertia"}, {"length", "points"})
     name = r.text(data, key, "name")
     key = f"body[{i}] ({name})"
+    r.keys(data, key, {"name", "mass", "inertia"}, {"length", "points"})
     if name == GROUND:
         raise r.fail(f"{key}.name", name, f"'{GROUND}' is the ground; describe its points under [frame]")
     length = r.quantity(data, key, "length", "length", positive=True) if "length" in data else None
@@ -406,9 +406,9 @@ def _joint(r: _Reader, i: int, data: dict, bodies: dict[str, Body], ground: dict
            contact: ContactLaw, base_dir: Path | None) -> Joint:
     key = f"joint[{i}]"
     r.table(data, key)
-    r.keys(data, key, {"name", "type", "bodies", "points"}, {"axis", "clearance"})
     name = r.text(data, key, "name")
     key = f"joint[{i}] ({name})"
+    r.keys(data, key, {"name", "type", "bodies", "points"}, {"axis", "clearance"})
     kind = r.text(data, key, "type", choices=("revolute", "prismatic"))
     names = r.name_list(data, key, "bodies")
     pts = r.name_list(data, key, "points", len(names))

@@ -1,0 +1,128 @@
+"""Bench definition files: every shipped file loads; each kind of mistake gets its own clear error."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from wearbench.hardware.bench import BENCH_DIR, BenchError, load_bench, parse_bench, shipped_bench
+
+NINEBAR = shipped_bench("ninebar")
+SHIPPED = sorted(BENCH_DIR.glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_shipped_bench_loads(path):
+    bench = load_bench(path)
+    assert bench.bodies and bench.joints and bench.drivers
+    assert bench.sha256 and bench.source.startswith("#")
+
+
+def test_ninebar_values_are_the_reference_notes():
+    b = load_bench(NINEBAR)
+    assert b.speed == pytest.approx(-5 * math.pi)
+    assert {j.name for j in b.clearance_joints} == {"A", "B"}
+    a = b.joint("A").clearance
+    assert a.bearing_radius == pytest.approx(0.015)
+    assert a.radial_clearance == pytest.approx(0.6e-3)
+    assert a.bearing_material.youngs_modulus == pytest.approx(206e9)
+    assert a.contact.restitution == 0.9 and a.contact.friction_coefficient == 0.1
+    assert [math.degrees(d.phase) for d in b.drivers] == pytest.approx([-36.84, 24.31])
+    assert b.body("link8").mass == pytest.approx(1.060)
+    assert b.body("rod2").points["end"] == pytest.approx((0.2, 0.0))
+    assert b.ground_points["O4"] == pytest.approx((0.0, -0.35))
+
+
+def test_slider_crank_is_flores_benchmark():
+    b = load_bench(shipped_bench("slider-crank"))
+    s = b.joint("S").clearance
+    assert (s.bearing_radius, s.journal_radius) == pytest.approx((0.010, 0.0095))
+    assert b.speed == pytest.approx(5000 * 2 * math.pi / 60)
+    assert [b.body(n).mass for n in ("crank", "rod", "slider")] == pytest.approx([0.30, 0.21, 0.14])
+
+
+def test_with_clearances_keeps_bearing_and_can_make_ideal():
+    b = load_bench(NINEBAR).with_clearances({"A": 0.1e-3, "B": None})
+    assert b.joint("A").clearance.journal_radius == pytest.approx(0.0149)
+    assert b.joint("B").clearance is None
+    with pytest.raises(KeyError, match="no clearance joint"):
+        b.with_clearances({"C": 1e-4})
+
+
+def _broken(old: str, new: str, count: int = 1) -> str:
+    text = NINEBAR.read_text()
+    assert old in text, old
+    return text.replace(old, new, count)
+
+
+# (replacement old, new) -> (key fragment, value fragment, expectation fragment)
+MISTAKES = {
+    "typo key": (('mass = "0.942 kg"', 'masss = "0.942 kg"'), "masss", "0.942 kg", "unknown key"),
+    "negative length": (('length = "0.40 m"', 'length = "-0.40 m"'), "rod2", "-0.40 m", "positive length"),
+    "journal larger": (('journal_radius = "14.4 mm"', 'journal_radius = "15.2 mm"'), "journal_radius",
+                       "15.2 mm", "smaller than its bearing"),
+    "bare number": (('length = "0.10 m"', "length = 0.10"), "length", "0.1", "no unit"),
+    "wrong unit": (('mass = "0.5 kg"', 'mass = "0.5 m"'), "slider", "0.5 m", "not a mass unit"),
+    "unknown body": (('bodies = ["link8", "slider"]', 'bodies = ["link9", "slider"]'), "joint[7] (E).bodies",
+                     "link9", "expected 'frame' or a body"),
+    "unknown point": (('points = ["O4", "start"]', 'points = ["O5", "start"]'), "joint[2] (O4).points",
+                      "O5", "expected a point of frame"),
+    "unknown material": (('journal_material = "steel"', 'journal_material = "bronze"'), "journal_material",
+                         "bronze", "material defined under [materials]"),
+    "restitution range": (("restitution = 0.9", "restitution = 1.5"), "contact.restitution", "1.5",
+                          "number in (0.0, 1.0]"),
+    "prismatic axis": (('axis = "90 deg"                # guide', '# no axis'), "guide", "None",
+                       "missing required angle"),
+    "driver not a pivot": (('joint = "O4"\nratio', 'joint = "E"\nratio'), "driver[1].joint", "E",
+                           "revolute joint to the frame"),
+    "syntax": (('[[body]]\nname = "rod2"', '[[body]\nname = "rod2"'), "(syntax)", "None", "not valid TOML"),
+    "too fast": (('speed = "-5pi rad/s"', 'speed = "-5000 rpm"'), "operating.speed", "-5000 rpm",
+                 "motor's max_speed"),
+    "friction ramp": (('friction_vm = "1e-3 m/s"', 'friction_vm = "1e-5 m/s"'), "contact.friction_vm",
+                      "1e-5 m/s", "friction_vm > friction_v0"),
+    "missing mass": (('mass = "0.471 kg"\n', ""), "rocker6", "None", "missing required key"),
+    "worn file missing": (('axial_length = "20 mm"         # FILLED IN',
+                           'axial_length = "20 mm"\nsurfaces = "worn/nowhere.npz"'), "surfaces",
+                          "worn/nowhere.npz", "does not exist"),
+    "sensor body": (('body = "slider"\npoint', 'body = "carriage"\npoint'), "sensor[0].body", "carriage",
+                    "expected one of"),
+    "unknown backend": (('backend = "sim"', 'backend = "usb"'), "hardware.backend", "usb", "expected one of"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MISTAKES))
+def test_broken_bench_gives_one_clear_error(case, tmp_path):
+    (old, new), key, value, expected = MISTAKES[case]
+    path = tmp_path / "broken.toml"
+    path.write_text(_broken(old, new))
+    with pytest.raises(BenchError) as info:
+        load_bench(path)
+    err = info.value
+    message = str(err)
+    assert str(path) in message
+    assert key in err.key, (err.key, message)
+    assert value in repr(err.value) or value == str(err.value), (err.value, message)
+    assert expected in err.expected, message
+
+
+def test_unreadable_file_names_it(tmp_path):
+    with pytest.raises(BenchError, match="cannot read the bench file"):
+        load_bench(tmp_path / "missing.toml")
+
+
+def test_parse_text_without_file():
+    bench = parse_bench(NINEBAR.read_text())
+    assert bench.path is None and bench.name == "ninebar"
+
+
+def test_mechanism_that_does_not_assemble(tmp_path):
+    """Link 8 shorter than the distance from D to the guide: the loop cannot close."""
+    from wearbench.model import build_scene
+
+    path = tmp_path / "short-link8.toml"
+    path.write_text(_broken('length = "0.45 m"', 'length = "0.10 m"'))
+    bench = load_bench(path)  # every value is valid on its own
+    with pytest.raises(BenchError) as info:
+        build_scene(bench)
+    assert str(path) in str(info.value) and "assembl" in str(info.value)

@@ -1,0 +1,46 @@
+"""The command line: one entry point whose help lists every subcommand, each with its own help."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from wearbench.cli import COMMANDS, main
+from wearbench.hardware.bench import shipped_bench
+
+
+def test_help_lists_every_subcommand(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    for name in COMMANDS:
+        assert name in out
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_each_subcommand_has_useful_help(name, capsys):
+    with pytest.raises(SystemExit) as info:
+        main([name, "--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert f"wearbench {name}" in out
+    assert "not built yet" not in out
+    assert len(out.splitlines()) >= 6
+
+
+def test_bench_check_reports_degrees_of_freedom(capsys):
+    assert main(["bench", "check", str(shipped_bench("ninebar"))]) == 0
+    out = capsys.readouterr().out
+    assert "ok" in out and "4 degrees of freedom" in out
+
+
+def test_user_error_is_one_line_and_exit_2(tmp_path):
+    broken = tmp_path / "broken.toml"
+    broken.write_text(shipped_bench("ninebar").read_text().replace('length = "0.40 m"', 'length = "-0.4 m"', 1))
+    proc = subprocess.run([sys.executable, "-m", "wearbench.cli", "bench", "check", str(broken)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and str(broken) in proc.stderr and "positive length" in proc.stderr
