@@ -1,4 +1,7 @@
-"""`wearbench compare`: placeholder until its issue lands (see 'issues')."""
+"""`wearbench compare`: score recorded sessions against theory and write a report.
+
+Thin front of ``wearbench.validation.compare.compare_sessions``; prints the summary table.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +9,82 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("compare", help="(not built yet)")
+    p = sub.add_parser(
+        "compare", help="score session MCAPs against theory; write report.html, scores.json and figures",
+        description="Align, filter and score five-cycle windows of recorded sessions against the theory "
+        "(simulated from the bench file in each session at its measured speed, clearances and wear state, "
+        "or given with --theory), and write report.html (self-contained), scores.json and PNG figures.")
+    p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="recorded session file(s)")
+    p.add_argument("--out", default="report", help="output folder (default: report/)")
+    p.add_argument("--theory", action="append", metavar="RUN.parquet",
+                   help="simulation results table to compare with instead of simulating; once for all "
+                        "sessions or once per session, in order")
+    p.add_argument("--filter", default="cfc180",
+                   help="cfc60|cfc180|cfc600|cfc1000, butter:CUTOFF_HZ[:ORDER] or none (default cfc180)")
+    p.add_argument("--windows", default="all", help="all | random:COUNT[:SEED] (default all)")
+    p.add_argument("--cycles", type=int, default=5, help="crank cycles per window (default 5)")
+    p.add_argument("--max-shift", type=float, default=0.2, metavar="CYCLES",
+                   help="residual time-shift search, fraction of a crank cycle, < 0.5 (default 0.2)")
+    p.add_argument("--dtw-band", type=float, default=0.05, metavar="CYCLES",
+                   help="DTW band half-width, fraction of a crank cycle (default 0.05)")
+    p.add_argument("--no-shift", action="store_true", help="report the residual shift but do not remove it")
+    p.add_argument("--detrend", action="store_true", help="remove a linear trend before filtering")
+    p.add_argument("--keep-bias", action="store_true", help="do not subtract the mean (sensor bias)")
+    p.add_argument("--revolutions", type=float, default=3.0,
+                   help="revolutions to simulate when theory is simulated (default 3)")
+    p.add_argument("--contiguous-theory", action="store_true",
+                   help="compare with the theory's last revolutions in a row (simulate at least a window "
+                        "plus margins) instead of its last revolution repeated")
+    p.add_argument("--label", action="append", help="label per session (default: file name)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    raise RuntimeError("'wearbench compare' is not built yet")
+    from rich.console import Console
+    from rich.table import Table
+    from wearbench.cli.progress import progress
+    from wearbench.validation.compare import CompareOptions, compare_session
+    from wearbench.validation.cycles import parse_windows
+    from wearbench.validation.filters import parse_filter
+    from wearbench.validation.metrics import grade
+    from wearbench.validation.report import write_report
+
+    if args.cycles < 1:
+        raise ValueError(f"--cycles {args.cycles}: expected at least 1")
+    options = CompareOptions(
+        filter=parse_filter(args.filter, detrend=args.detrend, remove_bias=not args.keep_bias),
+        windows=parse_windows(args.windows, cycles=args.cycles), max_shift_cycles=args.max_shift,
+        dtw_band_cycles=args.dtw_band, apply_shift=not args.no_shift, revolutions=args.revolutions,
+        periodic_theory=not args.contiguous_theory)
+    theories = args.theory or [None]
+    if len(theories) == 1:
+        theories = theories * len(args.sessions)
+    if len(theories) != len(args.sessions):
+        raise ValueError(f"--theory given {len(args.theory)} times for {len(args.sessions)} sessions; "
+                         "give it once or once per session")
+    if args.label and len(args.label) != len(args.sessions):
+        raise ValueError(f"--label given {len(args.label)} times for {len(args.sessions)} sessions")
+    comparisons = []
+    with progress() as bar:
+        task = bar.add_task("compare", total=len(args.sessions), info="")
+        for i, (path, theory) in enumerate(zip(args.sessions, theories)):
+            bar.update(task, info=str(path))
+            comparisons.append(compare_session(path, theory, options=options,
+                                               label=args.label[i] if args.label else None))
+            bar.advance(task)
+    report = write_report(comparisons, args.out)
+    table = Table(title=f"{options.filter.label}; {options.windows.label}")
+    for col in ("session", "windows", "ISO R", "grade", "shift ms", "NRMSE", "corr", "S&G C"):
+        table.add_column(col, justify="left" if col == "session" else "right")
+    for c in comparisons:
+        s = c.summary
+        table.add_row(c.label, str(len(c.windows)),
+                      f"{s.loc['iso_rating', 'mean']:.3f} ± {s.loc['iso_rating', 'std']:.3f}",
+                      grade(s.loc["iso_rating", "mean"]),
+                      f"{1e3 * sum(w.shift_s for w in c.windows) / len(c.windows):+.2f}",
+                      f"{s.loc['nrmse', 'mean']:.3f}", f"{s.loc['correlation', 'mean']:.3f}",
+                      f"{s.loc['sg_comprehensive', 'mean']:.3f}")
+    console = Console()
+    console.print(table)
+    console.print(f"report: {report.html}  scores: {report.scores_json}")
+    return 0

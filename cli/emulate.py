@@ -1,14 +1,51 @@
-"""`wearbench emulate`: placeholder until its issue lands (see 'issues')."""
+"""`wearbench emulate BENCH.toml --serial`: run the bench emulator on a pseudo-terminal.
+
+Prints the port path on the first line and serves until Ctrl-C/SIGTERM. The ``[emulator]`` table of
+the bench file configures imperfections, truth and faults; ``--config FILE.json`` replaces it.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import sys
+from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("emulate", help="(not built yet)")
+    p = sub.add_parser("emulate", help="run an emulated bench device (serial protocol on a pty)",
+                       description="Run the emulated bench device of BENCH.toml: the serial protocol on a new "
+                       "pseudo-terminal. Prints the port path on the first line and serves until Ctrl-C. "
+                       "The bench file's [emulator] table sets imperfections, hidden truth and faults.")
+    p.add_argument("bench", type=Path, help="bench file (.toml)")
+    p.add_argument("--serial", action="store_true", required=True,
+                   help="serve the serial protocol on a new pseudo-terminal and print its path")
+    p.add_argument("--config", type=Path, help="JSON file replacing the bench's [emulator] table")
+    p.add_argument("--sent-log", type=Path, help="append every byte sent to the host to this file")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    raise RuntimeError("'wearbench emulate' is not built yet")
+    from wearbench.hardware.bench import load_bench
+    from wearbench.hardware.emulators.config import EmulatorConfig
+    from wearbench.hardware.emulators.serial_server import serve
+
+    bench = load_bench(args.bench)
+    if args.config is not None:
+        try:
+            table = json.loads(args.config.read_text())
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{args.config}: not JSON ({exc})") from None
+        config = EmulatorConfig.from_table(table, bench=bench, source=args.config)
+    else:
+        config = EmulatorConfig.from_bench(bench)
+
+    def announce(path: str) -> None:
+        print(path, flush=True)
+        print(f"wearbench emulate: {bench.name} serial emulator on {path} (Ctrl-C to stop)",
+              file=sys.stderr, flush=True)
+
+    if args.sent_log is None:
+        return serve(bench, config, announce=announce)
+    with open(args.sent_log, "ab") as log:
+        return serve(bench, config, announce=announce, sent_log=log)

@@ -1,14 +1,113 @@
-"""`wearbench record`: placeholder until its issue lands (see 'issues')."""
+"""`wearbench record`: run a bench session and write it to an MCAP file."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
+
+from wearbench.hardware.units import parse_quantity
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("record", help="(not built yet)")
+    p = sub.add_parser(
+        "record", help="record a bench session (motor, encoder, accelerometer) to MCAP",
+        description="Warm up to speed, record a number of crank cycles or a duration, ramp down, and "
+        "write everything to an MCAP file that stays readable whatever happens (Ctrl-C, a lost device, "
+        "a full disk).",
+        epilog="example: wearbench record ninebar-testbed.toml --speed 2pi --cycles 20 --out s.mcap "
+        "--clearance A=0.3mm,B=0.3mm --wear A=new,B=new --operator ana")
+    p.add_argument("bench", help="bench file (TOML), or the name of a shipped bench")
+    p.add_argument("--out", "-o", required=True, help="MCAP file to write")
+    p.add_argument("--speed", help="motor speed, e.g. 2pi (rad/s), 60rpm, 1Hz (default: the bench's)")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--cycles", type=float, help="crank revolutions to record")
+    what.add_argument("--duration", help="time to record, e.g. 30s, 2min")
+    p.add_argument("--backend", choices=["sim", "serial", "can", "canopen", "nidaqmx"],
+                   help="hardware backend (default: the bench file's [hardware] backend)")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="backend option overriding the bench file's [hardware.<backend>] table "
+                   "(e.g. port=/dev/ttyACM0, interface=socketcan, channel=can0; sim: speedup=inf runs "
+                   "as fast as the host can, config=EMULATOR.json); repeatable")
+    p.add_argument("--clearance", default="", help="mounted radial clearances, e.g. A=0.3mm,B=0.3mm")
+    p.add_argument("--wear", default="", help="wear state per joint, e.g. A=new,B=stage2.npz")
+    p.add_argument("--operator", default="", help="who ran the session")
+    p.add_argument("--settle", default="0.5s", help="time held at speed before recording (default 0.5s)")
     p.set_defaults(func=run)
 
 
+def _pairs(text: str, what: str) -> dict[str, str]:
+    out = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise ValueError(f"--{what} {text!r}: expected JOINT=VALUE[,JOINT=VALUE...], got {item!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _option_value(text: str):
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False}.get(text.lower(), text)
+
+
 def run(args: argparse.Namespace) -> int:
-    raise RuntimeError("'wearbench record' is not built yet")
+    from wearbench.acquisition.backends import open_rig
+    from wearbench.acquisition.recorder import Recorder, SessionPlan
+    from wearbench.cli.progress import progress
+    from wearbench.hardware.bench import load_bench, shipped_bench
+
+    path = Path(args.bench)
+    bench = load_bench(path if path.exists() or path.suffix else shipped_bench(args.bench))
+    speed = parse_quantity(args.speed, "angular_speed", bare_unit="rad/s") if args.speed else bench.speed
+    if not 0 < abs(speed) <= bench.motor.max_speed:
+        raise ValueError(f"--speed {args.speed}: {speed:.4g} rad/s; expected a non-zero speed of at most the "
+                         f"motor's max_speed {bench.motor.max_speed:.4g} rad/s ({bench.path})")
+    clearances = {j: parse_quantity(v, "length") for j, v in _pairs(args.clearance, "clearance").items()}
+    known = {j.name for j in bench.clearance_joints}
+    for j in (*clearances, *_pairs(args.wear, "wear")):
+        if j not in known:
+            raise ValueError(f"--clearance/--wear: {bench.name} has no clearance joint {j!r}; "
+                             f"expected one of {sorted(known)}")
+    plan = SessionPlan(
+        speed=speed, cycles=args.cycles,
+        duration=parse_quantity(args.duration, "time", bare_unit="s") if args.duration else None,
+        clearances=clearances, wear=_pairs(args.wear, "wear"), operator=args.operator,
+        settle=parse_quantity(args.settle, "time", bare_unit="s"))
+    options = {}
+    for item in args.option:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"--option {item!r}: expected KEY=VALUE")
+        options[key.strip()] = _option_value(value.strip())
+    rig = open_rig(bench.with_clearances(clearances) if clearances else bench, args.backend, options)
+    unit = "cycles" if plan.cycles is not None else "s"
+    with progress() as bar:
+        task = bar.add_task(f"record {bench.name}", total=plan.cycles or plan.duration, info="")
+
+        def show(p) -> None:
+            done = p.cycles if plan.cycles is not None else p.elapsed
+            bar.update(task, completed=min(done, p.target), description=f"{p.phase:9s}",
+                       info=f"{done:.1f} {unit}  {p.sample_rate / 1e3:.1f} kS/s  dropped {p.dropped}")
+
+        try:
+            result = Recorder(rig, bench, plan, args.out, on_progress=show).run()
+        finally:
+            rig.close()
+        done = result.cycles if plan.cycles is not None else result.duration
+        bar.update(task, completed=min(done, plan.cycles or plan.duration), description="done     ")
+    drops = sum(result.dropped_samples.values())
+    repeats = sum(result.repeated_blocks.values())
+    print(f"{args.out}: {result.reason}; {result.cycles:.2f} cycles in {result.duration:.2f} s, "
+          f"{result.samples.get('acceleration', 0)} acceleration samples, "
+          f"{result.samples.get('encoder', 0)} encoder samples, dropped {drops} samples, "
+          f"repeated {repeats} blocks, {result.malformed} malformed frames")
+    if not result.completed:
+        print(f"wearbench record: session stopped early: {result.reason} (the file is complete up to "
+              "that point)", file=sys.stderr)
+        return 130 if result.reason.startswith("interrupted") else 1
+    return 0

@@ -1,0 +1,531 @@
+"""The session recorder: warm-up, steady speed, record, ramp down, and a valid MCAP whatever happens.
+
+Threads: one reader per acceleration source (``source.read`` -> bounded queue), one writer (queue
+-> :class:`SessionWriter`, counts dropped and repeated block sequence numbers), and the calling
+thread, which commands the drive, polls its state and watches the stop conditions. Any thread
+that fails calls :meth:`Recorder.stop` with the reason; the first reason wins, is written as an
+event, and every path ends in ``SessionWriter.finish``. Imports no backend library.
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+import queue
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib.metadata import version
+from pathlib import Path
+from typing import BinaryIO
+
+from wearbench.acquisition.drivers import (
+    ACCELERATION,
+    ENCODER,
+    Block,
+    DeviceDisconnected,
+    DeviceTimeout,
+    Event,
+    MotorState,
+    Rig,
+)
+from wearbench.acquisition.layout import Command
+from wearbench.acquisition.session_file import BENCH_ATTACHMENT
+from wearbench.acquisition.session_writer import SessionWriter
+from wearbench.hardware.bench import Bench
+
+__all__ = ["Progress", "Recorder", "SessionPlan", "SessionResult", "record_session"]
+
+
+@dataclass
+class SessionPlan:
+    """What to record. ``speed`` is the motor speed (rad/s); stop after ``cycles`` crank
+    revolutions or ``duration`` s of recording (device clock), whichever is given."""
+
+    speed: float
+    cycles: float | None = None
+    duration: float | None = None
+    acceleration: float | None = None  # ramp, rad/s^2 (None: the bench motor's max_acceleration)
+    settle: float = 0.5  # s held at speed before recording starts
+    speed_tolerance: float = 0.02  # relative: steady when |speed - target| < tol * |target|
+    clearances: dict[str, float] = field(default_factory=dict)  # m, as mounted
+    wear: dict[str, str] = field(default_factory=dict)  # joint -> label or surfaces file
+    operator: str = ""
+    silence_timeout: float = 2.0  # s (rig clock) without a block: the device stopped answering
+    state_interval: float = 0.05  # s (rig clock) between drive state polls
+    max_malformed: int = 100  # malformed frames tolerated before the session stops
+
+    def __post_init__(self) -> None:
+        if (self.cycles is None) == (self.duration is None):
+            raise ValueError("a session needs exactly one of cycles or duration")
+        if self.speed == 0:
+            raise ValueError("speed = 0 rad/s: a session needs the crank turning")
+
+
+@dataclass
+class Progress:
+    cycles: float = 0.0
+    elapsed: float = 0.0  # s of recording, device clock
+    target: float = 0.0  # cycles or seconds, as planned
+    sample_rate: float = 0.0  # Hz, acceleration samples per host second, recent
+    dropped: int = 0  # samples lost (sequence gaps x block size)
+    phase: str = "start"
+
+
+@dataclass
+class SessionResult:
+    path: Path | None
+    reason: str  # "completed" or why it stopped
+    completed: bool
+    cycles: float
+    duration: float  # s recorded, device clock
+    blocks: dict[str, int]
+    samples: dict[str, int]
+    dropped_blocks: dict[str, int]
+    dropped_samples: dict[str, int]
+    repeated_blocks: dict[str, int]
+    malformed: int
+    events: int
+    writer_cpu: float = 0.0  # s of CPU used by the writer thread
+    reader_cpu: float = 0.0  # s of CPU used by the reader threads
+
+
+class _SequenceCheck:
+    """Dropped and repeated block sequence numbers of one stream, counted, never hidden."""
+
+    def __init__(self) -> None:
+        self.last: int | None = None
+        self.block_size = 0
+        self.blocks = self.samples = self.dropped = self.dropped_samples = self.repeated = 0
+
+    def check(self, block: Block) -> str | None:
+        n = len(block.samples)
+        self.blocks += 1
+        self.samples += n
+        self.block_size = max(self.block_size, n)
+        note = None
+        if self.last is not None:
+            gap = block.sequence - self.last - 1
+            if gap > 0:
+                self.dropped += gap
+                self.dropped_samples += gap * self.block_size
+                note = f"{block.stream}: {gap} block(s) missing before sequence {block.sequence}"
+            elif gap < 0:
+                self.repeated += 1
+                note = f"{block.stream}: sequence {block.sequence} repeated or out of order (after {self.last})"
+        self.last = block.sequence if self.last is None else max(self.last, block.sequence)
+        return note
+
+
+class Recorder:
+    """Runs one session on ``rig`` and writes it to ``out`` (a path or an unbuffered binary file)."""
+
+    def __init__(self, rig: Rig, bench: Bench, plan: SessionPlan, out: str | Path | BinaryIO, *,
+                 on_progress: Callable[[Progress], None] | None = None, queue_size: int = 4096,
+                 writer: SessionWriter | None = None):
+        self.rig, self.bench, self.plan = rig, bench, plan
+        self.writer = writer or SessionWriter(out)
+        self.on_progress = on_progress
+        self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
+        self._stop = threading.Event()  # the session should end
+        self._halt = threading.Event()  # the readers should end (after the ramp-down)
+        self._reason: str | None = None
+        self._reason_lock = threading.Lock()
+        self._recording = threading.Event()
+        self._writer_done = threading.Event()
+        self._checks = {ACCELERATION: _SequenceCheck(), ENCODER: _SequenceCheck()}
+        self._units: dict[str, str] = {}
+        self._malformed = 0
+        self._events = 0
+        self._cpu: dict[str, float] = {}
+        self._acc_rate = (0.0, time.monotonic(), 0)  # (rate, t, samples at t)
+        self._device_now: float | None = None  # latest device time seen (drive state)
+        self._overflow: list = []
+        self._lost = 0  # items the writer could not encode
+        self._signal: str | None = None  # SIGINT/SIGTERM seen by the handler
+
+    # ---- stopping ---------------------------------------------------------------------------
+
+    def stop(self, reason: str, kind: str = "stop") -> None:
+        """Ask the session to stop; the first reason is the one recorded."""
+        with self._reason_lock:
+            if self._reason is None:
+                self._reason = reason
+                self._post(Event(kind, reason, device_time=self._device_now))
+        self._stop.set()
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        self._signal = signal.Signals(signum).name
+
+    def _check_signal(self) -> None:
+        if self._signal is not None:
+            self.stop(f"interrupted ({self._signal})", "interrupt")
+
+    @property
+    def reason(self) -> str | None:
+        return self._reason
+
+    def _post(self, item: object) -> None:
+        """Queue an item for the writer; never blocks (events and states are small)."""
+        try:
+            self._queue.put_nowait(item)
+        except queue.Full:
+            self._overflow.append(item)  # written by _finish
+
+    # ---- threads ----------------------------------------------------------------------------
+
+    def _reader(self, source) -> None:
+        last_block = self.rig.clock.now()  # silence counts on the bench's clock (sim: device time)
+        try:
+            while not self._halt.is_set():
+                items = source.read(timeout=0.1)
+                now = self.rig.clock.now()
+                if any(isinstance(i, Block) for i in items):
+                    last_block = now
+                elif now - last_block > self.plan.silence_timeout:
+                    raise DeviceTimeout(f"{source.name}: no data for {now - last_block:.1f} s")
+                recording = self._recording.is_set()
+                for item in items:
+                    if isinstance(item, Block):
+                        if item.host_time == 0.0:
+                            item.host_time = time.time()
+                        if not recording:
+                            continue
+                    elif item.device_time is None:
+                        item.device_time = self._device_now
+                    if isinstance(item, Event) and item.kind == "malformed":
+                        self._malformed += 1
+                        if self._malformed > self.plan.max_malformed:
+                            self._post(item)
+                            self.stop(f"{source.name}: more than {self.plan.max_malformed} malformed "
+                                      f"frames ({item.message})", "error")
+                            return
+                    try:
+                        self._queue.put(item, timeout=self.plan.silence_timeout)
+                    except queue.Full:
+                        self.stop("the writer cannot keep up: the recording queue stayed full", "error")
+                        return
+        except DeviceDisconnected as exc:
+            self.stop(f"device disconnected: {exc}", "error")
+        except DeviceTimeout as exc:
+            self.stop(f"device stopped answering: {exc}", "error")
+        except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
+            self.stop(f"{source.name} reader failed: {type(exc).__name__}: {exc}", "error")
+        finally:
+            self._cpu[f"reader:{source.name}"] = time.thread_time()
+
+    def _write(self, item: object) -> None:
+        w = self.writer
+        if isinstance(item, Block):
+            note = self._checks[item.stream].check(item)
+            w.write_block(item, self._units.get(item.stream, ""))
+            if note:
+                self._events += 1
+                w.write_event(Event("drop" if "missing" in note else "repeat", note,
+                                    device_time=item.device_time))
+        elif isinstance(item, MotorState):
+            w.write_state(item)
+        elif isinstance(item, Command):
+            w.write_command(item)
+        elif isinstance(item, Event):
+            self._events += 1
+            w.write_event(item)
+
+    def _writer_loop(self) -> None:
+        failures = 0
+        try:
+            while True:
+                try:
+                    item = self._queue.get(timeout=0.1)
+                except queue.Empty:
+                    if self._writer_done.is_set():
+                        break
+                    continue
+                try:
+                    self._write(item)
+                except OSError as exc:
+                    # the item is in the writer; the bytes that failed wait in memory for a retry
+                    failures += 1
+                    what = "disk full" if exc.errno == errno.ENOSPC else "writing the session failed"
+                    if failures == 1:
+                        self.stop(f"{what}: {exc}", "error")
+                        freed = self.writer.release_ballast()
+                        self._post(Event("error", f"{what}; {'released the ballast file and ' if freed else ''}"
+                                         "finishing the file with what was recorded", device_time=self._device_now))
+                except Exception as exc:  # noqa: BLE001 - one bad item must not end the writer
+                    self._lost += 1
+                    self.stop(f"writer failed: {type(exc).__name__}: {exc}", "error")
+        finally:
+            self._cpu["writer"] = time.thread_time()
+
+    # ---- the session ------------------------------------------------------------------------
+
+    def _metadata(self) -> dict[str, dict[str, str]]:
+        b, p = self.bench, self.plan
+        session = {"bench": b.name, "bench_sha256": b.sha256, "operator": p.operator,
+                   "software": f"wearbench {version('wearbench')}", "backend": self.rig.backend,
+                   "speed_rad_s": repr(p.speed), "started_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+        session["target"] = f"{p.cycles} cycles" if p.cycles is not None else f"{p.duration} s"
+        if b.path is not None:
+            session["bench_path"] = str(Path(b.path).resolve())
+        clearance = {j.name: repr(p.clearances.get(j.name, j.clearance.radial_clearance))
+                     for j in b.clearance_joints}
+        clearance.update({k: repr(v) for k, v in p.clearances.items()})
+        wear = {j.name: p.wear.get(j.name, str(j.clearance.surfaces) if j.clearance.surfaces else "new")
+                for j in b.clearance_joints}
+        wear.update(p.wear)
+        calibration: dict[str, str] = {}
+        for s in b.sensors:
+            calibration.update({f"{s.kind}.name": s.name, f"{s.kind}.sample_rate": repr(s.sample_rate)})
+            if s.kind == "accelerometer":
+                calibration.update({"accelerometer.range": repr(s.range), "accelerometer.axis": repr(s.axis),
+                                    "accelerometer.sensitivity": repr(s.sensitivity),
+                                    "accelerometer.body": s.body, "accelerometer.point": s.point})
+            else:
+                calibration.update({"encoder.joint": s.joint, "encoder.counts_per_rev": str(s.counts_per_rev)})
+        try:
+            s0 = self._poll()
+            cpr = float(calibration.get("encoder.counts_per_rev", 0) or 0)
+            if cpr:
+                calibration["encoder.angle_offset"] = repr(s0.angle - s0.counts * 2 * math.pi / cpr)
+        except Exception as exc:  # noqa: BLE001 - a drive that cannot answer shows up again in _run
+            calibration["encoder.angle_offset"] = f"unknown ({exc})"
+        for source in self.rig.sources:
+            for info in source.describe():
+                self._units[info.name] = info.unit
+                calibration[f"{info.name}.stream"] = (f"{info.unit} {info.dtype}{list(info.shape) or ''} "
+                                                      f"at {info.sample_rate:g} Hz from {info.source or source.name}")
+                calibration.update({f"{info.name}.{k}": v for k, v in info.extra.items()})
+        return {"session": session, "clearance": clearance, "wear": wear, "calibration": calibration,
+                "hardware": {"backend": self.rig.backend, **self.rig.info}}
+
+    def _command(self, command: str, speed: float | None = None, acceleration: float | None = None) -> None:
+        self._post(Command(command, speed, acceleration, time.time()))
+        drive = self.rig.drive
+        if command == "enable":
+            drive.enable()
+        elif command == "disable":
+            drive.disable()
+        elif command == "stop":
+            drive.stop(acceleration)
+        else:
+            drive.set_speed(speed, acceleration)
+
+    def _poll(self) -> MotorState:
+        s = self.rig.drive.state()
+        if s.host_time == 0.0:
+            s = MotorState(**{**s.__dict__, "host_time": time.time()})
+        self._device_now = s.device_time
+        self._post(s)
+        return s
+
+    def _progress(self, prog: Progress) -> None:
+        rate, t0, n0 = self._acc_rate
+        now, n = time.monotonic(), self._checks[ACCELERATION].samples
+        if now - t0 > 0.5:
+            rate = (n - n0) / (now - t0)
+            self._acc_rate = (rate, now, n)
+        prog.sample_rate = rate
+        prog.dropped = sum(c.dropped_samples for c in self._checks.values())
+        if self.on_progress:
+            self.on_progress(prog)
+
+    def _wait(self, seconds: float, prog: Progress, until: Callable[[MotorState], bool] | None = None) -> MotorState | None:
+        """Poll the drive for ``seconds`` of the rig's clock (or until ``until``); None if stopped."""
+        clock = self.rig.clock
+        end = clock.now() + seconds
+        while True:
+            self._check_signal()
+            if self._stop.is_set():
+                return None
+            s = self._poll()
+            if s.fault:
+                self.stop(f"drive fault: {s.fault}", "fault")
+                return None
+            self._progress(prog)
+            if (until is not None and until(s)) or clock.now() >= end:
+                return s
+            clock.sleep(self.plan.state_interval)
+
+    def _crank_ratio(self) -> float:
+        """Speed ratio of the encoder's crank to the motor (1 without an encoder driver)."""
+        try:
+            joint = self.bench.sensor("encoder").joint
+        except KeyError:
+            return 1.0
+        return next((d.ratio for d in self.bench.drivers if d.joint == joint), 1.0)
+
+    def _run(self, prog: Progress) -> None:
+        p, rig = self.plan, self.rig
+        acc = p.acceleration or self.bench.motor.max_acceleration
+        prog.target = p.cycles if p.cycles is not None else p.duration
+        for source in rig.sources:
+            accel = self.bench.sensor("accelerometer")
+            source.configure(accel.range, accel.sample_rate)
+        self._command("enable")
+        for source in rig.sources:
+            source.start()
+        prog.phase = "warm-up"
+        self._post(Event("phase", f"warm-up: ramp to {p.speed:.4g} rad/s at {acc:.4g} rad/s^2",
+                         device_time=self._device_now))
+        self._command("set_speed", p.speed, acc)
+        ramp = abs(p.speed) / acc
+        crank = self._crank_ratio() * p.speed  # the drive reports the encoder crank's speed
+        s = self._wait(2 * ramp + 5.0, prog,
+                       until=lambda s: abs(s.speed - crank) <= p.speed_tolerance * abs(crank))
+        if s is None:
+            return
+        if abs(s.speed - crank) > p.speed_tolerance * abs(crank):
+            self.stop(f"the motor did not reach {p.speed:.4g} rad/s within {2 * ramp + 5:.3g} s "
+                      f"(crank speed {s.speed:.4g} rad/s, expected {crank:.4g}): stalled?", "fault")
+            return
+        if self._wait(p.settle, prog) is None:
+            return
+        prog.phase = "record"
+        self._recording.set()
+        start = self._poll()
+        self._post(Event("phase", f"record: steady at {start.speed:.4g} rad/s", device_time=start.device_time))
+        while not self._stop.is_set():
+            s = self._wait(0.0, prog)
+            if s is None:
+                return
+            prog.cycles = abs(s.angle - start.angle) / (2 * math.pi)  # revolutions of the encoder crank
+            prog.elapsed = s.device_time - start.device_time
+            if (p.cycles is not None and prog.cycles >= p.cycles) or (
+                    p.duration is not None and prog.elapsed >= p.duration):
+                self.stop("completed", "phase")
+                return
+            rig.clock.sleep(p.state_interval)
+
+    def _shutdown(self, prog: Progress) -> None:
+        self._recording.clear()
+        prog.phase = "ramp-down"
+        drive, clock = self.rig.drive, self.rig.clock
+        acc = self.plan.acceleration or self.bench.motor.max_acceleration
+        ramp = abs(self.plan.speed) / acc
+        try:
+            self._command("stop", None, acc)
+            end, clock_end = time.monotonic() + ramp + 3.0, clock.now() + ramp + 1.0
+            while time.monotonic() < end and clock.now() < clock_end:  # bounded on both clocks
+                if abs(self._poll().speed) < 1e-3:
+                    break
+                clock.sleep(self.plan.state_interval)
+            self._command("disable")
+        except Exception as exc:  # noqa: BLE001 - a dead drive cannot ramp down; the file still gets finished
+            self._post(Event("error", f"ramp-down: {type(exc).__name__}: {exc}", device_time=self._device_now))
+            try:
+                drive.disable()
+            except Exception as exc2:  # noqa: BLE001 - any failure ends the session cleanly
+                self._post(Event("error", f"disable: {type(exc2).__name__}: {exc2}"))
+        for source in self.rig.sources:
+            try:
+                source.stop()
+            except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
+                self._post(Event("error", f"{source.name}: stopping the stream: {type(exc).__name__}: {exc}"))
+
+    def run(self) -> SessionResult:
+        """Record the session; returns why it ended. Installs SIGINT/SIGTERM handlers when on
+        the main thread so Ctrl-C stops the session cleanly instead of tearing it."""
+        old = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):  # the handler only notes the signal: it
+                old[sig] = signal.signal(sig, self._on_signal)  # must not take a lock the main thread holds
+        try:
+            self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml", self.bench.source.encode())})
+            prog = Progress()
+            readers = [threading.Thread(target=self._reader, args=(s,), name=f"reader-{s.name}", daemon=True)
+                       for s in self.rig.sources]
+            writer = threading.Thread(target=self._writer_loop, name="writer", daemon=True)
+            writer.start()
+            started = False
+            try:
+                for t in readers:
+                    t.start()
+                started = True
+                self._run(prog)
+            except KeyboardInterrupt:
+                self.stop("interrupted (KeyboardInterrupt)", "interrupt")
+            except DeviceDisconnected as exc:
+                self.stop(f"device disconnected: {exc}", "error")
+            except DeviceTimeout as exc:
+                self.stop(f"device stopped answering: {exc}", "error")
+            except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
+                self.stop(f"session failed: {type(exc).__name__}: {exc}", "error")
+            self._check_signal()
+            self.stop("stopped", "stop")  # no-op when a reason is already set
+            self._shutdown(prog)
+            self._halt.set()
+            if started:
+                for t in readers:
+                    t.join(timeout=5.0)
+            self._writer_done.set()
+            writer.join(timeout=30.0)
+            return self._finish(prog)
+        finally:
+            for sig, handler in old.items():
+                signal.signal(sig, handler)
+
+    def _result(self, prog: Progress) -> SessionResult:
+        c = self._checks
+        return SessionResult(
+            path=self.writer.path, reason=self._reason or "stopped", completed=self._reason == "completed",
+            cycles=prog.cycles, duration=prog.elapsed,
+            blocks={k: v.blocks for k, v in c.items()}, samples={k: v.samples for k, v in c.items()},
+            dropped_blocks={k: v.dropped for k, v in c.items()},
+            dropped_samples={k: v.dropped_samples for k, v in c.items()},
+            repeated_blocks={k: v.repeated for k, v in c.items()}, malformed=self._malformed,
+            events=self._events, writer_cpu=self._cpu.get("writer", 0.0),
+            reader_cpu=sum(v for k, v in self._cpu.items() if k.startswith("reader")))
+
+    def _finish(self, prog: Progress) -> SessionResult:
+        """Write what is still queued, the result record and the summary; a full disk gets one
+        more try after the ballast is released."""
+        w = self.writer
+        pending = []
+        while True:
+            try:
+                pending.append(self._queue.get_nowait())
+            except queue.Empty:
+                break
+        pending += self._overflow
+        while pending:
+            item = pending.pop(0)
+            try:
+                self._write(item)
+            except OSError:
+                pass  # accepted: its bytes wait in the file's backlog for w.finish()
+            except Exception:  # noqa: BLE001 - an item that cannot be encoded is counted, not fatal
+                self._lost += 1
+        r = self._result(prog)
+        try:
+            w.add_metadata("result", {
+                "reason": r.reason, "completed": str(r.completed), "cycles": repr(r.cycles),
+                "duration_s": repr(r.duration), "malformed_frames": str(r.malformed),
+                "lost_items": str(self._lost),
+                **{f"{k}.{name}": str(v) for name, d in (("blocks", r.blocks), ("samples", r.samples),
+                                                          ("dropped_blocks", r.dropped_blocks),
+                                                          ("dropped_samples", r.dropped_samples),
+                                                          ("repeated_blocks", r.repeated_blocks))
+                   for k, v in d.items()}})
+        except OSError:
+            pass  # accepted, as above
+        for attempt in range(2):
+            try:
+                w.finish()
+                return r
+            except OSError:
+                if attempt:
+                    raise  # the file is valid up to its last complete chunk: 'wearbench recover'
+                w.release_ballast()
+        raise AssertionError("unreachable")
+
+
+def record_session(rig: Rig, bench: Bench, plan: SessionPlan, out: str | Path | BinaryIO,
+                   **kwargs) -> SessionResult:
+    """Record one session on ``rig`` to ``out`` and close the rig."""
+    try:
+        return Recorder(rig, bench, plan, out, **kwargs).run()
+    finally:
+        rig.close()

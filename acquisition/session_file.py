@@ -1,0 +1,273 @@
+"""Reading a session MCAP back: :func:`read_session` (the shared contract) and a tolerant scan.
+
+The scan walks the file record by record and keeps every complete record: a file cut short by a
+killed process, a torn last chunk or a missing summary end the walk, they do not fail it. Chunks
+are checked against their CRC, so a damaged chunk is reported, never decoded into garbage.
+
+Imports mcap, pandas and the layout; no backend library.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import zstandard
+from mcap.records import (
+    Attachment,
+    Channel,
+    Chunk,
+    DataEnd,
+    Footer,
+    Message,
+    Metadata,
+    Schema,
+    Statistics,
+)
+from mcap.stream_reader import StreamReader, breakup_chunk
+from wearbench.acquisition.drivers import ACCELERATION, ENCODER
+from wearbench.acquisition.layout import TOPICS, decode_block
+from wearbench.hardware.bench import Bench, BenchError, parse_bench
+
+__all__ = ["BENCH_ATTACHMENT", "Scan", "Session", "read_session", "scan_mcap"]
+
+BENCH_ATTACHMENT = "bench.toml"
+
+
+@dataclass
+class Scan:
+    """Every complete record of an MCAP file, in file order."""
+
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    messages: list[Message] = field(default_factory=list)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    attachments: list[Attachment] = field(default_factory=list)
+    chunks: int = 0  # complete chunks read
+    finished: bool = False  # the footer was reached
+    problem: str | None = None  # why the walk ended early, if it did
+
+    def topic(self, channel_id: int) -> str:
+        return self.channels[channel_id].topic if channel_id in self.channels else f"#{channel_id}"
+
+
+def _chunk_records(chunk: Chunk) -> list:
+    if chunk.compression == "zstd":
+        data = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+    elif chunk.compression == "":
+        data = chunk.data
+    else:
+        raise ValueError(f"unsupported chunk compression {chunk.compression!r}")
+    if len(data) != chunk.uncompressed_size:
+        raise ValueError(f"chunk holds {len(data)} bytes, header says {chunk.uncompressed_size}")
+    if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise ValueError("chunk CRC mismatch")
+    plain = Chunk(compression="", data=data, message_start_time=chunk.message_start_time,
+                  message_end_time=chunk.message_end_time, uncompressed_crc=0,
+                  uncompressed_size=len(data))
+    return breakup_chunk(plain)
+
+
+def scan_mcap(path: str | Path) -> Scan:
+    """Read every complete record of ``path``; never raises for a truncated or damaged tail."""
+    scan = Scan()
+    with open(path, "rb") as fh:
+        reader = StreamReader(fh, emit_chunks=True, record_size_limit=1 << 30)
+        footer = False
+        try:
+            for record in reader.records:
+                inner = [record]
+                if isinstance(record, Chunk):
+                    try:
+                        inner = _chunk_records(record)
+                    except Exception as exc:  # noqa: BLE001 - a damaged chunk ends the walk
+                        scan.problem = f"damaged chunk at the end of the data: {exc}"
+                        break
+                    scan.chunks += 1
+                for r in inner:
+                    if isinstance(r, Schema):
+                        scan.schemas[r.id] = r
+                    elif isinstance(r, Channel):
+                        scan.channels[r.id] = r
+                    elif isinstance(r, Message):
+                        scan.messages.append(r)
+                    elif isinstance(r, Metadata):
+                        scan.metadata[r.name] = dict(r.metadata)
+                    elif isinstance(r, Attachment):
+                        scan.attachments.append(r)
+                    elif isinstance(r, (DataEnd, Statistics)):
+                        pass
+                footer = footer or isinstance(record, Footer)
+            scan.finished = footer  # the records end after the footer and the closing magic
+        except Exception as exc:  # noqa: BLE001 - truncated record, bad magic, garbage: keep what was read
+            scan.problem = f"file ends early ({type(exc).__name__}: {exc})".replace(" ()", "")
+    if not scan.finished and scan.problem is None:
+        scan.problem = "file ends without a footer"
+    return scan
+
+
+@dataclass
+class Session:
+    """A recorded session (see the contract in COMMON.md); times in s, SI values."""
+
+    path: Path
+    bench: Bench | None
+    metadata: dict[str, dict[str, str]]
+    clearances: dict[str, float]
+    wear_state: dict[str, str]
+    acceleration: pd.DataFrame  # time, host_time, acc, sequence
+    encoder: pd.DataFrame  # time, angle, speed, index, sequence
+    events: pd.DataFrame  # time, kind, message
+    motor: pd.DataFrame  # time, host_time, angle, speed, counts, index_count, enabled, fault
+    finished: bool  # False: the file was not finished (killed process); read what was complete
+    problem: str | None
+    quality: dict[str, dict[str, int]]  # per stream: blocks, samples, dropped, repeated
+    origin: float  # device time (s) of time 0
+    host_origin: float  # host time (s, Unix) of time 0
+
+
+def _blocks(scan: Scan, stream: str):
+    topic = TOPICS[stream]
+    ids = {cid for cid, c in scan.channels.items() if c.topic == topic}
+    return [decode_block(stream, m.data) for m in scan.messages if m.channel_id in ids]
+
+
+def _dedupe(blocks, stream: str, quality: dict) -> list:
+    """Sorted by sequence, repeated sequence numbers kept once; counts gaps and repeats."""
+    blocks = sorted(blocks, key=lambda b: b.sequence)
+    kept, dropped, repeated = [], 0, 0
+    for b in blocks:
+        if kept and b.sequence == kept[-1].sequence:
+            repeated += 1
+            continue
+        if kept:
+            dropped += b.sequence - kept[-1].sequence - 1
+        kept.append(b)
+    quality[stream] = {"blocks": len(kept), "samples": int(sum(len(b.samples) for b in kept)),
+                       "dropped": dropped, "repeated": repeated}
+    return kept
+
+
+def _sample_frame(blocks, origin: float, host_origin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if not blocks:
+        return np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64)
+    n = np.array([len(b.samples) for b in blocks])
+    start = np.repeat([b.device_time - origin for b in blocks], n)
+    rate = np.repeat([b.sample_rate for b in blocks], n)
+    first = np.repeat(np.cumsum(n) - n, n)
+    pos = np.arange(n.sum()) - first
+    time = start + pos / rate
+    host = np.repeat([b.host_time - host_origin for b in blocks], n)
+    seq = np.repeat([b.sequence for b in blocks], n).astype(np.int64)
+    return time, host, seq
+
+
+def _unwrap_counts(counts: np.ndarray) -> np.ndarray:
+    c = counts.astype(np.int64)
+    if len(c) < 2:
+        return c
+    step = np.diff(c)
+    step = (step + 2**31) % 2**32 - 2**31  # int32 wrap-around
+    return np.concatenate([[c[0]], c[0] + np.cumsum(step)])
+
+
+def _speed(angle: np.ndarray, t: np.ndarray, half: int = 5) -> np.ndarray:
+    """Crank speed (rad/s): central difference over +-``half`` samples (one count of quantisation
+    then costs 1/(2 half) of what it costs between neighbours); plain gradient at the ends."""
+    if len(t) < 2:
+        return np.zeros(len(t))
+    speed = np.gradient(angle, t)
+    if len(t) > 2 * half:
+        speed[half:-half] = (angle[2 * half:] - angle[:-2 * half]) / (t[2 * half:] - t[:-2 * half])
+    return speed
+
+
+def _float(record: dict[str, str], key: str, default: float) -> float:
+    try:
+        return float(record[key])
+    except (KeyError, ValueError):
+        return default
+
+
+def _bench(text: str, meta: dict, path: Path) -> tuple[Bench | None, str | None]:
+    """The recorded bench, its relative file names (worn surfaces) taken from where the bench file
+    was when recorded, else from beside the session file; (None, why) if neither works."""
+    error = None
+    for where in (meta.get("session", {}).get("bench_path"), f"{path.parent / BENCH_ATTACHMENT}"):
+        if where:
+            try:
+                return parse_bench(text, where), None
+            except BenchError as exc:
+                error = exc
+    return None, f"the recorded bench does not load here: {error}"
+
+
+def read_session(path: str | Path) -> Session:
+    """Read the session MCAP at ``path``; an unfinished file gives everything that was complete.
+
+    Raises ValueError when the file holds no wearbench session at all.
+    """
+    path = Path(path)
+    scan = scan_mcap(path)
+    if not scan.channels and not scan.metadata:
+        raise ValueError(f"{path}: no wearbench session in this file ({scan.problem or 'empty'})")
+    meta = scan.metadata
+    bench, problem = None, scan.problem
+    for a in scan.attachments:
+        if a.name == BENCH_ATTACHMENT:
+            bench, bench_problem = _bench(a.data.decode(), meta, path)
+            problem = "; ".join(filter(None, (problem, bench_problem))) or None
+    clearances = {k: float(v) for k, v in meta.get("clearance", {}).items()}
+    wear_state = dict(meta.get("wear", {}))
+    calib = meta.get("calibration", {})
+
+    quality: dict[str, dict[str, int]] = {}
+    acc_blocks = _dedupe(_blocks(scan, ACCELERATION), ACCELERATION, quality)
+    enc_blocks = _dedupe(_blocks(scan, ENCODER), ENCODER, quality)
+    firsts = acc_blocks or enc_blocks
+    origin = min((b.device_time for b in firsts), default=0.0)
+    host_origin = min((b.host_time for b in firsts), default=0.0)
+
+    t, h, seq = _sample_frame(acc_blocks, origin, host_origin)
+    values = np.concatenate([b.samples for b in acc_blocks]).astype(np.float64) if acc_blocks else np.zeros(0)
+    acceleration = pd.DataFrame({"time": t, "host_time": h, "acc": values, "sequence": seq})
+
+    t, h, seq = _sample_frame(enc_blocks, origin, host_origin)
+    cpr = _float(calib, "encoder.counts_per_rev", 0.0)
+    if not cpr and bench is not None:
+        try:
+            cpr = float(bench.sensor("encoder").counts_per_rev)
+        except KeyError:
+            cpr = 0.0
+    counts = _unwrap_counts(np.concatenate([b.samples for b in enc_blocks])) if enc_blocks else np.zeros(0)
+    angle = counts * (2 * math.pi / cpr) + _float(calib, "encoder.angle_offset", 0.0) if cpr else counts * np.nan
+    speed = _speed(angle, t)
+    index = (np.concatenate([b.index for b in enc_blocks]) if enc_blocks else np.zeros(0, dtype=bool))
+    encoder = pd.DataFrame({"time": t, "angle": angle, "speed": speed, "index": index.astype(bool),
+                            "sequence": seq})
+
+    ev_rows, st_rows = [], []
+    for m in scan.messages:
+        topic = scan.topic(m.channel_id)
+        if topic == TOPICS["events"]:
+            e = json.loads(m.data)
+            dt = e.get("device_time")
+            ev_rows.append({"time": (dt - origin) if dt is not None else e["host_time"] - host_origin,
+                            "host_time": e["host_time"] - host_origin, "kind": e["kind"],
+                            "message": e["message"]})
+        elif topic == TOPICS["state"]:
+            s = json.loads(m.data)
+            st_rows.append({"time": s["device_time"] - origin, "host_time": s["host_time"] - host_origin,
+                            **{k: s[k] for k in ("angle", "speed", "counts", "index_count", "enabled", "fault")}})
+    events = pd.DataFrame(ev_rows, columns=["time", "host_time", "kind", "message"])
+    motor = pd.DataFrame(st_rows, columns=["time", "host_time", "angle", "speed", "counts", "index_count",
+                                           "enabled", "fault"])
+    return Session(path=path, bench=bench, metadata=meta, clearances=clearances, wear_state=wear_state,
+                   acceleration=acceleration, encoder=encoder, events=events, motor=motor,
+                   finished=scan.finished, problem=problem, quality=quality, origin=origin,
+                   host_origin=host_origin)

@@ -1,0 +1,222 @@
+"""Writing one session to MCAP so that whatever happens, what was recorded stays readable.
+
+- Small zstd chunks, closed at least every ``flush_interval`` seconds and handed to the OS, so a
+  process killed outright loses at most that much (``wearbench recover`` restores the rest).
+- Metadata and the bench file go in first, so even a killed session says what it was.
+- Writes go through :class:`DurableFile`, which never leaves half a record behind: a failed
+  write (a full disk) is cut back to the last whole record and kept in memory until it can be
+  written, so the file can still be finished once space is back; a small ballast file set aside
+  at the start gives that space back.
+
+Imports mcap and the layout; no backend library.
+"""
+
+from __future__ import annotations
+
+import errno
+import io
+import os
+import time
+from pathlib import Path
+from typing import BinaryIO
+
+from mcap.writer import CompressionType, IndexType, Writer
+from wearbench.acquisition.drivers import Block, Event, MotorState
+from wearbench.acquisition.layout import (
+    SCHEMAS,
+    TOPICS,
+    Command,
+    encode_block,
+    encode_command,
+    encode_event,
+    encode_state,
+    ns,
+)
+
+__all__ = ["BALLAST_BYTES", "PROFILE", "DurableFile", "SessionWriter"]
+
+PROFILE = "wearbench-session"
+BALLAST_BYTES = 4 << 20
+
+
+class DurableFile:
+    """An unbuffered binary file that never holds a torn record and never forgets a failed write.
+
+    A write that fails (ENOSPC, EIO) is cut back to the end of the last complete write and kept in
+    memory (the backlog); every later write first retries the backlog, so the file stays in order
+    and complete up to a record boundary. The failure is not raised into the mcap writer (whose
+    state would then be half-updated) but kept in ``error`` for :class:`SessionWriter` to report.
+    ``tell()`` counts the backlog, so the mcap indexes stay right once it is written.
+    Deliberately not an ``io.RawIOBase`` (mcap would wrap that in a BufferedWriter and split writes).
+    """
+
+    def __init__(self, raw: BinaryIO):
+        self._raw = raw
+        self._good = raw.tell()
+        self._backlog = bytearray()
+        self.error: OSError | None = None
+        self.closed = False
+
+    def _write_all(self, data) -> None:
+        view = memoryview(data).cast("B")
+        done = 0
+        try:
+            while done < len(view):
+                n = self._raw.write(view[done:])
+                if n is None or n <= 0:
+                    raise OSError(errno.EIO, "write made no progress")
+                done += n
+        except OSError:
+            try:
+                self._raw.seek(self._good)
+                self._raw.truncate(self._good)
+            except OSError:
+                pass
+            raise
+        self._good += done
+
+    def write(self, data) -> int:
+        with memoryview(data) as view:
+            n = view.nbytes
+        self._backlog += data
+        self.retry()
+        return n
+
+    def retry(self) -> bool:
+        """Write the backlog; True when nothing is left in memory."""
+        if self._backlog:
+            try:
+                self._write_all(bytes(self._backlog))
+                self._backlog.clear()
+            except OSError as exc:
+                self.error = exc
+        return not self._backlog
+
+    @property
+    def backlog(self) -> int:
+        return len(self._backlog)
+
+    def tell(self) -> int:
+        return self._good + len(self._backlog)
+
+    def flush(self) -> None:
+        self._raw.flush()
+
+    def fileno(self) -> int:
+        return self._raw.fileno()
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._raw.close()
+
+
+class SessionWriter:
+    """One MCAP session file: ``start``, then ``write_*``, then ``finish``.
+
+    ``out`` is a path or an unbuffered binary file object (tests pass one that fails on purpose).
+    """
+
+    def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int = 256 << 10,
+                 flush_interval: float = 0.5, ballast: bool = True):
+        if isinstance(out, (str, Path)):
+            self.path: Path | None = Path(out)
+            raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
+        else:
+            self.path, raw = None, out
+        self._file = DurableFile(raw)
+        # no message indexes: small chunks make them worth little; chunk indexes remain
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD,
+                              index_types=IndexType.CHUNK | IndexType.ATTACHMENT | IndexType.METADATA)
+        self._channels: dict[str, int] = {}
+        self._flush_interval = flush_interval
+        self._last_flush = time.monotonic()
+        self._ballast = None
+        if ballast and self.path is not None:
+            self._ballast = self.path.with_name(self.path.name + ".ballast")
+            try:
+                with open(self._ballast, "wb") as fh:
+                    fh.truncate(BALLAST_BYTES)
+                    os.posix_fallocate(fh.fileno(), 0, BALLAST_BYTES)
+            except (OSError, AttributeError):
+                pass  # no room for ballast or no fallocate: the session still records
+        self.finished = False
+        self._mcap_finished = False
+
+    def start(self, metadata: dict[str, dict[str, str]], attachments: dict[str, tuple[str, bytes]]) -> None:
+        """Header, schemas, channels, metadata records and attachments ``{name: (media_type, data)}``."""
+        self._writer.start(profile=PROFILE, library="wearbench")
+        for key, (name, schema) in SCHEMAS.items():
+            sid = self._writer.register_schema(name=name, encoding="jsonschema", data=schema)
+            self._channels[key] = self._writer.register_channel(TOPICS[key], "json", sid)
+        now = time.time_ns()
+        for name, (media_type, data) in attachments.items():
+            self._writer.add_attachment(create_time=now, log_time=now, name=name,
+                                        media_type=media_type, data=data)
+        for name, record in metadata.items():
+            self.add_metadata(name, record)
+        self.flush()
+
+    def add_metadata(self, name: str, record: dict[str, str]) -> None:
+        self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
+        self._raise()
+
+    def _raise(self) -> None:
+        """Report a write that failed (its bytes wait in the file's backlog)."""
+        error, self._file.error = self._file.error, None
+        if error is not None:
+            raise error
+
+    def _add(self, key: str, data: bytes, host_time: float, device_time: float | None,
+             sequence: int = 0) -> None:
+        self._writer.add_message(self._channels[key], log_time=ns(host_time), data=data,
+                                 publish_time=ns(device_time if device_time is not None else 0.0),
+                                 sequence=sequence & 0xFFFFFFFF)
+        if time.monotonic() - self._last_flush > self._flush_interval:
+            self.flush()
+        self._raise()
+
+    def write_block(self, block: Block, unit: str = "") -> None:
+        self._add(block.stream, encode_block(block, unit), block.host_time, block.device_time,
+                  block.sequence)
+
+    def write_state(self, state: MotorState) -> None:
+        self._add("state", encode_state(state), state.host_time, state.device_time)
+
+    def write_command(self, command: Command) -> None:
+        self._add("command", encode_command(command), command.host_time, None)
+
+    def write_event(self, event: Event) -> None:
+        self._add("events", encode_event(event), event.host_time, event.device_time)
+
+    def flush(self) -> None:
+        """Close the chunk in progress and hand everything to the OS."""
+        self._writer.flush()
+        self._last_flush = time.monotonic()
+        self._raise()
+
+    def release_ballast(self) -> bool:
+        """Delete the ballast file (after a full disk); True if there was one."""
+        if self._ballast is not None and self._ballast.exists():
+            self._ballast.unlink()
+            return True
+        return False
+
+    def finish(self) -> None:
+        """Write the summary and footer and close. Raises OSError while the file's backlog cannot
+        be written (a full disk); call again once there is room: nothing is lost in between."""
+        if self.finished:
+            return
+        if not self._mcap_finished:
+            self._writer.finish()
+            self._mcap_finished = True
+        if not self._file.retry():
+            self._raise()
+        self._file.flush()
+        try:
+            os.fsync(self._file.fileno())
+        except (OSError, io.UnsupportedOperation, AttributeError):
+            pass
+        self.finished = True
+        self._file.close()
+        self.release_ballast()

@@ -1,0 +1,276 @@
+"""The ``[emulator]`` table of a bench file: imperfections, hidden truth and fault injection.
+
+:class:`EmulatorConfig` is what :class:`~wearbench.hardware.emulators.device.BenchDevice` runs
+with. Every value is validated; a mistake raises :class:`~wearbench.hardware.bench.BenchError`
+naming the file, the key, the value and what was expected. Every imperfection can be switched off
+(0, "0 ppm", false, or leaving the key out: the defaults are a clean device). Fault times count
+from the first START_STREAM. Imports only the bench module.
+
+Example::
+
+    [emulator]
+    signal = "model"            # "model" | "harmonic" (test pattern) | "white" (shaker) | "none"
+    [emulator.accelerometer]
+    noise = "0.05 m/s^2"        # white noise std
+    bias = "0.2 m/s^2"
+    clipping = true             # clip at the configured full-scale range
+    adc_bits = 16               # 0 = no quantisation (float samples)
+    drift = "40 ppm"            # sample clock runs fast by this much
+    resonance = "1.5 kHz"       # mounting transfer: slider structural resonance (second order)
+    damping = 0.05
+    [emulator.motor]
+    ripple = 0.01               # relative speed ripple, harmonic per motor revolution below
+    ripple_harmonic = 1
+    [emulator.encoder]
+    index = true
+    index_angle = "0 deg"       # crank angle of the index pulse
+    [emulator.truth]            # what the device really has, whatever the host claims
+    clearances = { A = "0.32 mm", B = "0.28 mm" }
+    wear = { A = "worn-A.npz" } # worn surfaces (JointSurfaces .npz, relative to the bench file)
+    wear_stage = "first wear"
+    accel_delay = "0.5 ms"      # accelerometer signal delay behind the crank angle
+    [emulator.faults]
+    drop_rate = 0.001           # fraction of stream blocks lost
+    corrupt_rate = 0.001        # fraction of serial frames with one byte flipped
+    disconnect_after = "5 s"    # the link dies this long after streaming starts
+    stall_at = "3 s"            # the motor stalls (latched fault)
+    bus_off_at = "2 s"          # CAN controller goes bus-off ...
+    bus_off_duration = "0.2 s"  # ... for this long
+    reply_delay = "0.3 s"       # every command reply is late by this much
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from wearbench.hardware.bench import Bench, _Reader
+
+__all__ = [
+    "SIGNALS",
+    "Accelerometer",
+    "EmulatorConfig",
+    "EncoderImperfections",
+    "Faults",
+    "MotorImperfections",
+    "Truth",
+]
+
+SIGNALS = ("model", "harmonic", "white", "none")
+
+
+@dataclass(frozen=True)
+class Accelerometer:
+    noise: float = 0.0        # m/s^2 std
+    bias: float = 0.0         # m/s^2
+    clipping: bool = True
+    adc_bits: int = 16        # 0 = off
+    drift: float = 0.0        # fraction (ppm * 1e-6), + = sample clock fast
+    resonance: float = 0.0    # Hz, 0 = no mounting transfer
+    damping: float = 0.05     # damping ratio of the mounting resonance
+    white_level: float = 10.0  # m/s^2 rms of the "white" test signal
+
+
+@dataclass(frozen=True)
+class MotorImperfections:
+    ripple: float = 0.0       # relative speed ripple amplitude
+    ripple_harmonic: int = 1  # ripple periods per motor revolution
+
+
+@dataclass(frozen=True)
+class EncoderImperfections:
+    index: bool = True
+    index_angle: float = 0.0  # rad, crank angle (encoder joint) at which the index pulse fires
+
+
+@dataclass(frozen=True)
+class Truth:
+    clearances: Mapping[str, float] = field(default_factory=dict)  # m, per joint; missing = bench's
+    wear: Mapping[str, Path] = field(default_factory=dict)         # worn surfaces per joint
+    wear_stage: str = ""
+    accel_delay: float = 0.0  # s
+
+
+@dataclass(frozen=True)
+class Faults:
+    drop_rate: float = 0.0
+    corrupt_rate: float = 0.0
+    disconnect_after: float | None = None  # s after stream start
+    stall_at: float | None = None
+    bus_off_at: float | None = None
+    bus_off_duration: float = 0.2
+    reply_delay: float = 0.0  # s
+
+
+@dataclass(frozen=True)
+class EmulatorConfig:
+    """Validated ``[emulator]`` table; ``table`` keeps the raw table (to hand to a subprocess)."""
+
+    seed: int = 0
+    signal: str = "model"
+    revolutions: float = 3.0       # model revolutions simulated; the last one is kept
+    accel_block: int = 200         # samples per accelerometer block
+    encoder_block: int = 10        # samples per encoder block
+    buffer: float = 2.0            # s of samples the device holds before it overruns
+    cache: bool = True             # keep model signal tables on disk
+    accelerometer: Accelerometer = field(default_factory=Accelerometer)
+    motor: MotorImperfections = field(default_factory=MotorImperfections)
+    encoder: EncoderImperfections = field(default_factory=EncoderImperfections)
+    truth: Truth = field(default_factory=Truth)
+    faults: Faults = field(default_factory=Faults)
+    table: Mapping[str, Any] = field(default_factory=dict, compare=False)
+
+    def to_table(self) -> dict[str, Any]:
+        """A raw ``[emulator]`` table (SI values with units) that :meth:`from_table` reads back equal."""
+        a, m, e, t, f = self.accelerometer, self.motor, self.encoder, self.truth, self.faults
+        faults: dict[str, Any] = {"drop_rate": f.drop_rate, "corrupt_rate": f.corrupt_rate,
+                                  "bus_off_duration": f"{f.bus_off_duration!r} s",
+                                  "reply_delay": f"{f.reply_delay!r} s"}
+        for name in ("disconnect_after", "stall_at", "bus_off_at"):
+            if getattr(f, name) is not None:
+                faults[name] = f"{getattr(f, name)!r} s"
+        return {
+            "seed": self.seed, "signal": self.signal, "revolutions": self.revolutions,
+            "accel_block": self.accel_block, "encoder_block": self.encoder_block,
+            "buffer": f"{self.buffer!r} s", "cache": self.cache,
+            "accelerometer": {"noise": f"{a.noise!r} m/s^2", "bias": f"{a.bias!r} m/s^2",
+                              "clipping": a.clipping, "adc_bits": a.adc_bits,
+                              "drift": f"{a.drift * 1e6!r} ppm", "resonance": f"{a.resonance!r} Hz",
+                              "damping": a.damping, "white_level": f"{a.white_level!r} m/s^2"},
+            "motor": {"ripple": m.ripple, "ripple_harmonic": m.ripple_harmonic},
+            "encoder": {"index": e.index, "index_angle": f"{e.index_angle!r} rad"},
+            "truth": {"clearances": {j: f"{c!r} m" for j, c in t.clearances.items()},
+                      "wear": {j: str(Path(p).resolve()) for j, p in t.wear.items()},
+                      "wear_stage": t.wear_stage, "accel_delay": f"{t.accel_delay!r} s"},
+            "faults": faults,
+        }
+
+    @classmethod
+    def from_bench(cls, bench: Bench) -> EmulatorConfig:
+        """The bench file's ``[emulator]`` table, validated (errors name the bench file)."""
+        return cls.from_table(bench.emulator, bench=bench)
+
+    @classmethod
+    def from_table(cls, table: Mapping[str, Any], *, bench: Bench | None = None,
+                   source: str | Path | None = None) -> EmulatorConfig:
+        """Validate a raw ``[emulator]`` table (as parsed from TOML or JSON)."""
+        src = source or (bench.path if bench is not None and bench.path else getattr(bench, "name", "<emulator>"))
+        r = _Reader(src)
+        data = r.table(dict(table), "emulator")
+        sections = {"accelerometer", "motor", "encoder", "truth", "faults"}
+        r.keys(data, "emulator", set(), {"seed", "signal", "revolutions", "accel_block",
+                                         "encoder_block", "buffer", "cache"} | sections)
+        for s in sections:
+            r.table(data.get(s, {}), f"emulator.{s}")
+        return cls(
+            seed=int(r.number(data, "emulator", "seed", low=0, default=0, integer=True)),
+            signal=r.text(data, "emulator", "signal", choices=SIGNALS, default="model"),
+            revolutions=r.number(data, "emulator", "revolutions", low=1.0, high=100.0, default=3.0),
+            accel_block=int(r.number(data, "emulator", "accel_block", low=1, high=2000, default=200, integer=True)),
+            encoder_block=int(r.number(data, "emulator", "encoder_block", low=1, high=1000, default=10,
+                                       integer=True)),
+            buffer=r.quantity(data, "emulator", "buffer", "time", positive=True, default=2.0),
+            cache=_flag(r, data, "emulator", "cache", True),
+            accelerometer=_accelerometer(r, data.get("accelerometer", {})),
+            motor=_motor(r, data.get("motor", {})),
+            encoder=_encoder(r, data.get("encoder", {})),
+            truth=_truth(r, data.get("truth", {}), bench),
+            faults=_faults(r, data.get("faults", {})),
+            table=dict(table),
+        )
+
+
+def _flag(r: _Reader, data: dict, key: str, name: str, default: bool) -> bool:
+    raw = data.get(name, default)
+    if not isinstance(raw, bool):
+        raise r.fail(f"{key}.{name}", raw, "expected true or false")
+    return raw
+
+
+def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
+    k = "emulator.accelerometer"
+    r.keys(d, k, set(), {"noise", "bias", "clipping", "adc_bits", "drift", "resonance", "damping", "white_level"})
+    bits = d.get("adc_bits", 16)
+    if bits is False:
+        bits = 0
+    d = {**d, "adc_bits": bits}
+    drift = r.quantity(d, k, "drift", "drift", default=0.0)
+    if abs(drift) > 1e-3:
+        raise r.fail(f"{k}.drift", d["drift"], "expected a sample-clock drift within +/-1000 ppm")
+    return Accelerometer(
+        noise=r.quantity(d, k, "noise", "acceleration", nonnegative=True, default=0.0),
+        bias=r.quantity(d, k, "bias", "acceleration", default=0.0),
+        clipping=_flag(r, d, k, "clipping", True),
+        adc_bits=int(r.number(d, k, "adc_bits", low=0, high=16, default=16, integer=True)),
+        drift=drift,
+        resonance=r.quantity(d, k, "resonance", "frequency", nonnegative=True, default=0.0),
+        damping=r.number(d, k, "damping", low=0.0, high=2.0, default=0.05, open_low=True),
+        white_level=r.quantity(d, k, "white_level", "acceleration", nonnegative=True, default=10.0),
+    )
+
+
+def _motor(r: _Reader, d: dict) -> MotorImperfections:
+    k = "emulator.motor"
+    r.keys(d, k, set(), {"ripple", "ripple_harmonic"})
+    return MotorImperfections(
+        ripple=r.number(d, k, "ripple", low=0.0, high=0.5, default=0.0),
+        ripple_harmonic=int(r.number(d, k, "ripple_harmonic", low=1, high=64, default=1, integer=True)),
+    )
+
+
+def _encoder(r: _Reader, d: dict) -> EncoderImperfections:
+    k = "emulator.encoder"
+    r.keys(d, k, set(), {"index", "index_angle"})
+    return EncoderImperfections(index=_flag(r, d, k, "index", True),
+                                index_angle=r.quantity(d, k, "index_angle", "angle", default=0.0))
+
+
+def _truth(r: _Reader, d: dict, bench: Bench | None) -> Truth:
+    k = "emulator.truth"
+    r.keys(d, k, set(), {"clearances", "wear", "wear_stage", "accel_delay"})
+    joints = {j.name: j for j in bench.clearance_joints} if bench is not None else None
+    clearances: dict[str, float] = {}
+    for name, raw in r.table(d.get("clearances", {}), f"{k}.clearances").items():
+        if joints is not None and name not in joints:
+            raise r.fail(f"{k}.clearances.{name}", raw, f"expected a clearance joint of the bench: {sorted(joints)}")
+        c = r.quantity({name: raw}, f"{k}.clearances", name, "length", positive=True)
+        if joints is not None and not c < joints[name].clearance.bearing_radius:
+            raise r.fail(f"{k}.clearances.{name}", raw,
+                         f"expected less than the bearing radius {joints[name].clearance.bearing_radius} m")
+        clearances[name] = c
+    base = bench.path.parent if bench is not None and bench.path else None
+    wear: dict[str, Path] = {}
+    for name, raw in r.table(d.get("wear", {}), f"{k}.wear").items():
+        if joints is not None and name not in joints:
+            raise r.fail(f"{k}.wear.{name}", raw, f"expected a clearance joint of the bench: {sorted(joints)}")
+        if not isinstance(raw, str) or not raw:
+            raise r.fail(f"{k}.wear.{name}", raw, "expected the path of a worn-surface .npz file")
+        p = Path(raw) if base is None or Path(raw).is_absolute() else base / raw
+        if not p.exists():
+            raise r.fail(f"{k}.wear.{name}", raw, f"expected a saved worn-surface file; {p} does not exist")
+        wear[name] = p
+    stage = d.get("wear_stage", "")
+    if not isinstance(stage, str):
+        raise r.fail(f"{k}.wear_stage", stage, "expected text (a wear stage label)")
+    return Truth(clearances, wear, stage, r.quantity(d, k, "accel_delay", "time", nonnegative=True, default=0.0))
+
+
+def _faults(r: _Reader, d: dict) -> Faults:
+    k = "emulator.faults"
+    r.keys(d, k, set(), {"drop_rate", "corrupt_rate", "disconnect_after", "stall_at", "bus_off_at",
+                         "bus_off_duration", "reply_delay"})
+
+    def when(name: str) -> float | None:
+        return r.quantity(d, k, name, "time", nonnegative=True) if name in d else None
+
+    return Faults(
+        drop_rate=r.number(d, k, "drop_rate", low=0.0, high=1.0, default=0.0),
+        corrupt_rate=r.number(d, k, "corrupt_rate", low=0.0, high=1.0, default=0.0),
+        disconnect_after=when("disconnect_after"),
+        stall_at=when("stall_at"),
+        bus_off_at=when("bus_off_at"),
+        bus_off_duration=r.quantity(d, k, "bus_off_duration", "time", positive=True, default=0.2),
+        reply_delay=r.quantity(d, k, "reply_delay", "time", nonnegative=True, default=0.0),
+    )

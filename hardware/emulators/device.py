@@ -1,0 +1,521 @@
+"""The emulated bench: motor drive with encoder, and the slider accelerometer (the device contract).
+
+:class:`BenchDevice` is transport-free: the serial and CAN emulators wrap it, the ``sim`` backend
+uses it directly. Time comes from ``clock`` (seconds, monotonic); :meth:`BenchDevice.read` returns
+every block completed up to the clock's now, so the device runs in real time under a wall clock and
+as fast as a test likes under a :class:`ManualClock`.
+
+Motor: the nominal speed ramps to the commanded speed at the acceleration limit; speed ripple of
+relative amplitude r at harmonic k of the motor angle gives the closed form
+``theta = theta_n + (r/k)(1 - cos k theta_n)``, ``omega = omega_n (1 + r sin k theta_n)``.
+Accelerometer chain per sample: model signal at the motor angle of the true sampling instant
+(minus the truth delay) -> mounting resonance (second-order low-pass, bilinear with pre-warping)
+-> bias -> noise -> clipping at the range -> ADC quantisation. The sample clock runs at
+``rate (1 + drift)`` while blocks are stamped at the nominal rate.
+Imports the bench, the protocol records and codes, config and signal; not the transports.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal as sps
+from wearbench.hardware.bench import Bench, Sensor
+from wearbench.hardware.emulators.config import EmulatorConfig
+from wearbench.hardware.emulators.signal import SignalTable, signal_table
+from wearbench.hardware.protocol.blocks import AccelBlock, EncoderBlock, MotorStatus
+from wearbench.hardware.protocol.messages import ErrorCode, FaultCode, counts_to_m_s2
+
+__all__ = [
+    "MAX_SAMPLE_RATE",
+    "MIN_SAMPLE_RATE",
+    "AccelBlock",
+    "BenchDevice",
+    "DeviceError",
+    "DeviceEvent",
+    "EncoderBlock",
+    "ManualClock",
+    "MonotonicClock",
+    "MotorStatus",
+]
+
+TWO_PI = 2 * math.pi
+MAX_SAMPLE_RATE = 200_000.0
+MIN_SAMPLE_RATE = 100.0
+
+
+class DeviceError(RuntimeError):
+    """A command the device refuses; ``code`` is the protocol :class:`ErrorCode`."""
+
+    def __init__(self, code: ErrorCode, message: str):
+        self.code = ErrorCode(code)
+        super().__init__(f"{self.code.name}: {message}")
+
+
+@dataclass(frozen=True)
+class DeviceEvent:
+    """A fault or event at device ``time`` (s)."""
+
+    time: float
+    code: FaultCode
+    message: str
+
+
+class ManualClock:
+    """A clock tests move by hand: ``clock.advance(0.5)``."""
+
+    def __init__(self, start: float = 0.0):
+        self.now = float(start)
+
+    def __call__(self) -> float:
+        return self.now
+
+    def advance(self, dt: float) -> float:
+        self.now += float(dt)
+        return self.now
+
+
+class MonotonicClock:
+    """Seconds since construction, from ``time.monotonic``."""
+
+    def __init__(self) -> None:
+        self._t0 = time.monotonic()
+
+    def __call__(self) -> float:
+        return time.monotonic() - self._t0
+
+
+@dataclass
+class _Segment:
+    """Nominal motion from ``t0``: ramp from ``omega0`` to ``target`` at ``accel`` (inf = at once)."""
+
+    t0: float
+    theta0: float
+    omega0: float
+    target: float
+    accel: float
+    table_speed: float  # speed of the signal table used (the last non-zero target)
+
+    def state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dt = np.asarray(t, dtype=np.float64) - self.t0
+        diff = self.target - self.omega0
+        if diff == 0 or math.isinf(self.accel):
+            return self.theta0 + self.target * dt, np.full_like(dt, self.target)
+        s = math.copysign(self.accel, diff)
+        tr = abs(diff) / self.accel
+        ramp = dt < tr
+        d1 = np.where(ramp, dt, tr)
+        theta = self.theta0 + self.omega0 * d1 + 0.5 * s * d1**2 + self.target * (dt - d1)
+        return theta, np.where(ramp, self.omega0 + s * dt, self.target)
+
+
+@dataclass
+class _Stream:
+    start: float      # device time of sample 0
+    rate: float       # nominal Hz
+    true_rate: float  # Hz of the clock that really samples
+    block: int
+    next_sample: int = 0
+    sequence: int = 0
+
+
+@dataclass
+class _Scheduled:
+    time: float
+    kind: str  # "speed" | "stall"
+    target: float = 0.0
+    accel: float = 0.0
+
+
+def _sensor(bench: Bench, kind: str, default: Sensor) -> Sensor:
+    """The bench's first sensor of ``kind``; a bench without one gets ``default`` (encoder on the
+    first driver: 4000 counts/rev at 1 kHz; accelerometer: 50 g at 10 kHz)."""
+    try:
+        return bench.sensor(kind)
+    except KeyError:
+        return default
+
+
+class BenchDevice:
+    """The emulated bench (see module docstring and the contract in helpers/COMMON.md)."""
+
+    def __init__(self, bench: Bench, config: EmulatorConfig | None = None, clock=None):
+        self.bench = bench
+        self.config = config if config is not None else EmulatorConfig.from_bench(bench)
+        self.clock = clock if clock is not None else MonotonicClock()
+        cfg = self.config
+        self._rng = np.random.default_rng([cfg.seed, 1])
+        self._fault_rng = np.random.default_rng([cfg.seed, 2])
+        enc = _sensor(bench, "encoder", Sensor("encoder", "encoder", 1000.0, counts_per_rev=4000))
+        acc = _sensor(bench, "accelerometer", Sensor("accelerometer", "accelerometer", 10000.0))
+        self.counts_per_rev = int(enc.counts_per_rev or 4000)
+        self.encoder_rate = float(enc.sample_rate)
+        driver = next((d for d in bench.drivers if d.joint == enc.joint), bench.drivers[0])
+        self._ratio, self._phase = float(driver.ratio), float(driver.phase)
+        self.range = float(acc.range or 50 * 9.80665)
+        self.sample_rate = float(acc.sample_rate)
+        self.enabled = False
+        self.fault: str | None = None
+        self._events: list[DeviceEvent] = []
+        self._scheduled: list[_Scheduled] = []
+        self._tables: dict[float, SignalTable] = {}
+        self._segments = [_Segment(0.0, 0.0, 0.0, 0.0, math.inf, float(bench.speed))]
+        self._accel: _Stream | None = None
+        self._encoder: _Stream | None = None
+        self._enc_last_k = 0
+        self._index_pulses = 0  # index pulses of the segments before the current one
+        self._first_stream: float | None = None
+        self._filter: tuple[np.ndarray, np.ndarray] | None = None
+        self._zi: np.ndarray | None = None
+        self._build_filter()
+
+    # ---- motor --------------------------------------------------------------------------------
+
+    def enable(self) -> None:
+        self._catch_up()
+        if self.fault:
+            raise DeviceError(ErrorCode.FAULT_ACTIVE, f"fault {self.fault!r} latched; clear it first")
+        self.enabled = True
+
+    def disable(self) -> None:
+        """Ramp to 0 at the maximum deceleration and unpower."""
+        self._catch_up()
+        self.enabled = False
+        self._command(self.clock(), 0.0, self.bench.motor.max_acceleration)
+
+    def stop(self) -> None:
+        """Ramp to 0 at the maximum deceleration (stays enabled); cancels a running profile."""
+        self._catch_up()
+        self._scheduled = [s for s in self._scheduled if s.kind != "speed"]
+        self._command(self.clock(), 0.0, self.bench.motor.max_acceleration)
+
+    def clear_fault(self) -> None:
+        self._catch_up()
+        self.fault = None
+
+    def set_speed(self, rad_per_s: float, acceleration: float | None = None) -> None:
+        """Ramp the motor to ``rad_per_s`` at ``acceleration`` (rad/s^2, default and cap: the motor's max)."""
+        self._catch_up()
+        speed, accel = self._check_motion(rad_per_s, acceleration)
+        self._scheduled = [s for s in self._scheduled if s.kind != "speed"]
+        self._command(self.clock(), speed, accel)
+
+    def set_profile(self, times: list[float], speeds: list[float], acceleration: float | None = None) -> None:
+        """Speed profile: at ``times[i]`` s from now ramp to ``speeds[i]`` rad/s."""
+        self._catch_up()
+        if len(times) != len(speeds) or not times:
+            raise DeviceError(ErrorCode.BAD_VALUE, "profile needs equal, non-empty lists of times and speeds")
+        if any(b < a for a, b in itertools.pairwise(times)) or times[0] < 0:
+            raise DeviceError(ErrorCode.BAD_VALUE, f"profile times {list(times)}: expected ascending, >= 0")
+        checked = [self._check_motion(v, acceleration) for v in speeds]
+        now = self.clock()
+        self._scheduled = [s for s in self._scheduled if s.kind != "speed"]
+        self._scheduled += [_Scheduled(now + t, "speed", v, a) for t, (v, a) in zip(times, checked)]
+        self._scheduled.sort(key=lambda s: s.time)
+        self._catch_up()
+
+    def motor_status(self) -> MotorStatus:
+        now = self._catch_up()
+        theta, omega = self._motion(np.array([now]))
+        counts, _ = self._encoder_state(theta)
+        seg = self._segments[-1]
+        index_count = self._index_pulses + self._pulses_in(seg, seg.t0, now) if self.config.encoder.index else 0
+        return MotorStatus(time=now, angle=float(self._phase + self._ratio * theta[0]),
+                           speed=float(self._ratio * omega[0]), counts=int(counts[0]),
+                           index_count=index_count, enabled=self.enabled, fault=self.fault)
+
+    def prepare(self, speed: float) -> SignalTable:
+        """Compute (or load) the signal table for motor ``speed`` now, so commanding it later is instant.
+
+        Speeds that agree to 5 significant digits share one table (computed at the rounded speed and
+        scaled by (speed/table speed)^2), so 2 pi, its float32 and its 1e-4 CAN encoding are one table.
+        """
+        key = float(f"{float(speed):.5g}")
+        if key not in self._tables:
+            kind = self.config.signal if self.config.signal != "white" else "none"
+            rate = max(20000.0, 2 * self.sample_rate)
+            self._tables[key] = signal_table(kind, self.bench, self.config.truth, key or 1.0,
+                                             revolutions=self.config.revolutions, rate=rate,
+                                             cache=self.config.cache)
+        return self._tables[key]
+
+    @property
+    def signal_description(self) -> str:
+        return self.prepare(self._segments[-1].table_speed).source
+
+    # ---- accelerometer ------------------------------------------------------------------------
+
+    def configure_accelerometer(self, range_m_s2: float, sample_rate_hz: float) -> None:
+        if self._accel is not None:
+            raise DeviceError(ErrorCode.BUSY, "stop the accelerometer stream before configuring it")
+        if not (math.isfinite(range_m_s2) and 0 < range_m_s2 <= 1e6):
+            raise DeviceError(ErrorCode.BAD_VALUE, f"range {range_m_s2!r} m/s^2: expected 0 < range <= 1e6")
+        if not (math.isfinite(sample_rate_hz) and MIN_SAMPLE_RATE <= sample_rate_hz <= MAX_SAMPLE_RATE):
+            raise DeviceError(ErrorCode.BAD_VALUE, f"sample rate {sample_rate_hz!r} Hz: expected "
+                              f"{MIN_SAMPLE_RATE:g}..{MAX_SAMPLE_RATE:g} Hz")
+        old = self.range, self.sample_rate
+        self.range, self.sample_rate = float(range_m_s2), float(sample_rate_hz)
+        try:
+            self._build_filter()
+        except DeviceError:
+            self.range, self.sample_rate = old
+            raise
+
+    @property
+    def lsb(self) -> float:
+        """m/s^2 per 16-bit count (range / 32768); an ADC with fewer bits steps in multiples of it."""
+        return self.range / 32768.0
+
+    def start_stream(self, accel: bool = True, encoder: bool = True) -> None:
+        now = self._catch_up()
+        if self._first_stream is None:
+            self._first_stream = now
+            f = self.config.faults
+            if f.stall_at is not None:
+                self._scheduled.append(_Scheduled(now + f.stall_at, "stall"))
+                self._scheduled.sort(key=lambda s: s.time)
+        if accel and self._accel is None:
+            drift = self.config.accelerometer.drift
+            self._accel = _Stream(now, self.sample_rate, self.sample_rate * (1 + drift), self.config.accel_block)
+            self._build_filter()
+        if encoder and self._encoder is None:
+            self._encoder = _Stream(now, self.encoder_rate, self.encoder_rate, self.config.encoder_block)
+            self._enc_last_k = int(self._encoder_state(self._motion(np.array([now]))[0])[1][0])
+
+    def stop_stream(self) -> None:
+        self._catch_up()
+        self._accel = self._encoder = None
+
+    @property
+    def streaming(self) -> tuple[bool, bool]:
+        """(accelerometer, encoder) streaming."""
+        return self._accel is not None, self._encoder is not None
+
+    def stream_time(self) -> float | None:
+        """Seconds since the first START_STREAM (fault times count from there), or None."""
+        return None if self._first_stream is None else self.clock() - self._first_stream
+
+    def read(self) -> list[AccelBlock | EncoderBlock]:
+        """Every block completed up to the clock's now, in time order (dropped blocks leave gaps)."""
+        now = self._catch_up()
+        out: list[AccelBlock | EncoderBlock] = []
+        if self._accel is not None:
+            out += self._read_accel(now)
+        if self._encoder is not None:
+            out += self._read_encoder(now)
+        out.sort(key=lambda b: b.time)
+        self._trim(now)
+        return out
+
+    def events(self) -> list[DeviceEvent]:
+        """Faults and events since the last call."""
+        self._catch_up()
+        ev, self._events = self._events, []
+        return ev
+
+    # ---- internals ----------------------------------------------------------------------------
+
+    def _check_motion(self, speed: float, acceleration: float | None) -> tuple[float, float]:
+        if self.fault:
+            raise DeviceError(ErrorCode.FAULT_ACTIVE, f"fault {self.fault!r} latched; clear it first")
+        if not self.enabled:
+            raise DeviceError(ErrorCode.NOT_ENABLED, "enable the drive first")
+        m = self.bench.motor
+        if not (math.isfinite(speed) and abs(speed) <= m.max_speed * (1 + 1e-9)):
+            raise DeviceError(ErrorCode.BAD_VALUE, f"speed {speed!r} rad/s: expected |speed| <= {m.max_speed:g}")
+        accel = m.max_acceleration if not acceleration else float(acceleration)
+        if not (math.isfinite(accel) and accel > 0):
+            raise DeviceError(ErrorCode.BAD_VALUE, f"acceleration {acceleration!r} rad/s^2: expected > 0")
+        if speed != 0:
+            self.prepare(speed)
+        return float(speed), min(accel, m.max_acceleration)
+
+    def _pulses_in(self, seg: _Segment, a: float, b: float) -> int:
+        """Index pulses while ``seg`` runs from ``a`` to ``b``: every crossing counts, both directions
+        (the angle turns back only where a ramp passes through zero speed)."""
+        times = [a, b]
+        if not math.isinf(seg.accel) and seg.omega0 * seg.target < 0:
+            tz = seg.t0 + abs(seg.omega0) / seg.accel
+            if a < tz < b:
+                times.insert(1, tz)
+        theta, _ = self._ripple(*seg.state(np.array(times)))
+        return int(np.abs(np.diff(self._encoder_state(theta)[1])).sum())
+
+    def _command(self, t: float, target: float, accel: float) -> None:
+        theta, omega = self._motion(np.array([t]))
+        last = self._segments[-1]
+        self._index_pulses += self._pulses_in(last, last.t0, t)
+        table_speed = target if target != 0 else last.table_speed
+        self._segments.append(_Segment(t, float(theta[0]), float(omega[0]), target, accel, table_speed))
+
+    def _catch_up(self) -> float:
+        """Apply scheduled profile points and faults that are due; returns now."""
+        now = self.clock()
+        while self._scheduled and self._scheduled[0].time <= now:
+            s = self._scheduled.pop(0)
+            if s.kind == "stall":
+                self._command(s.time, 0.0, math.inf)
+                self.fault, self.enabled = "stall", False
+                self._scheduled = [x for x in self._scheduled if x.kind != "speed"]
+                self._events.append(DeviceEvent(s.time, FaultCode.STALL, "motor stalled: speed collapsed "
+                                                "while commanded; drive disabled"))
+            elif not self.fault:
+                self._command(s.time, s.target, s.accel)
+        return now
+
+    def _nominal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        starts = np.array([s.t0 for s in self._segments])
+        idx = np.searchsorted(starts, t, side="right") - 1
+        idx = np.clip(idx, 0, len(self._segments) - 1)
+        theta = np.empty_like(t)
+        omega = np.empty_like(t)
+        tspeed = np.empty_like(t)
+        for i in np.unique(idx):
+            m = idx == i
+            seg = self._segments[i]
+            theta[m], omega[m] = seg.state(t[m])
+            tspeed[m] = seg.table_speed
+        return theta, omega, tspeed
+
+    def _motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Motor angle (rad, 0 at power-up) and speed (rad/s) at device times ``t``, with ripple."""
+        theta, omega, _ = self._nominal(np.asarray(t, dtype=np.float64))
+        return self._ripple(theta, omega)
+
+    def _ripple(self, theta: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nominal motion to motion with speed ripple (closed form, module docstring)."""
+        r, k = self.config.motor.ripple, self.config.motor.ripple_harmonic
+        if r:
+            theta, omega = theta + (r / k) * (1 - np.cos(k * theta)), omega * (1 + r * np.sin(k * theta))
+        return theta, omega
+
+    def _encoder_state(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        counts = np.floor(self._ratio * theta * (self.counts_per_rev / TWO_PI) + 1e-9).astype(np.int64)
+        phi = self._phase + self._ratio * theta
+        k = np.floor((phi - self.config.encoder.index_angle) / TWO_PI).astype(np.int64)
+        return counts, k
+
+    def _trim(self, now: float) -> None:
+        """Forget motion segments no stream will evaluate again (all pending samples are later)."""
+        t = now
+        for s in (self._accel, self._encoder):
+            if s is not None:
+                t = min(t, s.start + s.next_sample / s.true_rate)
+        t -= self.config.truth.accel_delay + 0.01
+        while len(self._segments) > 1 and self._segments[1].t0 <= t:
+            self._segments.pop(0)
+
+    def _blocks_due(self, s: _Stream, now: float) -> int:
+        """Complete blocks whose last sample's true time is <= now, after handling an overrun."""
+        available = math.floor((now - s.start) * s.true_rate + 1e-9) + 1 if now >= s.start else 0
+        due = available // s.block - s.sequence
+        keep = max(1, math.ceil(self.config.buffer * s.rate / s.block))
+        if due > keep:
+            lost = due - keep
+            s.sequence += lost
+            s.next_sample += lost * s.block
+            self._events.append(DeviceEvent(now, FaultCode.OVERRUN,
+                                            f"device buffer overrun: {lost} blocks of {s.block} samples lost"))
+            self._zi = None
+            due = keep
+        return max(0, due)
+
+    def _dropped(self) -> bool:
+        rate = self.config.faults.drop_rate
+        return bool(rate) and self._fault_rng.random() < rate
+
+    def _read_accel(self, now: float) -> list[AccelBlock]:
+        s = self._accel
+        due = self._blocks_due(s, now)
+        out = []
+        chunk = max(1, 20000 // s.block)
+        while due > 0:
+            nb = min(due, chunk)
+            n = nb * s.block
+            k = s.next_sample + np.arange(n)
+            t_true = s.start + k / s.true_rate
+            values = self._accel_samples(t_true)
+            for b in range(nb):
+                seq = s.sequence + b
+                if self._dropped():
+                    continue
+                t = round((s.start + (s.next_sample + b * s.block) / s.rate) * 1e9) / 1e9
+                out.append(AccelBlock(seq, t, s.rate, values[b * s.block:(b + 1) * s.block]))
+            s.sequence += nb
+            s.next_sample += n
+            due -= nb
+        return out
+
+    def _accel_samples(self, t_true: np.ndarray) -> np.ndarray:
+        cfg = self.config.accelerometer
+        if self.config.signal == "white":
+            x = self._rng.normal(0.0, cfg.white_level, t_true.size)
+        else:
+            t = t_true - self.config.truth.accel_delay
+            theta_n, omega_n, tspeed = self._nominal(t)
+            theta, omega = self._ripple(theta_n, omega_n)
+            x = np.empty_like(t)
+            for sp in np.unique(tspeed):
+                m = tspeed == sp
+                x[m] = self.prepare(sp).at(theta[m], omega[m])
+        if self._filter is not None:
+            b, a = self._filter
+            if self._zi is None:
+                self._zi = sps.lfilter_zi(b, a) * x[0]
+            x, self._zi = sps.lfilter(b, a, x, zi=self._zi)
+        x = x + cfg.bias
+        if cfg.noise:
+            x = x + self._rng.normal(0.0, cfg.noise, x.size)
+        if cfg.clipping:
+            x = np.clip(x, -self.range, self.range)
+        if cfg.adc_bits:
+            half = 2 ** (cfg.adc_bits - 1)
+            lsb = self.range / half
+            counts = np.rint(x / lsb)
+            if cfg.clipping:
+                counts = np.clip(counts, -half, half - 1)
+            return counts_to_m_s2(counts * 2 ** (16 - cfg.adc_bits), self.lsb)
+        return x.astype(np.float32)
+
+    def _build_filter(self) -> None:
+        fr, zeta = self.config.accelerometer.resonance, self.config.accelerometer.damping
+        self._zi = None
+        if not fr:
+            self._filter = None
+            return
+        fs = self.sample_rate
+        if fr >= 0.45 * fs:
+            raise DeviceError(ErrorCode.BAD_VALUE, f"mounting resonance {fr:g} Hz needs a sample rate above "
+                              f"{fr / 0.45:g} Hz, the accelerometer samples at {fs:g} Hz")
+        wn = 2 * fs * math.tan(math.pi * fr / fs)  # pre-warped so the peak lands at fr
+        self._filter = sps.bilinear([wn**2], [1.0, 2 * zeta * wn, wn**2], fs)
+
+    def _read_encoder(self, now: float) -> list[EncoderBlock]:
+        s = self._encoder
+        due = self._blocks_due(s, now)
+        if not due:
+            return []
+        n = due * s.block
+        k = s.next_sample + np.arange(n)
+        t = s.start + k / s.rate
+        theta, _ = self._motion(t)
+        counts, idx_k = self._encoder_state(theta)
+        prev = np.concatenate(([self._enc_last_k], idx_k[:-1]))
+        index = (idx_k != prev) & self.config.encoder.index
+        self._enc_last_k = int(idx_k[-1])
+        out = []
+        for b in range(due):
+            sl = slice(b * s.block, (b + 1) * s.block)
+            seq = s.sequence + b
+            if self._dropped():
+                continue
+            t0 = round((s.start + (s.next_sample + b * s.block) / s.rate) * 1e9) / 1e9
+            out.append(EncoderBlock(seq, t0, s.rate, counts[sl].astype(np.int32), index[sl].copy()))
+        s.sequence += due
+        s.next_sample += n
+        return out
+

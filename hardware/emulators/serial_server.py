@@ -1,0 +1,250 @@
+"""The serial emulator: a :class:`BenchDevice` speaking the framed protocol on a pseudo-terminal.
+
+:func:`serve` runs in its own process (``wearbench emulate BENCH.toml --serial``); it prints the
+port path and answers until SIGTERM/SIGINT or an injected disconnect. :func:`start_serial_emulator`
+starts that process from Python and returns (process, port path). Injected faults: late replies
+(``reply_delay``), corrupted frames (``corrupt_rate``: one byte of the frame flipped), dropped blocks
+(by the device), a disconnect ``disconnect_after`` s into streaming (the pty closes, the process
+exits with code 3), a stalled motor (EVENT frame). ``sent_log`` receives every byte written, so a
+test can parse exactly what was sent. Imports the device, config and the protocol; POSIX only.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import tty
+from collections.abc import Mapping
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+from wearbench.hardware.bench import Bench, load_bench
+from wearbench.hardware.emulators.config import EmulatorConfig
+from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, DeviceError, EncoderBlock
+from wearbench.hardware.protocol import messages as m
+from wearbench.hardware.protocol.frames import FrameParser
+
+__all__ = ["DISCONNECT_EXIT", "SerialEmulator", "serve", "start_serial_emulator"]
+
+DISCONNECT_EXIT = 3
+_OUT_LIMIT = 8 << 20  # bytes queued for a host that does not read before the device overruns
+
+
+class SerialEmulator:
+    """The protocol engine: host bytes in, device bytes out (no I/O; :func:`serve` does the pty)."""
+
+    def __init__(self, device: BenchDevice):
+        self.device = device
+        self.parser = FrameParser()
+        self._seq = 0
+        self._delayed: list[tuple[float, bytes]] = []
+        cfg = device.config
+        self._rng = np.random.default_rng([cfg.seed, 3])
+        self.disconnected = False
+
+    def _frame(self, msg: m.Message, corruptible: bool = True) -> bytes:
+        data = msg.frame(self._seq)
+        self._seq = (self._seq + 1) & 0xFFFF
+        rate = self.device.config.faults.corrupt_rate
+        if corruptible and rate and self._rng.random() < rate:
+            buf = bytearray(data)
+            i = int(self._rng.integers(len(buf)))
+            buf[i] ^= 1 << int(self._rng.integers(8))
+            data = bytes(buf)
+        return data
+
+    def receive(self, data: bytes) -> bytes:
+        """Handle host bytes; returns the replies due now (late ones are queued)."""
+        out = bytearray()
+        now = time.monotonic()
+        for frame in self.parser.feed(data):
+            replies = b"".join(self._frame(r) for r in self._handle(frame))
+            delay = self.device.config.faults.reply_delay
+            if delay:
+                self._delayed.append((now + delay, replies))
+            else:
+                out += replies
+        return bytes(out)
+
+    def _handle(self, frame) -> list[m.Message]:
+        d = self.device
+        try:
+            msg = m.decode(frame)
+        except m.ProtocolError:
+            known = frame.type in m.MessageType._value2member_map_
+            code = m.ErrorCode.BAD_LENGTH if known else m.ErrorCode.UNKNOWN_COMMAND
+            return [m.Ack(frame.type, frame.sequence, code)]
+        replies: list[m.Message] = []
+        try:
+            if isinstance(msg, m.GetInfo):
+                replies.append(m.Info(m.PROTOCOL_VERSION, d.counts_per_rev, d.config.accel_block,
+                                      d.config.encoder_block, f"wearbench emulator {d.bench.name}"))
+            elif isinstance(msg, m.Enable):
+                d.enable()
+            elif isinstance(msg, m.Disable):
+                d.disable()
+            elif isinstance(msg, m.SetSpeed):
+                d.set_speed(msg.speed, msg.acceleration or None)
+            elif isinstance(msg, m.SetProfile):
+                d.set_profile(list(msg.times), list(msg.speeds), msg.acceleration or None)
+            elif isinstance(msg, m.Stop):
+                d.stop()
+            elif isinstance(msg, m.ConfigureAccel):
+                d.configure_accelerometer(msg.range, msg.sample_rate)
+            elif isinstance(msg, m.StartStream):
+                d.start_stream(accel=bool(msg.mask & 1), encoder=bool(msg.mask & 2))
+            elif isinstance(msg, m.StopStream):
+                d.stop_stream()
+            elif isinstance(msg, m.GetStatus):
+                replies.append(self.status())
+            elif isinstance(msg, m.ClearFault):
+                d.clear_fault()
+            else:
+                return [m.Ack(frame.type, frame.sequence, m.ErrorCode.UNKNOWN_COMMAND)]
+        except DeviceError as exc:
+            return [m.Ack(frame.type, frame.sequence, exc.code)]
+        return replies + [m.Ack(frame.type, frame.sequence, m.ErrorCode.OK)]
+
+    def status(self) -> m.Status:
+        d = self.device
+        s = d.motor_status()
+        acc, enc = d.streaming
+        flags = int(s.enabled) | int(acc) << 1 | int(enc) << 2
+        fault = m.FaultCode[s.fault.upper()] if s.fault else m.FaultCode.NONE
+        return m.Status(s.time, s.angle, s.speed, s.counts, s.index_count, flags, fault, d.range, d.sample_rate)
+
+    def block_message(self, block: AccelBlock | EncoderBlock) -> m.Message:
+        if isinstance(block, EncoderBlock):
+            return m.EncoderData(block.sequence, block.time, block.sample_rate, block.counts, block.index)
+        cfg = self.device.config.accelerometer
+        lsb = self.device.lsb
+        if not cfg.adc_bits:
+            return m.AccelData(block.sequence, block.time, block.sample_rate, 1.0, m.SampleFormat.FLOAT32,
+                               block.samples)
+        counts = np.rint(block.samples.astype(np.float64) / float(np.float32(lsb)))
+        fmt = m.SampleFormat.INT16 if cfg.clipping else m.SampleFormat.INT32
+        return m.AccelData(block.sequence, block.time, block.sample_rate, lsb, fmt, counts)
+
+    def poll(self) -> bytes:
+        """Stream blocks, events and late replies that are due now."""
+        out = bytearray()
+        now = time.monotonic()
+        while self._delayed and self._delayed[0][0] <= now:
+            out += self._delayed.pop(0)[1]
+        for block in self.device.read():
+            out += self._frame(self.block_message(block))
+        for ev in self.device.events():
+            out += self._frame(m.Event(ev.time, ev.code, ev.message))
+        after = self.device.config.faults.disconnect_after
+        st = self.device.stream_time()
+        if after is not None and st is not None and st >= after:
+            out += self._frame(m.Event(self.device.clock(), m.FaultCode.DISCONNECT, "link going down (injected)"),
+                               corruptible=False)
+            self.disconnected = True
+        return bytes(out)
+
+
+def serve(bench: Bench, config: EmulatorConfig | None = None, *, announce=print,
+          sent_log: BinaryIO | None = None, period: float = 0.002) -> int:
+    """Run the serial emulator on a new pty until SIGTERM/SIGINT (returns 0) or an injected disconnect (3)."""
+    device = BenchDevice(bench, config)
+    device.prepare(bench.speed)
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)
+    engine = SerialEmulator(device)
+    stop = {"flag": False}
+
+    def on_signal(signum, frame):
+        stop["flag"] = True
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    announce(os.ttyname(slave))
+    out = bytearray()
+    try:
+        while not stop["flag"]:
+            r, _w, _ = select.select([master], [master] if out else [], [], period)
+            if r:
+                try:
+                    data = os.read(master, 65536)
+                except (BlockingIOError, InterruptedError):
+                    data = b""
+                if data:
+                    out += engine.receive(data)
+            out += engine.poll()
+            if len(out) > _OUT_LIMIT:  # host not reading: the device's UART buffer overruns
+                del out[:len(out) - _OUT_LIMIT // 2]
+            if out:
+                try:
+                    n = os.write(master, out)
+                except (BlockingIOError, InterruptedError):
+                    n = 0
+                if sent_log is not None and n:
+                    sent_log.write(out[:n])
+                del out[:n]
+            if engine.disconnected and not out:
+                return DISCONNECT_EXIT
+        return 0
+    finally:
+        if sent_log is not None:
+            sent_log.flush()
+        os.close(master)
+        os.close(slave)
+
+
+def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None = None, *,
+                          sent_log: str | Path | None = None, timeout: float = 120.0
+                          ) -> tuple[subprocess.Popen, str]:
+    """Start ``wearbench emulate BENCH --serial`` in its own process; returns (process, port path).
+
+    ``config`` (an :class:`EmulatorConfig` or a raw ``[emulator]`` table) replaces the bench file's
+    table. The caller terminates the process (``proc.terminate(); proc.wait()``). ``timeout`` covers
+    the first model signal table, which may be computed at start-up.
+    """
+    if bench.path is not None:
+        on_file = {j.name: j.clearance for j in load_bench(bench.path).clearance_joints}
+        if on_file != {j.name: j.clearance for j in bench.clearance_joints}:
+            raise ValueError(f"{bench.path}: the bench was changed in memory (clearances); the emulator process "
+                             "reads the file, so give the device its clearances with [emulator.truth] instead")
+    tmp = Path(tempfile.mkdtemp(prefix="wearbench-emu-"))
+    bench_path = bench.path if bench.path is not None else tmp / f"{bench.name}.toml"
+    if bench.path is None:
+        bench_path.write_text(bench.source)
+    cmd = [sys.executable, "-m", "wearbench.cli", "emulate", str(bench_path), "--serial"]
+    if config is not None:
+        table = config.to_table() if isinstance(config, EmulatorConfig) else dict(config)
+        cfg_path = tmp / "emulator.json"
+        cfg_path.write_text(json.dumps(table))
+        cmd += ["--config", str(cfg_path)]
+    if sent_log is not None:
+        cmd += ["--sent-log", str(sent_log)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    deadline = time.monotonic() + timeout
+    line = ""
+    try:
+        while time.monotonic() < deadline:
+            r, _, _ = select.select([proc.stdout], [], [], 0.1)
+            if r:
+                line = proc.stdout.readline().strip()
+                break
+            if proc.poll() is not None:
+                break
+    finally:
+        if line.startswith("/dev/") or proc.poll() is not None:
+            shutil.rmtree(tmp, ignore_errors=True)  # read at start-up only
+    if not line.startswith("/dev/"):
+        proc.kill()
+        proc.wait(timeout=10)
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise RuntimeError(f"serial emulator for {bench.name} did not start within {timeout:g} s "
+                           f"(exit code {proc.returncode}); run the command to see why: {' '.join(cmd)}")
+    return proc, line

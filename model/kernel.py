@@ -1,0 +1,499 @@
+"""Compiled core of the planar multibody model: constraints, forces, accelerations, projection.
+
+Holds numba-compiled (``@njit(cache=True)``) functions on flat arrays; the scene (``scene.py``)
+packs a mechanism into the tuple ``P`` described below and the integrators (``integrators.py``)
+call :func:`accel` and :func:`project`. Imports numpy, numba and ``wearbench.model.contact`` only.
+
+Coordinates: q = (x, y, theta) of each moving body's centre of mass (absolute coordinates), v = dq/dt.
+Equations of motion (paper eq. 29-30) with a diagonal mass matrix M:
+    M a + Phi_q^T lam = g,   Phi_q a = gamma - 2 alpha Phi' - beta^2 Phi,
+solved through the Schur complement S = Phi_q M^-1 Phi_q^T (Cholesky, m x m). Each constraint row
+touches at most two bodies, so Phi_q is stored compactly: body index ``Jb[k, s]`` (-1 = none) and
+the three entries ``Jv[k, s, :]`` per slot s.
+
+P = (minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, surf, surf_n,
+     spr_b, spr_p, trq_b, trq_p, jb, body_rows, body_nrows, profile)
+- minv (n,): inverse masses/inertias; fext (n,): constant generalised forces (gravity).
+- rev_b (nr, 2), rev_s (nr, 4): ideal pin pairs: bodies (-1 = frame) and local points
+  (x_i, y_i, x_j, y_j); constraint r_i + A_i s_i - r_j - A_j s_j = 0 (2 rows).
+- pri_b (np, 2), pri_s (np, 5): prismatic joints: point s_j of body j on the line through s_i of
+  body i with direction ``axis`` (in body i's frame); theta_j - theta_i = axis (2 rows).
+- drv_b (nd,), drv_p (nd, 2): drivers theta_b = ratio * theta_motor(t) + phase (1 row).
+- clr_b (nc, 2), clr_p (nc, NCLR): clearance joints (bearing body, journal body), see CLR_* below.
+- surf (nc, 2, nmax), surf_n (nc, 2): worn depths of bearing [0] and journal [1], regions used.
+- spr_b (ns, 2), spr_p (ns, 7): point-to-point spring-dampers (x_i, y_i, x_j, y_j, k, c, l0).
+- trq_b (nt,), trq_p (nt, 2): applied torques T = T0 - c_rot * omega on a body.
+- jb (m, 2): constant body pattern of Phi_q; body_rows (nb, kmax, 2), body_nrows (nb,): rows
+  (row, slot) touching each body.
+- profile (k, 3): motor speed profile rows (time, angle, speed), empty for constant ``speed``.
+
+Status codes returned by kernels: 0 ok, 1 singular constraint Jacobian (singular pose),
+2 projection did not converge.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from wearbench.model.contact import (
+    depth_at,
+    depth_slope,
+    friction_force,
+    impact_speed,
+    normal_force,
+)
+
+# clearance parameter columns
+CLR_SIX, CLR_SIY, CLR_SJX, CLR_SJY, CLR_R1, CLR_R2, CLR_K, CLR_N, CLR_CE, CLR_LAW, CLR_CF, \
+    CLR_FV0, CLR_FVM, CLR_WORN = range(14)
+NCLR = 14
+# contact output columns (cout)
+CO_EX, CO_EY, CO_PEN, CO_FN, CO_FT, CO_VN, CO_VT, CO_OMEGA, CO_PHIB, CO_PHIJ, CO_ALPHA = range(11)
+NCO = 11
+
+OK, SINGULAR, NO_CONVERGENCE = 0, 1, 2
+
+
+@njit(cache=True, inline="always")
+def _pos(q, b, sx, sy):
+    if b < 0:
+        return sx, sy
+    c = math.cos(q[3 * b + 2])
+    s = math.sin(q[3 * b + 2])
+    return q[3 * b] + c * sx - s * sy, q[3 * b + 1] + s * sx + c * sy
+
+
+@njit(cache=True, inline="always")
+def _rot(q, b, sx, sy):
+    """A_b s (global components of a body-fixed vector)."""
+    if b < 0:
+        return sx, sy
+    c = math.cos(q[3 * b + 2])
+    s = math.sin(q[3 * b + 2])
+    return c * sx - s * sy, s * sx + c * sy
+
+
+@njit(cache=True, inline="always")
+def _pos_c(q, cs, sn, b, sx, sy):
+    """_pos with the body's cos/sin precomputed."""
+    if b < 0:
+        return sx, sy
+    return q[3 * b] + cs[b] * sx - sn[b] * sy, q[3 * b + 1] + sn[b] * sx + cs[b] * sy
+
+
+@njit(cache=True, inline="always")
+def _rot_c(cs, sn, b, sx, sy):
+    if b < 0:
+        return sx, sy
+    return cs[b] * sx - sn[b] * sy, sn[b] * sx + cs[b] * sy
+
+
+@njit(cache=True, inline="always")
+def _omega(v, b):
+    return 0.0 if b < 0 else v[3 * b + 2]
+
+
+@njit(cache=True)
+def motor_angle(t, speed, profile):
+    """Motor angle (rad, 0 at t = 0), speed (rad/s) and acceleration (rad/s^2) at time t (s).
+
+    Constant ``speed`` when ``profile`` is empty; otherwise profile (k, 3) holds rows
+    (time, angle, speed) with the speed linear between rows (the angle its exact integral) and held
+    constant after the last row.
+    """
+    npts = profile.shape[0]
+    if npts == 0:
+        return speed * t, speed, 0.0
+    lo, hi = 0, npts - 1  # binary search: profile[lo, 0] <= t < profile[lo + 1, 0]
+    if t >= profile[hi, 0]:
+        lo = hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if profile[mid, 0] <= t:
+            lo = mid
+        else:
+            hi = mid
+    i = lo
+    tau = t - profile[i, 0]
+    if i + 1 < npts:
+        acc = (profile[i + 1, 2] - profile[i, 2]) / (profile[i + 1, 0] - profile[i, 0])
+    else:
+        acc = 0.0
+    return profile[i, 1] + profile[i, 2] * tau + 0.5 * acc * tau * tau, profile[i, 2] + acc * tau, acc
+
+
+@njit(cache=True)
+def constraints(t, q, v, speed, P, phi, Jv, gam, nu):
+    """Fill Phi (m), compact Phi_q values Jv (m, 2, 3), gamma (m) and nu = -Phi_t (m)."""
+    rev_b, rev_s, pri_b, pri_s, drv_b, drv_p = P[2], P[3], P[4], P[5], P[6], P[7]
+    nb = q.shape[0] // 3
+    cs = np.empty(nb)
+    sn = np.empty(nb)
+    for b in range(nb):
+        cs[b] = math.cos(q[3 * b + 2])
+        sn[b] = math.sin(q[3 * b + 2])
+    Jv[:] = 0.0
+    k = 0
+    for r in range(rev_b.shape[0]):
+        bi, bj = rev_b[r, 0], rev_b[r, 1]
+        pix, piy = _pos_c(q, cs, sn, bi, rev_s[r, 0], rev_s[r, 1])
+        pjx, pjy = _pos_c(q, cs, sn, bj, rev_s[r, 2], rev_s[r, 3])
+        ax, ay = _rot_c(cs, sn, bi, rev_s[r, 0], rev_s[r, 1])
+        bx, by = _rot_c(cs, sn, bj, rev_s[r, 2], rev_s[r, 3])
+        wi, wj = _omega(v, bi), _omega(v, bj)
+        phi[k] = pix - pjx
+        phi[k + 1] = piy - pjy
+        # d(A s)/dtheta = (-ay, ax)
+        Jv[k, 0, 0] = 1.0
+        Jv[k, 0, 2] = -ay
+        Jv[k + 1, 0, 1] = 1.0
+        Jv[k + 1, 0, 2] = ax
+        Jv[k, 1, 0] = -1.0
+        Jv[k, 1, 2] = by
+        Jv[k + 1, 1, 1] = -1.0
+        Jv[k + 1, 1, 2] = -bx
+        gam[k] = ax * wi * wi - bx * wj * wj
+        gam[k + 1] = ay * wi * wi - by * wj * wj
+        nu[k] = 0.0
+        nu[k + 1] = 0.0
+        k += 2
+    for r in range(pri_b.shape[0]):
+        bi, bj = pri_b[r, 0], pri_b[r, 1]
+        axis = pri_s[r, 4]
+        pix, piy = _pos_c(q, cs, sn, bi, pri_s[r, 0], pri_s[r, 1])
+        pjx, pjy = _pos_c(q, cs, sn, bj, pri_s[r, 2], pri_s[r, 3])
+        ax, ay = _rot_c(cs, sn, bi, pri_s[r, 0], pri_s[r, 1])
+        bx, by = _rot_c(cs, sn, bj, pri_s[r, 2], pri_s[r, 3])
+        nx, ny = _rot_c(cs, sn, bi, -math.sin(axis), math.cos(axis))
+        wi, wj = _omega(v, bi), _omega(v, bj)
+        dx, dy = pjx - pix, pjy - piy
+        # d' = vj + w_j k x (A_j s_j) - vi - w_i k x (A_i s_i)
+        vix = 0.0 if bi < 0 else v[3 * bi]
+        viy = 0.0 if bi < 0 else v[3 * bi + 1]
+        vjx = 0.0 if bj < 0 else v[3 * bj]
+        vjy = 0.0 if bj < 0 else v[3 * bj + 1]
+        ddx = vjx - wj * by - vix + wi * ay
+        ddy = vjy + wj * bx - viy - wi * ax
+        phi[k] = nx * dx + ny * dy
+        Jv[k, 0, 0] = -nx
+        Jv[k, 0, 1] = -ny
+        # d n/dtheta_i = (-ny, nx); d(A_i s_i)/dtheta_i = (-ay, ax)
+        Jv[k, 0, 2] = (-ny * dx + nx * dy) - (nx * -ay + ny * ax)
+        Jv[k, 1, 0] = nx
+        Jv[k, 1, 1] = ny
+        Jv[k, 1, 2] = nx * -by + ny * bx
+        gam[k] = ((nx * dx + ny * dy) * wi * wi - 2.0 * wi * (-ny * ddx + nx * ddy)
+                  + nx * (bx * wj * wj - ax * wi * wi) + ny * (by * wj * wj - ay * wi * wi))
+        nu[k] = 0.0
+        thi = 0.0 if bi < 0 else q[3 * bi + 2]
+        phi[k + 1] = q[3 * bj + 2] - thi - axis
+        Jv[k + 1, 0, 2] = -1.0
+        Jv[k + 1, 1, 2] = 1.0
+        gam[k + 1] = 0.0
+        nu[k + 1] = 0.0
+        k += 2
+    th_m, w_m, a_m = motor_angle(t, speed, P[19])
+    for r in range(drv_b.shape[0]):
+        b = drv_b[r]
+        phi[k] = q[3 * b + 2] - (drv_p[r, 0] * th_m + drv_p[r, 1])
+        Jv[k, 0, 2] = 1.0
+        gam[k] = drv_p[r, 0] * a_m
+        nu[k] = drv_p[r, 0] * w_m
+        k += 1
+
+
+@njit(cache=True, inline="always")
+def _apply(g, b, fx, fy, px, py, q):
+    """Add force (fx, fy) acting at global point (px, py) of body b to the generalised forces."""
+    if b < 0:
+        return
+    g[3 * b] += fx
+    g[3 * b + 1] += fy
+    g[3 * b + 2] += (px - q[3 * b]) * fy - (py - q[3 * b + 1]) * fx
+
+
+@njit(cache=True, inline="always")
+def _vel(q, v, b, px, py):
+    """Velocity of the material point of body b at global position (px, py)."""
+    if b < 0:
+        return 0.0, 0.0
+    w = v[3 * b + 2]
+    return v[3 * b] - w * (py - q[3 * b + 1]), v[3 * b + 1] + w * (px - q[3 * b])
+
+
+@njit(cache=True)
+def clearance_forces(q, v, P, inc, v0i, g, cout):
+    """Add the clearance contact forces to g; fill cout (nc, NCO).
+
+    Geometry (paper eq. 1-6, worn surfaces per the JointSurfaces contract): e = journal centre -
+    bearing centre, alpha = direction of e, local clearance c(alpha) = R1 - R2 + h_b(alpha - theta_b)
+    + h_j(alpha - theta_j), penetration d = |e| - c, contact normal along grad(d) with respect to e.
+    ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while
+    the flag is off the current normal speed stands in for the impact speed (contact onset).
+    """
+    clr_b, clr_p, surf, surf_n = P[8], P[9], P[10], P[11]
+    for k in range(clr_b.shape[0]):
+        bi, bj = clr_b[k, 0], clr_b[k, 1]
+        p = clr_p[k]
+        pix, piy = _pos(q, bi, p[CLR_SIX], p[CLR_SIY])
+        pjx, pjy = _pos(q, bj, p[CLR_SJX], p[CLR_SJY])
+        ex, ey = pjx - pix, pjy - piy
+        emag = math.sqrt(ex * ex + ey * ey)
+        thi = 0.0 if bi < 0 else q[3 * bi + 2]
+        thj = 0.0 if bj < 0 else q[3 * bj + 2]
+        wi, wj = _omega(v, bi), _omega(v, bj)
+        if emag > 0.0:
+            ux, uy = ex / emag, ey / emag
+        else:  # journal exactly centred: any direction, no contact
+            ux, uy = math.cos(thi), math.sin(thi)
+        alpha = math.atan2(uy, ux)
+        clear = p[CLR_R1] - p[CLR_R2]
+        hb = 0.0
+        hj = 0.0
+        nx, ny = ux, uy
+        slope_b = 0.0
+        slope_j = 0.0
+        if p[CLR_WORN] > 0.0:
+            nb_, nj_ = surf_n[k, 0], surf_n[k, 1]
+            hb = depth_at(surf[k, 0], nb_, alpha - thi)
+            hj = depth_at(surf[k, 1], nj_, alpha - thj)
+            slope_b = depth_slope(surf[k, 0], nb_, alpha - thi)
+            slope_j = depth_slope(surf[k, 1], nj_, alpha - thj)
+            if emag > 0.0 and slope_b + slope_j != 0.0:
+                # grad_e d = u - c'(alpha) t / |e|
+                cp = (slope_b + slope_j) / emag
+                gx, gy = ux + cp * uy, uy - cp * ux
+                gm = math.sqrt(gx * gx + gy * gy)
+                nx, ny = gx / gm, gy / gm
+        pen = emag - clear - hb - hj
+        tx, ty = -ny, nx
+        # contact points on each body and their material velocities
+        qix, qiy = pix + (p[CLR_R1] + hb) * nx, piy + (p[CLR_R1] + hb) * ny
+        qjx, qjy = pjx + (p[CLR_R2] - hj) * nx, pjy + (p[CLR_R2] - hj) * ny
+        vix, viy = _vel(q, v, bi, qix, qiy)
+        vjx, vjy = _vel(q, v, bj, qjx, qjy)
+        # centre velocities give the rate of the penetration (rolling terms are tangential)
+        cix, ciy = _vel(q, v, bi, pix, piy)
+        cjx, cjy = _vel(q, v, bj, pjx, pjy)
+        dex, dey = cjx - cix, cjy - ciy
+        if emag > 0.0:
+            alpha_dot = (ux * dey - uy * dex) / emag
+        else:
+            alpha_dot = 0.0
+        vn = ux * dex + uy * dey - slope_b * (alpha_dot - wi) - slope_j * (alpha_dot - wj)
+        vt = (vjx - vix) * tx + (vjy - viy) * ty
+        fn = 0.0
+        ft = 0.0
+        if pen > 0.0:
+            v0 = v0i[k] if inc[k] != 0 else impact_speed(vn)
+            fn = normal_force(pen, vn, p[CLR_K], p[CLR_N], p[CLR_CE], v0, int(p[CLR_LAW]))
+            ft = friction_force(fn, vt, p[CLR_CF], p[CLR_FV0], p[CLR_FVM])
+            fx = -fn * nx + ft * tx
+            fy = -fn * ny + ft * ty
+            _apply(g, bj, fx, fy, qjx, qjy, q)
+            _apply(g, bi, -fx, -fy, qix, qiy, q)
+        c = cout[k]
+        c[CO_EX] = ex
+        c[CO_EY] = ey
+        c[CO_PEN] = pen
+        c[CO_FN] = fn
+        c[CO_FT] = ft
+        c[CO_VN] = vn
+        c[CO_VT] = vt
+        c[CO_OMEGA] = wj - wi
+        c[CO_PHIB] = (alpha - thi) % (2.0 * math.pi)
+        c[CO_PHIJ] = (alpha - thj) % (2.0 * math.pi)
+        c[CO_ALPHA] = alpha
+
+
+@njit(cache=True)
+def element_forces(q, v, P, g):
+    """Generalised forces of gravity, spring-dampers and applied torques (N, N m) into g."""
+    fext, spr_b, spr_p, trq_b, trq_p = P[1], P[12], P[13], P[14], P[15]
+    g[:] = fext
+    for k in range(spr_b.shape[0]):
+        bi, bj = spr_b[k, 0], spr_b[k, 1]
+        p = spr_p[k]
+        pix, piy = _pos(q, bi, p[0], p[1])
+        pjx, pjy = _pos(q, bj, p[2], p[3])
+        dx, dy = pjx - pix, pjy - piy
+        length = math.sqrt(dx * dx + dy * dy)
+        if length == 0.0:
+            continue
+        ux, uy = dx / length, dy / length
+        vix, viy = _vel(q, v, bi, pix, piy)
+        vjx, vjy = _vel(q, v, bj, pjx, pjy)
+        rate = (vjx - vix) * ux + (vjy - viy) * uy
+        f = p[4] * (length - p[6]) + p[5] * rate  # tension > 0 pulls the points together
+        _apply(g, bi, f * ux, f * uy, pix, piy, q)
+        _apply(g, bj, -f * ux, -f * uy, pjx, pjy, q)
+    for k in range(trq_b.shape[0]):
+        b = trq_b[k]
+        g[3 * b + 2] += trq_p[k, 0] - trq_p[k, 1] * v[3 * b + 2]
+
+
+@njit(cache=True)
+def _schur(P, Jv, S):
+    """S = Phi_q M^-1 Phi_q^T from the compact Jacobian."""
+    minv, body_rows, body_nrows = P[0], P[17], P[18]
+    S[:] = 0.0
+    for b in range(body_nrows.shape[0]):
+        mx, my, mt = minv[3 * b], minv[3 * b + 1], minv[3 * b + 2]
+        nr = body_nrows[b]
+        for x in range(nr):
+            k, sk = body_rows[b, x, 0], body_rows[b, x, 1]
+            for y in range(x, nr):
+                l, sl = body_rows[b, y, 0], body_rows[b, y, 1]
+                val = (Jv[k, sk, 0] * mx * Jv[l, sl, 0] + Jv[k, sk, 1] * my * Jv[l, sl, 1]
+                       + Jv[k, sk, 2] * mt * Jv[l, sl, 2])
+                S[k, l] += val
+                if l != k:
+                    S[l, k] += val
+
+
+@njit(cache=True)
+def _cholesky_solve(S, rhs, x):
+    """Solve S x = rhs in place (S overwritten by its Cholesky factor). Returns OK or SINGULAR."""
+    m = S.shape[0]
+    scale = 0.0
+    for i in range(m):
+        scale = max(scale, S[i, i])
+    tiny = 1e-13 * scale
+    for j in range(m):
+        d = S[j, j]
+        for p in range(j):
+            d -= S[j, p] * S[j, p]
+        if not d > tiny:
+            return SINGULAR
+        d = math.sqrt(d)
+        S[j, j] = d
+        for i in range(j + 1, m):
+            s = S[i, j]
+            for p in range(j):
+                s -= S[i, p] * S[j, p]
+            S[i, j] = s / d
+    for i in range(m):
+        s = rhs[i]
+        for p in range(i):
+            s -= S[i, p] * x[p]
+        x[i] = s / S[i, i]
+    for i in range(m - 1, -1, -1):
+        s = x[i]
+        for p in range(i + 1, m):
+            s -= S[p, i] * x[p]
+        x[i] = s / S[i, i]
+    return OK
+
+
+@njit(cache=True, inline="always")
+def _jt_times(P, Jv, lam, out):
+    """out = Phi_q^T lam."""
+    jb = P[16]
+    out[:] = 0.0
+    for k in range(jb.shape[0]):
+        for s in range(2):
+            b = jb[k, s]
+            if b >= 0:
+                out[3 * b] += Jv[k, s, 0] * lam[k]
+                out[3 * b + 1] += Jv[k, s, 1] * lam[k]
+                out[3 * b + 2] += Jv[k, s, 2] * lam[k]
+
+
+@njit(cache=True, inline="always")
+def _j_times(P, Jv, x, k):
+    """(Phi_q x)_k."""
+    jb = P[16]
+    s_ = 0.0
+    for s in range(2):
+        b = jb[k, s]
+        if b >= 0:
+            s_ += Jv[k, s, 0] * x[3 * b] + Jv[k, s, 1] * x[3 * b + 1] + Jv[k, s, 2] * x[3 * b + 2]
+    return s_
+
+
+@njit(cache=True)
+def accel(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
+    """Accelerations a (n) and multipliers lam (m) of eq. 30; contact outputs into cout.
+
+    alpha, beta: Baumgarte coefficients (0, 0 for none). W: work arrays (phi, Jv, gam, nu, g, S, rhs, tmp).
+    Returns OK or SINGULAR.
+    """
+    minv = P[0]
+    phi, Jv, gam, nu, g, S, rhs, tmp = W
+    constraints(t, q, v, speed, P, phi, Jv, gam, nu)
+    element_forces(q, v, P, g)
+    clearance_forces(q, v, P, inc, v0i, g, cout)
+    m = phi.shape[0]
+    n = q.shape[0]
+    for i in range(n):
+        tmp[i] = minv[i] * g[i]
+    for k in range(m):
+        r = gam[k]
+        if alpha != 0.0 or beta != 0.0:
+            r -= 2.0 * alpha * (_j_times(P, Jv, v, k) - nu[k]) + beta * beta * phi[k]
+        rhs[k] = _j_times(P, Jv, tmp, k) - r
+    if m > 0:
+        _schur(P, Jv, S)
+        if _cholesky_solve(S, rhs, lam) != OK:
+            return SINGULAR
+    _jt_times(P, Jv, lam, tmp)
+    for i in range(n):
+        a[i] = minv[i] * (g[i] - tmp[i])
+    return OK
+
+
+@njit(cache=True)
+def drift(t, q, v, speed, P, W):
+    """Largest position (m or rad) and velocity constraint violation: (|Phi|_inf, |Phi_q v - nu|_inf)."""
+    phi, Jv, gam, nu = W[0], W[1], W[2], W[3]
+    constraints(t, q, v, speed, P, phi, Jv, gam, nu)
+    dp = 0.0
+    dv = 0.0
+    for k in range(phi.shape[0]):
+        dp = max(dp, abs(phi[k]))
+        dv = max(dv, abs(_j_times(P, Jv, v, k) - nu[k]))
+    return dp, dv
+
+
+@njit(cache=True)
+def project(t, q, v, speed, P, W, tol, maxit):
+    """Project (q, v) onto Phi = 0 and Phi_q v = nu with the M-weighted minimum correction.
+
+    Newton: dq = -M^-1 Phi_q^T S^-1 Phi until |Phi|_inf <= tol (m), then the same for velocities.
+    For a fully driven mechanism (dof 0) this is the position and velocity analysis itself.
+    Returns OK, SINGULAR or NO_CONVERGENCE.
+    """
+    minv = P[0]
+    phi, Jv, gam, nu, _, S, rhs, tmp = W
+    m = phi.shape[0]
+    if m == 0:
+        return OK
+    lam = np.empty(m)
+    for it in range(maxit + 1):
+        constraints(t, q, v, speed, P, phi, Jv, gam, nu)
+        err = 0.0
+        for k in range(m):
+            err = max(err, abs(phi[k]))
+        if err <= tol:
+            break
+        if it == maxit:
+            return NO_CONVERGENCE
+        _schur(P, Jv, S)
+        for k in range(m):
+            rhs[k] = phi[k]
+        if _cholesky_solve(S, rhs, lam) != OK:
+            return SINGULAR
+        _jt_times(P, Jv, lam, tmp)
+        for i in range(q.shape[0]):
+            q[i] -= minv[i] * tmp[i]
+    _schur(P, Jv, S)
+    for k in range(m):
+        rhs[k] = _j_times(P, Jv, v, k) - nu[k]
+    if _cholesky_solve(S, rhs, lam) != OK:
+        return SINGULAR
+    _jt_times(P, Jv, lam, tmp)
+    for i in range(v.shape[0]):
+        v[i] -= minv[i] * tmp[i]
+    return OK

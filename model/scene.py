@@ -1,0 +1,403 @@
+"""Scenes: a bench file's mechanism turned into the arrays the compiled kernel integrates.
+
+Holds :class:`Scene`, :func:`build_scene` (absolute planar coordinates, ideal pins and prismatic
+joints, drivers, gravity, clearance joints as force elements, worn surfaces, assembly at t = 0 by
+Newton) and the force-element classes :class:`Spring` and :class:`Torque`. Imports the bench
+dataclasses, the surfaces contract and the model's own ``contact`` and ``kernel``; it must not
+import the integrators, plots or CLI.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from wearbench.hardware.bench import GROUND, Bench, BenchError, Joint
+from wearbench.model import kernel as K
+from wearbench.model.contact import LAWS, contact_stiffness
+from wearbench.model.surfaces import JointSurfaces, surfaces_from_bench
+
+__all__ = ["LOW_RESTITUTION", "Scene", "Spring", "Torque", "build_scene"]
+
+LOW_RESTITUTION = 0.7  # below this the Lankarani-Nikravesh law is not valid (it assumes ce near 1)
+_ASSEMBLY_TOL = 1e-10  # m, rad
+
+
+@dataclass(frozen=True)
+class Spring:
+    """Point-to-point spring-damper: tension k (l - l0) + c dl/dt between two body points.
+
+    ``body_*`` is a body name or "frame"; ``point_*`` a named point of that body (or of the frame)
+    or local coordinates (m). Stiffness N/m, damping N s/m, free length m (None: length at t = 0).
+    """
+
+    body_i: str
+    point_i: str | tuple[float, float]
+    body_j: str
+    point_j: str | tuple[float, float]
+    stiffness: float = 0.0
+    damping: float = 0.0
+    free_length: float | None = None
+
+
+@dataclass(frozen=True)
+class Torque:
+    """Applied torque on a body: T = torque - damping * omega (N m; damping N m s/rad)."""
+
+    body: str
+    torque: float = 0.0
+    damping: float = 0.0
+
+
+@dataclass
+class Scene:
+    """A mechanism ready to simulate. Build it with :func:`build_scene`.
+
+    ``dof``: degrees of freedom with the drivers applied (0 = fully driven with ideal joints, solved
+    by kinematics + inverse dynamics); each clearance joint adds 2. ``q0``, ``v0``: assembled state
+    at t = 0 (journals centred in their bearings). ``description`` says what will be computed.
+    """
+
+    bench: Bench
+    bodies: tuple[str, ...]
+    clearance_joints: tuple[str, ...]
+    dof: int
+    description: str
+    q0: np.ndarray
+    v_unit: np.ndarray  # initial velocities per unit motor speed (rad/s)
+    params: tuple  # the kernel's P tuple (see wearbench.model.kernel)
+    reaction_rows: tuple[tuple[str, int], ...]  # (column prefix, first row) of each ideal pin pair
+    row_joints: tuple[str, ...]  # joint name of each constraint row
+    drivers: tuple[tuple[str, int], ...]  # (driver joint, body index)
+    sensor: tuple[int, tuple[float, float], float] | None  # (body, local point, axis) of the accelerometer
+    surfaces: dict[str, JointSurfaces] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def n(self) -> int:
+        return self.q0.size
+
+    @property
+    def m(self) -> int:
+        return len(self.row_joints)
+
+    @property
+    def speed(self) -> float:
+        return self.bench.speed
+
+    @property
+    def v0(self) -> np.ndarray:
+        """Initial velocities at the bench's motor speed."""
+        return self.v_unit * self.bench.speed
+
+    def body_index(self, name: str) -> int:
+        return self.bodies.index(name)
+
+    def clearance_params(self, joint: str) -> dict[str, float]:
+        """Geometry and contact parameters of clearance joint ``joint`` (SI)."""
+        k = self.clearance_joints.index(joint)
+        p = self.params[9][k]
+        return {"bearing_radius": p[K.CLR_R1], "journal_radius": p[K.CLR_R2], "stiffness": p[K.CLR_K],
+                "exponent": p[K.CLR_N], "restitution": p[K.CLR_CE], "law": int(p[K.CLR_LAW]),
+                "friction_coefficient": p[K.CLR_CF]}
+
+    def work(self) -> tuple:
+        """Fresh work arrays for the kernel."""
+        n, m = self.n, self.m
+        return (np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m), np.zeros(n),
+                np.zeros((m, m)), np.zeros(m), np.zeros(n))
+
+
+def _local(bench: Bench, body: str, point: str | tuple[float, float]) -> tuple[float, float]:
+    if not isinstance(point, str):
+        return (float(point[0]), float(point[1]))
+    pts = bench.ground_points if body == GROUND else bench.body(body).points
+    if point not in pts:
+        raise KeyError(f"{bench.name}: {body} has no point {point!r}; points: {sorted(pts)}")
+    return tuple(pts[point])
+
+
+def _pin_pairs(joint: Joint) -> list[tuple[int, int]]:
+    """A pin shared by N bodies is N-1 pairs, each chained to the first body."""
+    return [(0, i) for i in range(1, len(joint.bodies))]
+
+
+def _topology(bench: Bench, index: dict[str, int], ideal: set[str], forces: Sequence[Spring | Torque],
+              surfaces: Mapping[str, JointSurfaces]):
+    """Pack the bench into the kernel's P tuple; clearance joints not in ``ideal`` become contacts."""
+    def b(name: str) -> int:
+        return -1 if name == GROUND else index[name]
+
+    n = 3 * len(index)
+    minv = np.zeros(n)
+    fext = np.zeros(n)
+    for body in bench.bodies:
+        i = index[body.name]
+        minv[3 * i: 3 * i + 3] = (1 / body.mass, 1 / body.mass, 1 / body.inertia)
+        fext[3 * i: 3 * i + 2] = (body.mass * bench.gravity[0], body.mass * bench.gravity[1])
+    rev_b, rev_s, pri_b, pri_s, clr_b, clr_p, clr_names, surf_list = [], [], [], [], [], [], [], []
+    row_joints: list[str] = []
+    reaction_rows: list[tuple[str, int]] = []
+    for j in bench.joints:
+        if j.kind == "revolute" and (j.clearance is None or j.name in ideal):
+            for a, c in _pin_pairs(j):
+                prefix = j.name if len(j.bodies) == 2 else f"{j.name}_{j.bodies[c]}"
+                reaction_rows.append((prefix, 2 * len(rev_b)))
+                rev_b.append((b(j.bodies[a]), b(j.bodies[c])))
+                rev_s.append(_local(bench, j.bodies[a], j.points[a]) + _local(bench, j.bodies[c], j.points[c]))
+        elif j.kind == "revolute":
+            cl = j.clearance
+            ib = j.bodies.index(cl.bearing_body)
+            ij = j.bodies.index(cl.journal_body)
+            law = cl.contact
+            stiff = contact_stiffness(cl.bearing_material.youngs_modulus, cl.bearing_material.poisson_ratio,
+                                      cl.journal_material.youngs_modulus, cl.journal_material.poisson_ratio,
+                                      cl.bearing_radius, cl.journal_radius, law.stiffness)
+            clr_b.append((b(cl.bearing_body), b(cl.journal_body)))
+            s_i = _local(bench, cl.bearing_body, j.points[ib])
+            s_j = _local(bench, cl.journal_body, j.points[ij])
+            surf = surfaces.get(j.name)
+            row = np.zeros(K.NCLR)
+            row[[K.CLR_SIX, K.CLR_SIY, K.CLR_SJX, K.CLR_SJY]] = s_i + s_j
+            row[K.CLR_R1], row[K.CLR_R2], row[K.CLR_K] = cl.bearing_radius, cl.journal_radius, stiff
+            row[K.CLR_N], row[K.CLR_CE], row[K.CLR_LAW] = law.exponent, law.restitution, LAWS[law.law]
+            row[K.CLR_CF], row[K.CLR_FV0], row[K.CLR_FVM] = (law.friction_coefficient, law.friction_v0,
+                                                          law.friction_vm)
+            # an all-zero surface is the even clearance: same code path, bit-identical results
+            worn = surf is not None and (surf.bearing.any() or surf.journal.any())
+            row[K.CLR_WORN] = 1.0 if worn else 0.0
+            clr_p.append(row)
+            clr_names.append(j.name)
+            surf_list.append(surf)
+    for j in bench.joints:
+        if j.kind == "prismatic":
+            if j.bodies[1] == GROUND:
+                raise BenchError(bench.path or bench.name, f"joint {j.name}.bodies", list(j.bodies),
+                                 "expected the guide (frame or carrier) first and the sliding body second")
+            pri_b.append((b(j.bodies[0]), b(j.bodies[1])))
+            pri_s.append(_local(bench, j.bodies[0], j.points[0]) + _local(bench, j.bodies[1], j.points[1])
+                         + (j.axis,))
+    drv_b, drv_p, drivers = [], [], []
+    for d in bench.drivers:
+        j = bench.joint(d.joint)
+        body = next(x for x in j.bodies if x != GROUND)
+        drv_b.append(index[body])
+        drv_p.append((d.ratio, d.phase))
+        drivers.append((d.joint, index[body]))
+    # constraint row -> joint name, in kernel order (pins, prismatic, drivers)
+    for j in bench.joints:
+        if j.kind == "revolute" and (j.clearance is None or j.name in ideal):
+            row_joints += [j.name] * (2 * len(_pin_pairs(j)))
+    row_joints += [j.name for j in bench.joints if j.kind == "prismatic" for _ in range(2)]
+    row_joints += [d.joint for d in bench.drivers]
+    spr_b, spr_p, trq_b, trq_p = [], [], [], []
+    for f in forces:
+        if isinstance(f, Spring):
+            spr_b.append((b(f.body_i), b(f.body_j)))
+            spr_p.append(_local(bench, f.body_i, f.point_i) + _local(bench, f.body_j, f.point_j)
+                         + (f.stiffness, f.damping, -1.0 if f.free_length is None else f.free_length))
+        elif isinstance(f, Torque):
+            trq_b.append(index[f.body])
+            trq_p.append((f.torque, f.damping))
+        else:
+            raise TypeError(f"force element {f!r}: expected Spring or Torque")
+    nmax = max([3] + [max(s.bearing.size, s.journal.size) for s in surf_list if s is not None])
+    surf = np.zeros((len(clr_b), 2, nmax))
+    surf_n = np.full((len(clr_b), 2), 3, dtype=np.int64)
+    for k, s in enumerate(surf_list):
+        if s is not None:
+            surf[k, 0, :s.bearing.size] = s.bearing
+            surf[k, 1, :s.journal.size] = s.journal
+            surf_n[k] = (s.bearing.size, s.journal.size)
+
+    def ia(x, shape):
+        return np.array(x, dtype=np.int64).reshape(shape)
+
+    def fa(x, shape):
+        return np.array(x, dtype=float).reshape(shape)
+
+    rev_b_a, pri_b_a, drv_b_a = ia(rev_b, (-1, 2)), ia(pri_b, (-1, 2)), ia(drv_b, (-1,))
+    # compact Jacobian body pattern and rows per body
+    jb = []
+    for bi, bj in rev_b_a:
+        jb += [(bi, bj), (bi, bj)]
+    for bi, bj in pri_b_a:
+        jb += [(bi, bj), (bi, bj)]
+    for bd in drv_b_a:
+        jb.append((bd, -1))
+    jb_a = ia(jb, (-1, 2))
+    nb = len(index)
+    rows: list[list[tuple[int, int]]] = [[] for _ in range(nb)]
+    for k, (bi, bj) in enumerate(jb_a):
+        for s, bb in enumerate((bi, bj)):
+            if bb >= 0:
+                rows[bb].append((k, s))
+    kmax = max([1] + [len(r) for r in rows])
+    body_rows = np.zeros((nb, kmax, 2), dtype=np.int64)
+    body_nrows = np.array([len(r) for r in rows], dtype=np.int64)
+    for bb, r in enumerate(rows):
+        for x, ks in enumerate(r):
+            body_rows[bb, x] = ks
+    P = (minv, fext, rev_b_a, fa(rev_s, (-1, 4)), pri_b_a, fa(pri_s, (-1, 5)), drv_b_a, fa(drv_p, (-1, 2)),
+         ia(clr_b, (-1, 2)), fa(clr_p, (-1, K.NCLR)), surf, surf_n, ia(spr_b, (-1, 2)), fa(spr_p, (-1, 7)),
+         ia(trq_b, (-1,)), fa(trq_p, (-1, 2)), jb_a, body_rows, body_nrows, np.zeros((0, 3)))
+    return P, tuple(row_joints), tuple(reaction_rows), tuple(clr_names), tuple(drivers)
+
+
+def _dense_jacobian(P, Jv: np.ndarray, n: int) -> np.ndarray:
+    jb = P[16]
+    J = np.zeros((jb.shape[0], n))
+    for k in range(jb.shape[0]):
+        for s in range(2):
+            if jb[k, s] >= 0:
+                J[k, 3 * jb[k, s]: 3 * jb[k, s] + 3] += Jv[k, s]
+    return J
+
+
+def _guess(bench: Bench, index: dict[str, int]) -> np.ndarray:
+    """Initial positions from the bench's assembly points, ground points and driver phases."""
+    known: dict[str, tuple[float, float]] = dict(bench.assembly)
+    for j in bench.joints:
+        if j.kind == "revolute" and GROUND in j.bodies and j.name not in known:
+            known[j.name] = bench.ground_points[j.points[j.bodies.index(GROUND)]]
+    angle: dict[str, float] = {}
+    for d in bench.drivers:
+        angle[next(x for x in bench.joint(d.joint).bodies if x != GROUND)] = d.phase
+    for j in bench.joints:
+        if j.kind == "prismatic" and j.bodies[0] == GROUND:
+            angle[j.bodies[1]] = j.axis
+    q = np.zeros(3 * len(index))
+    placed: set[str] = set()
+
+    def place(name: str, force: bool) -> bool:
+        pairs = [(np.array(bench.body(name).points[j.points[j.bodies.index(name)]]), np.array(known[j.name]))
+                 for j in bench.joints if j.kind == "revolute" and name in j.bodies and j.name in known]
+        for j in bench.joints:  # a prismatic point on a guide fixed to the frame lies on the guide line
+            if j.kind == "prismatic" and j.bodies == (GROUND, name) and not pairs:
+                pairs.append((np.array(bench.body(name).points[j.points[1]]),
+                              np.array(bench.ground_points[j.points[0]])))
+        if len(pairs) >= 2:
+            (s0, p0), (s1, p1) = pairs[0], pairs[1]
+            ds, dp = s1 - s0, p1 - p0
+            th = math.atan2(dp[1], dp[0]) - math.atan2(ds[1], ds[0])
+            th = angle.get(name, th)
+        elif len(pairs) == 1 and (name in angle or force):
+            s0, p0 = pairs[0]
+            th = angle.get(name, 0.0)
+        elif force:
+            s0, p0, th = np.zeros(2), np.zeros(2), angle.get(name, 0.0)
+        else:
+            return False
+        c, s = math.cos(th), math.sin(th)
+        r = p0 - np.array([c * s0[0] - s * s0[1], s * s0[0] + c * s0[1]])
+        i = index[name]
+        q[3 * i: 3 * i + 3] = (r[0], r[1], th)
+        placed.add(name)
+        for j in bench.joints:
+            if j.kind == "revolute" and name in j.bodies and j.name not in known:
+                sl = bench.body(name).points[j.points[j.bodies.index(name)]]
+                known[j.name] = (r[0] + c * sl[0] - s * sl[1], r[1] + s * sl[0] + c * sl[1])
+        return True
+
+    while len(placed) < len(index):
+        todo = [b.name for b in bench.bodies if b.name not in placed]
+        if not any(place(name, False) for name in todo):
+            place(todo[0], True)
+    return q
+
+
+def _assemble(bench: Bench, P, row_joints, n: int, q: np.ndarray) -> np.ndarray:
+    """Newton (least squares) on all ideal constraints at t = 0; BenchError if it does not close."""
+    m = len(row_joints)
+    W = (np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m))
+    v = np.zeros(n)
+    for _ in range(60):
+        K.constraints(0.0, q, v, bench.speed, P, *W)
+        if np.max(np.abs(W[0]), initial=0.0) <= _ASSEMBLY_TOL:
+            return q
+        J = _dense_jacobian(P, W[1], n)
+        dq = np.linalg.lstsq(J, -W[0], rcond=None)[0]
+        step = np.max(np.abs(dq))
+        q = q + (dq if step < 0.2 else dq * (0.2 / step))
+    k = int(np.argmax(np.abs(W[0])))
+    raise BenchError(bench.path or bench.name, "assembly", row_joints[k],
+                     f"mechanism does not assemble at t = 0: largest residual {abs(W[0][k]):.3g} "
+                     f"(m or rad) at joint {row_joints[k]}; check lengths, ground points and [assembly]")
+
+
+def build_scene(bench: Bench, *, clearances: Mapping[str, float | None] | None = None,
+                surfaces: Mapping[str, JointSurfaces] | None = None,
+                forces: Sequence[Spring | Torque] = ()) -> Scene:
+    """Build the scene of ``bench``: assemble at t = 0, choose what to compute.
+
+    clearances: {joint: radial clearance m, or None for an ideal pin} overriding the bench file.
+    surfaces: {joint: JointSurfaces} worn surfaces (default: the files the bench names, if any).
+    forces: extra force elements (springs, dampers, torques).
+    Raises BenchError if the mechanism does not assemble.
+    """
+    if clearances:
+        bench = bench.with_clearances(clearances)
+    if surfaces is None:
+        surfaces = surfaces_from_bench(bench)
+    clear_names = {j.name for j in bench.clearance_joints}
+    unknown = set(surfaces) - clear_names
+    if unknown:
+        raise KeyError(f"{bench.name}: surfaces for {sorted(unknown)}, which are not clearance joints "
+                       f"({sorted(clear_names)})")
+    index = {b.name: i for i, b in enumerate(bench.bodies)}
+    n = 3 * len(index)
+    ideal_P, ideal_rows, _, _, _ = _topology(bench, index, clear_names, forces, {})
+    q0 = _assemble(bench, ideal_P, ideal_rows, n, _guess(bench, index))
+    # velocities: minimum kinetic-energy solution of the ideal velocity equations (exact at dof 0)
+    v0 = np.zeros(n)
+    m_ideal = len(ideal_rows)
+    W = (np.zeros(m_ideal), np.zeros((m_ideal, 2, 3)), np.zeros(m_ideal), np.zeros(m_ideal), np.zeros(n),
+         np.zeros((m_ideal, m_ideal)), np.zeros(m_ideal), np.zeros(n))
+    K.project(0.0, q0, v0, 1.0, ideal_P, W, _ASSEMBLY_TOL, 20)  # per unit motor speed
+    P, row_joints, reaction_rows, clr_names, drivers = _topology(bench, index, set(), forces, surfaces)
+    # springs without a free length take their length at t = 0
+    spr_p = P[13]
+    for k in range(spr_p.shape[0]):
+        if spr_p[k, 6] < 0:
+            bi, bj = P[12][k]
+            pi = _point(q0, bi, spr_p[k, 0:2])
+            pj = _point(q0, bj, spr_p[k, 2:4])
+            spr_p[k, 6] = float(np.hypot(*(pj - pi)))
+    m = len(row_joints)
+    Wd = (np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m))
+    K.constraints(0.0, q0, v0 * bench.speed, bench.speed, P, *Wd)
+    rank = int(np.linalg.matrix_rank(_dense_jacobian(P, Wd[1], n))) if m else 0
+    dof = n - rank
+    notes = []
+    for j in bench.clearance_joints:
+        if j.clearance.contact.law == "lankarani-nikravesh" and j.clearance.contact.restitution < LOW_RESTITUTION:
+            msg = (f"{bench.name}: joint {j.name}: restitution {j.clearance.contact.restitution} is low for the "
+                   "Lankarani-Nikravesh law (valid for restitution near 1); use law = \"flores\"")
+            warnings.warn(msg, UserWarning, stacklevel=2)
+            notes.append(msg)
+    if not clr_names and dof == 0:
+        what = "kinematics + inverse dynamics (fully driven, ideal joints: 0 DOF)"
+    elif clr_names:
+        what = (f"dynamics: {len(clr_names)} clearance joint(s) {', '.join(clr_names)} "
+                f"({2 * len(clr_names)} clearance DOF, {dof} DOF in all; {n} coordinates, {m} constraints)")
+    else:
+        what = f"dynamics: {dof} DOF ({n} coordinates, {m} constraints)"
+    sensor = None
+    try:
+        s = bench.sensor("accelerometer")
+        sensor = (index[s.body], tuple(bench.body(s.body).points[s.point]), s.axis)
+    except KeyError:
+        pass
+    return Scene(bench=bench, bodies=tuple(index), clearance_joints=clr_names, dof=dof, description=what,
+                 q0=q0, v_unit=v0, params=P, reaction_rows=reaction_rows, row_joints=row_joints,
+                 drivers=drivers, sensor=sensor, surfaces=dict(surfaces), warnings=tuple(notes))
+
+
+def _point(q: np.ndarray, b: int, s: np.ndarray) -> np.ndarray:
+    if b < 0:
+        return np.array(s, dtype=float)
+    c, sn = math.cos(q[3 * b + 2]), math.sin(q[3 * b + 2])
+    return np.array([q[3 * b] + c * s[0] - sn * s[1], q[3 * b + 1] + sn * s[0] + c * s[1]])

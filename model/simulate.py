@@ -1,0 +1,341 @@
+"""`simulate`: run a scene and return a tidy results table, a summary and (optionally) contact records.
+
+Holds :func:`simulate`, :class:`SimulationResult` (with Poincare sections and phase portraits) and
+:class:`SimulationError`. It chooses kinematics + inverse dynamics for a fully driven ideal scene
+and time integration otherwise (``integrators.py``). Imports numpy, pandas and the model's scene,
+kernel and integrators; it must not import plots or the CLI.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from wearbench.model import integrators as I
+from wearbench.model import kernel as K
+from wearbench.model.contact import impact_speed
+from wearbench.model.scene import Scene
+
+__all__ = ["DEFAULT_OUTPUT_RATE", "DRIFT_TOLERANCE", "SimulationError", "SimulationResult", "simulate"]
+
+DEFAULT_OUTPUT_RATE = 20_000.0  # samples/s of the table (20 points per ms)
+DRIFT_TOLERANCE = 1e-4  # m (or rad): largest position-constraint violation before we stop
+_PROJECTION_TOL = 1e-11  # m
+_BLOW_UP = 0.05  # penetration above this fraction of the journal radius is a blow-up
+CONTACT_COLUMNS = ("t", "dt", "fn", "vt", "omega_rel", "phi_bearing", "phi_journal", "pen")
+
+
+class SimulationError(RuntimeError):
+    """Numerical failure: names the time (s), the joint or coordinate, the quantity and the state."""
+
+    def __init__(self, message: str, *, t: float, joint: str | None = None, quantity: str = "",
+                 state: dict | None = None):
+        self.t, self.joint, self.quantity, self.state = t, joint, quantity, state or {}
+        super().__init__(message)
+
+
+@dataclass
+class SimulationResult:
+    """What :func:`simulate` returns: the table (one row per output time), the summary and, with
+    ``record_contacts=True``, one contact DataFrame per clearance joint (one row per accepted step)."""
+
+    table: pd.DataFrame
+    summary: dict
+    contacts: dict[str, pd.DataFrame] | None = None
+    scene: Scene | None = field(default=None, repr=False)
+
+    def poincare(self, columns: tuple[str, str] = ("slider_pos", "slider_vel"), driver: str | None = None
+                 ) -> pd.DataFrame:
+        """Poincare section: ``columns`` sampled once per crank revolution (stroboscopic map).
+
+        The section is taken where the crank angle of ``driver`` (default: the first driver) has
+        advanced by a whole number of revolutions since t = 0, by linear interpolation in the table.
+        Columns: revolution, t, and the two requested columns.
+        """
+        col = f"theta_{driver or self.scene.drivers[0][0]}" if self.scene and self.scene.drivers else None
+        if col is None or col not in self.table:
+            raise ValueError("a Poincare section needs a driven crank (theta_<joint> column)")
+        theta = self.table[col].to_numpy()
+        rev = (theta - theta[0]) / (2 * math.pi)
+        rev = np.abs(rev)
+        marks = np.arange(1, int(np.floor(rev[-1] + 1e-9)) + 1)
+        t = np.interp(marks, rev, self.table["t"].to_numpy())
+        out = {"revolution": marks, "t": t}
+        for c in columns:
+            out[c] = np.interp(t, self.table["t"].to_numpy(), self.table[c].to_numpy())
+        return pd.DataFrame(out)
+
+    def phase(self, joint: str) -> pd.DataFrame:
+        """Phase portrait of a clearance joint: eccentricity components and their rates (m, m/s)."""
+        t = self.table["t"].to_numpy()
+        ex = self.table[f"{joint}_ex"].to_numpy()
+        ey = self.table[f"{joint}_ey"].to_numpy()
+        return pd.DataFrame({"t": t, "ex": ex, "ey": ey, "vx": np.gradient(ex, t), "vy": np.gradient(ey, t)})
+
+
+def _output_times(t_end: float, rate: float) -> np.ndarray:
+    count = math.floor(t_end * rate + 1e-9) + 1
+    times = np.arange(count) / rate
+    if times[-1] < t_end - 1e-12:
+        times = np.append(times, t_end)
+    return times
+
+
+def _table(scene: Scene, times, ys, accs, couts, lams) -> pd.DataFrame:
+    n = scene.n
+    q, v = ys[:, :n], ys[:, n:]
+    cols: dict[str, np.ndarray] = {"t": times}
+    for joint, b in scene.drivers:
+        cols[f"theta_{joint}"] = q[:, 3 * b + 2]
+    if scene.sensor is not None:
+        b, (sx, sy), axis = scene.sensor
+        th, w, al = q[:, 3 * b + 2], v[:, 3 * b + 2], accs[:, 3 * b + 2]
+        c, s = np.cos(th), np.sin(th)
+        px, py = c * sx - s * sy, s * sx + c * sy  # A s
+        ux, uy = np.cos(th + axis), np.sin(th + axis)
+        cols["slider_pos"] = (q[:, 3 * b] + px) * ux + (q[:, 3 * b + 1] + py) * uy
+        cols["slider_vel"] = (v[:, 3 * b] - w * py) * ux + (v[:, 3 * b + 1] + w * px) * uy
+        cols["slider_acc"] = ((accs[:, 3 * b] - al * py - w * w * px) * ux
+                              + (accs[:, 3 * b + 1] + al * px - w * w * py) * uy)
+    else:
+        for name in ("slider_pos", "slider_vel", "slider_acc"):
+            cols[name] = np.full(times.size, np.nan)
+    for k, joint in enumerate(scene.clearance_joints):
+        for name, idx in (("ex", K.CO_EX), ("ey", K.CO_EY), ("pen", K.CO_PEN), ("fn", K.CO_FN),
+                          ("ft", K.CO_FT), ("vn", K.CO_VN), ("vt", K.CO_VT)):
+            cols[f"{joint}_{name}"] = couts[:, k, idx]
+    for prefix, row in scene.reaction_rows:  # force on the pin's second body from the first (N)
+        cols[f"{prefix}_fx"] = lams[:, row]
+        cols[f"{prefix}_fy"] = lams[:, row + 1]
+    return pd.DataFrame(cols)
+
+
+def _state(scene: Scene, y: np.ndarray, cout: np.ndarray) -> dict:
+    n = scene.n
+    state = {"q": {b: tuple(float(x) for x in y[3 * i: 3 * i + 3]) for i, b in enumerate(scene.bodies)},
+             "v": {b: tuple(float(x) for x in y[n + 3 * i: n + 3 * i + 3]) for i, b in enumerate(scene.bodies)}}
+    for k, j in enumerate(scene.clearance_joints):
+        state[j] = {"ex": float(cout[k, K.CO_EX]), "ey": float(cout[k, K.CO_EY]),
+                    "pen": float(cout[k, K.CO_PEN]), "fn": float(cout[k, K.CO_FN])}
+    return state
+
+
+def _singular_joints(scene: Scene, t: float, y: np.ndarray, speed: float) -> str:
+    """Joints whose constraint rows are (nearly) dependent at the state: from the left singular
+    vector of the smallest singular value of Phi_q."""
+    from wearbench.model.scene import _dense_jacobian
+
+    m, n = scene.m, scene.n
+    W = scene.work()
+    K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W[0], W[1], W[2], W[3])
+    u, _, _ = np.linalg.svd(_dense_jacobian(scene.params, W[1], n))
+    weights = np.abs(u[:, -1]) if m else np.zeros(0)
+    names = []
+    for k in np.argsort(-weights):
+        if weights[k] > 0.2 and scene.row_joints[k] not in names:
+            names.append(scene.row_joints[k])
+    return ", ".join(names) or "?"
+
+
+def _fail(scene: Scene, status: int, stats: np.ndarray, y: np.ndarray, cout: np.ndarray, speed: float,
+          method: str, drift_tol: float) -> SimulationError:
+    t = float(stats[I.S_T])
+    state = _state(scene, y, cout)
+    where = f"at t = {t:.6g} s ({method})"
+    if status == I.SINGULAR or status == I.NO_PROJECTION:
+        joints = _singular_joints(scene, t, y, speed)
+        what = ("singular constraint Jacobian" if status == I.SINGULAR
+                else "the constraints cannot be satisfied (position analysis / projection does not converge)")
+        return SimulationError(f"{what} {where}: the mechanism reaches a singular pose at joint(s) {joints}",
+                               t=t, joint=joints, quantity="constraint Jacobian", state=state)
+    if status == I.NOT_FINITE:
+        i = int(stats[I.S_DETAIL])
+        n = scene.n
+        kind = "velocity" if i >= n else "coordinate"
+        body, comp = scene.bodies[(i % n) // 3], ["x", "y", "theta"][(i % n) % 3]
+        return SimulationError(f"non-finite {kind} {comp} of body {body} {where} (value {stats[I.S_VALUE]})",
+                               t=t, joint=body, quantity=f"{kind} {comp}", state=state)
+    if status == I.STEP_COLLAPSE:
+        k = int(np.argmax(cout[:, K.CO_FN])) if cout.shape[0] else -1
+        joint = scene.clearance_joints[k] if k >= 0 else None
+        extra = f"; largest contact force at joint {joint}: {cout[k, K.CO_FN]:.4g} N" if joint else ""
+        return SimulationError(f"step size collapsed to {stats[I.S_H]:.3g} s {where}{extra}", t=t, joint=joint,
+                               quantity="step size", state=state)
+    if status == I.DRIFT:
+        W = scene.work()
+        n = scene.n
+        K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W[0], W[1], W[2], W[3])
+        joint = scene.row_joints[int(np.argmax(np.abs(W[0])))]
+        return SimulationError(f"constraint drift {stats[I.S_VALUE]:.3g} (m or rad) exceeds {drift_tol:g} "
+                               f"{where} at joint {joint}", t=t, joint=joint, quantity="constraint drift",
+                               state=state)
+    if status == I.BLOW_UP:
+        joint = scene.clearance_joints[int(stats[I.S_DETAIL])]
+        return SimulationError(f"penetration {stats[I.S_VALUE]:.4g} m at joint {joint} {where} exceeds "
+                               f"{_BLOW_UP:.0%} of the journal radius: the contact blew up (step too large for "
+                               "the contact stiffness) or the mechanism jams", t=t, joint=joint,
+                               quantity="penetration", state=state)
+    if status == I.TOO_MANY_STEPS:
+        return SimulationError(f"too many steps {where}", t=t, quantity="steps", state=state)
+    return SimulationError(f"integration failed with status {status} {where}", t=t, state=state)
+
+
+def _profile(speed_profile, t_end: float) -> np.ndarray:
+    """Rows (time, motor angle, speed) of a speed profile, the angle integrated exactly (trapezoid)."""
+    if callable(speed_profile):
+        count = max(2, math.ceil(t_end / 1e-4) + 2)  # one sample past t_end: no end effect
+        times = np.arange(count) * (t_end / (count - 2))
+        speeds = np.asarray(speed_profile(times), dtype=float) * np.ones_like(times)
+    else:
+        times, speeds = (np.asarray(x, dtype=float) for x in speed_profile)
+    if times.ndim != 1 or times.shape != speeds.shape or times.size < 1 or times[0] != 0.0:
+        raise ValueError("speed_profile: expected arrays (times, speeds) of equal length starting at t = 0")
+    if np.any(np.diff(times) <= 0) or not np.isfinite(speeds).all():
+        raise ValueError("speed_profile: times must increase strictly and speeds be finite")
+    angles = np.concatenate([[0.0], np.cumsum(0.5 * (speeds[1:] + speeds[:-1]) * np.diff(times))])
+    return np.column_stack([times, angles, speeds])
+
+
+def _tolerances(scene: Scene, atol: float) -> np.ndarray:
+    """Absolute tolerance per state component: atol (m) on positions, atol / 0.1 m on angles,
+    and the same times a contact frequency scale (1e3 /s) on velocities."""
+    n = scene.n
+    base = np.tile([atol, atol, atol / 0.1], n // 3)
+    return np.concatenate([base, base * 1e3])
+
+
+def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = None,
+             method: str | I.Method = "default", rtol: float | None = None, atol: float | None = None,
+             speed: float | None = None, output_rate: float | None = None, record_contacts: bool = False,
+             step: float | None = None, initial: tuple[np.ndarray, np.ndarray] | None = None,
+             speed_profile: Callable[[np.ndarray], np.ndarray] | tuple[np.ndarray, np.ndarray] | None = None,
+             drift_tolerance: float = DRIFT_TOLERANCE) -> SimulationResult:
+    """Simulate ``scene`` from t = 0 (the bench's driver phases) to ``t_end``.
+
+    revolutions: duration in motor revolutions when ``t_end`` (s) is None.
+    method: "default" (kinematics + inverse dynamics for a fully driven ideal scene, else adaptive
+    DOPRI5 with projection), "kinematics", "dopri5", "rk4-paper", or a :class:`Method`.
+    rtol, atol: tolerances of an adaptive method (atol in m; see ``_tolerances``).
+    step: fixed step (s) of a fixed-step method (rk4-paper: 1e-4).
+    speed: motor speed (rad/s), default the bench's. output_rate: table samples/s (default 20 kHz).
+    initial: (q, v) at t = 0 instead of the assembled state (journals centred, ideal velocities).
+    speed_profile: motor speed against time instead of a constant speed: a function speed(t) (rad/s,
+    vectorised; sampled every 0.1 ms) or arrays (times s, speeds rad/s), linear in between, held after
+    the last time; the drivers turn at ratio x the integrated motor angle. Needs ``t_end``.
+    Raises SimulationError on numerical failure (naming time, joint, quantity and state).
+    """
+    wall0 = time.perf_counter()
+    speed = scene.bench.speed if speed is None else float(speed)
+    if speed_profile is not None and t_end is None:
+        raise ValueError("a speed profile needs t_end (s): revolutions are not defined for a varying speed")
+    if t_end is None:
+        if speed == 0:
+            raise ValueError("t_end is needed when the motor speed is 0 (revolutions are undefined)")
+        t_end = revolutions * 2 * math.pi / abs(speed)
+    if not t_end > 0:
+        raise ValueError(f"t_end = {t_end}: expected a positive duration (s)")
+    rate = DEFAULT_OUTPUT_RATE if output_rate is None else float(output_rate)
+    if not rate > 0:
+        raise ValueError(f"output_rate = {output_rate}: expected samples/s > 0")
+    times = _output_times(t_end, rate)
+    n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
+    P = scene.params
+    if speed_profile is not None:
+        P = P[:-1] + (_profile(speed_profile, t_end),)
+        speed = float(P[-1][0, 2])
+    q = scene.q0.copy() if initial is None else np.array(initial[0], dtype=float)
+    v = scene.v_unit * speed if initial is None else np.array(initial[1], dtype=float)
+    out_y = np.zeros((times.size, 2 * n))
+    out_a = np.zeros((times.size, n))
+    out_c = np.zeros((times.size, nc, K.NCO))
+    out_lam = np.zeros((times.size, m))
+    stats = np.zeros(I.NSTATS)
+    W = scene.work()
+    name = method if isinstance(method, str) else method.name
+    if name == "kinematics" or (name == "default" and scene.dof == 0 and nc == 0 and initial is None):
+        if scene.dof != 0 or nc:
+            raise ValueError(f"method 'kinematics' needs a fully driven scene with ideal joints; this one "
+                             f"has {scene.dof} DOF ({scene.description})")
+        status = I.kinematics_loop(times, q, v, speed, P, W, _PROJECTION_TOL, out_y, out_a, out_lam, out_c, stats)
+        if status != 0:
+            code = I.SINGULAR if status == K.SINGULAR else I.NO_PROJECTION
+            raise _fail(scene, code, stats, np.concatenate([q, v]), np.zeros((0, K.NCO)), speed, "kinematics",
+                        drift_tolerance)
+        contacts = {} if record_contacts else None
+        table = _table(scene, times, out_y, out_a, out_c, out_lam)
+        return SimulationResult(table, _summary(scene, "kinematics", stats, table, wall0, speed), contacts, scene)
+
+    meth = I.get_method(name) if isinstance(method, str) else method
+    if step is not None:
+        meth = dataclasses.replace(meth, step=float(step))
+    rtol_ = meth.rtol if rtol is None else float(rtol)
+    atol_ = meth.atol if atol is None else float(atol)
+    atolv = _tolerances(scene, atol_)
+    y = np.concatenate([q, v])
+    # projection tolerance follows the integration tolerance (never looser than 1e-11 m)
+    proj_tol = max(2e-15, min(_PROJECTION_TOL, 1e-2 * atol_))
+    if meth.project and K.project(0.0, y[:n], y[n:], speed, P, W, proj_tol, 20) != 0:
+        raise SimulationError("the initial state does not satisfy the constraints (projection failed at "
+                              "t = 0)", t=0.0, quantity="initial state")
+    inc = np.zeros(nc, dtype=np.int64)
+    v0i = np.zeros(nc)
+    k = np.zeros((7, 2 * n))
+    cout = np.zeros((nc, K.NCO))
+    lam = np.zeros(m)
+    alpha, beta = meth.baumgarte
+    if I._deriv(0.0, y, speed, P, alpha, beta, inc, v0i, k[0], lam, cout, W) != 0:
+        raise _fail(scene, I.SINGULAR, stats, y, cout, speed, meth.name, drift_tolerance)
+    for c in range(nc):
+        if cout[c, K.CO_PEN] > 0:
+            inc[c] = 1
+            v0i[c] = impact_speed(cout[c, K.CO_VN])
+    period = 2 * math.pi / abs(speed) if speed else t_end
+    h = meth.step if meth.step is not None else 1e-6
+    hmax = (min(t_end, period) / 100.0) if meth.adaptive else h
+    blow = np.array([_BLOW_UP * scene.clearance_params(j)["journal_radius"] for j in scene.clearance_joints])
+    cap = 4096 if record_contacts else 1
+    rec = np.zeros((cap, nc, I.NREC))
+    while True:
+        status = I.run_loop(meth.kind, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
+                            meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_,
+                            1e-13, hmax, 50_000_000, times, out_y, out_a, out_c, out_lam, rec, record_contacts,
+                            blow, k, cout, stats, W)
+        if status == I.FULL:
+            rec = np.concatenate([rec, np.zeros_like(rec)])
+            h = float(stats[I.S_H])
+            continue
+        if status != I.DONE:
+            raise _fail(scene, status, stats, y, cout, speed, meth.name, drift_tolerance)
+        break
+    contacts = None
+    if record_contacts:
+        used = rec[: int(stats[I.S_REC])]
+        contacts = {j: pd.DataFrame(used[:, c, :], columns=list(CONTACT_COLUMNS))
+                    for c, j in enumerate(scene.clearance_joints)}
+    table = _table(scene, times, out_y, out_a, out_c, out_lam)
+    return SimulationResult(table, _summary(scene, meth.name, stats, table, wall0, speed), contacts, scene)
+
+
+def _summary(scene: Scene, method: str, stats: np.ndarray, table: pd.DataFrame, wall0: float,
+             speed: float) -> dict:
+    acc = table["slider_acc"].to_numpy()
+    return {
+        "method": method,
+        "wall_time_s": time.perf_counter() - wall0,
+        "steps": int(stats[I.S_STEPS]),
+        "rejected_steps": int(stats[I.S_REJ]),
+        "function_evaluations": int(stats[I.S_NFEV]),
+        "peak_slider_acc": float(np.max(np.abs(acc))) if np.isfinite(acc).all() else float("nan"),
+        "peak_fn": {j: float(table[f"{j}_fn"].max()) for j in scene.clearance_joints},
+        "max_constraint_drift": float(stats[I.S_DRIFT_P]),
+        "max_velocity_drift": float(stats[I.S_DRIFT_V]),
+        "dof": scene.dof,
+        "description": scene.description,
+        "speed": speed,
+        "t_end": float(table["t"].iloc[-1]),
+    }

@@ -1,0 +1,258 @@
+"""Archard wear of a revolute clearance joint: pure laws on arrays (paper section 2.2).
+
+Holds the Hertz line-contact half-width, the contact pressure, the sliding distance per step and
+the accumulation of a contact record (one row per accepted integrator step) into wear depths per
+angular region of the bearing and the journal. Imports numpy and pandas and the surfaces contract
+only; it must not import the multibody model (the stage loop in ``wear_stages`` wires them).
+
+Units: SI throughout (m, N, Pa, s, rad). Equation numbers (eq. 15-21) are the paper's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from wearbench.model.surfaces import JointSurfaces
+
+__all__ = [
+    "FOOTPRINTS",
+    "SLIDING",
+    "WearLaw",
+    "accumulate_wear",
+    "conformal_radius",
+    "contact_pressure",
+    "effective_modulus",
+    "hertz_half_width",
+    "sliding_distance",
+    "worn_volume",
+]
+
+SLIDING = ("rotation", "tangential")
+FOOTPRINTS = ("hertz", "region")
+
+
+def effective_modulus(e1: float, nu1: float, e2: float, nu2: float) -> float:
+    """Contact modulus E* (Pa): 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2.
+
+    Johnson, *Contact Mechanics* (1985), eq. 4.22 / 5.39 (plane strain, two elastic bodies).
+    """
+    return 1.0 / ((1 - nu1**2) / e1 + (1 - nu2**2) / e2)
+
+
+def conformal_radius(r1: float, r2: float) -> float:
+    """Effective radius R* (m) of a journal of radius ``r2`` inside a bearing of radius ``r1``.
+
+    Internal (conformal) contact: 1/R* = 1/R2 - 1/R1, i.e. R* = R1 R2/(R1 - R2) (Johnson 1985, 4.2).
+    """
+    if not r1 > r2 > 0:
+        raise ValueError(f"conformal radius: expected bearing radius {r1} m > journal radius {r2} m > 0")
+    return r1 * r2 / (r1 - r2)
+
+
+def hertz_half_width(fn: np.ndarray | float, r_eff: float, e_eff: float, length: float) -> np.ndarray | float:
+    """Half-width b (m) of the Hertz line contact of two parallel cylinders.
+
+    b = sqrt(4 F R* / (pi L E*)), F normal force (N, >= 0), R* effective radius (m), L axial
+    length (m), E* contact modulus (Pa). Johnson, *Contact Mechanics* (1985), eq. 4.43
+    (with P = F/L the load per unit length); also Flores et al., *Kinematics and Dynamics of
+    Multibody Systems with Imperfect Joints* (2008), eq. 3.25.
+    """
+    return np.sqrt(4.0 * np.maximum(fn, 0.0) * r_eff / (math.pi * length * e_eff))
+
+
+def contact_pressure(fn: np.ndarray | float, half_width: np.ndarray | float, length: float) -> np.ndarray | float:
+    """Mean contact pressure P = F / A (Pa), A = 2 b L the Hertz contact area (paper eq. 16).
+
+    Zero where the force or the width is zero.
+    """
+    fn = np.asarray(fn, dtype=float)
+    area = 2.0 * np.asarray(half_width, dtype=float) * length
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = np.where(area > 0, fn / np.where(area > 0, area, 1.0), 0.0)
+    return p if p.ndim else float(p)
+
+
+def sliding_distance(dt: np.ndarray, omega_rel: np.ndarray, vt: np.ndarray, r1: float,
+                     kind: str = "rotation") -> np.ndarray:
+    """Relative sliding distance (m) per step.
+
+    ``"rotation"`` (paper eq. 19-20): dS = R1 |omega_journal - omega_bearing| dt, the bearing
+    radius times the relative rotation of the two bodies in the step. It ignores the motion of the
+    contact point itself (the journal rolling round the bearing).
+    ``"tangential"``: dS = |v_t| dt, the relative tangential velocity of the contact points; it
+    includes that rolling motion and is the usual choice when the contact point moves.
+    """
+    if kind == "rotation":
+        return r1 * np.abs(omega_rel) * dt
+    if kind == "tangential":
+        return np.abs(vt) * dt
+    raise ValueError(f"sliding = {kind!r}: expected one of {list(SLIDING)}")
+
+
+@dataclass(frozen=True)
+class WearLaw:
+    """Archard wear of one clearance joint (paper eq. 16-21), depth h = K_n P dS per step.
+
+    coefficient: K_n = K_m / H (1/Pa); bearing_radius, journal_radius, axial_length (m);
+    modulus: E* (Pa, see :func:`effective_modulus`); split: share of each depth increment on the
+    bearing (0.5: equal depths on both surfaces as in the paper; their sum is K_n P dS, so the worn
+    volume of the pair is the Archard volume K_n F S); sliding: see :func:`sliding_distance`;
+    footprint: ``"hertz"`` spreads the depth evenly over the Hertz contact width 2b on each surface
+    (volume-exact), ``"region"`` puts it all in the single region in contact (the paper's
+    procedure; its worn volume is K_n F S times region width / 2b).
+    The Hertz width uses the unworn radii (wear depths are microns against a clearance of tenths of
+    a millimetre).
+    """
+
+    coefficient: float
+    bearing_radius: float
+    journal_radius: float
+    axial_length: float
+    modulus: float
+    split: float = 0.5
+    sliding: str = "rotation"
+    footprint: str = "hertz"
+
+    def __post_init__(self) -> None:
+        if not self.coefficient >= 0:
+            raise ValueError(f"wear coefficient = {self.coefficient}: expected >= 0 (1/Pa)")
+        if not 0 <= self.split <= 1:
+            raise ValueError(f"wear split = {self.split}: expected a share in [0, 1]")
+        if self.sliding not in SLIDING:
+            raise ValueError(f"wear sliding = {self.sliding!r}: expected one of {list(SLIDING)}")
+        if self.footprint not in FOOTPRINTS:
+            raise ValueError(f"wear footprint = {self.footprint!r}: expected one of {list(FOOTPRINTS)}")
+        conformal_radius(self.bearing_radius, self.journal_radius)  # validates the radii
+
+    @classmethod
+    def from_bench(cls, bench, joint: str, **overrides) -> WearLaw:
+        """The law for clearance joint ``joint`` of a :class:`~wearbench.hardware.bench.Bench`."""
+        c = bench.joint(joint).clearance
+        if c is None:
+            raise ValueError(f"{bench.name}: joint {joint} has no clearance, so no wear")
+        bm, jm = c.bearing_material, c.journal_material
+        kw = {"coefficient": bench.wear.coefficient, "bearing_radius": c.bearing_radius,
+                  "journal_radius": c.journal_radius, "axial_length": c.axial_length,
+                  "modulus": effective_modulus(bm.youngs_modulus, bm.poisson_ratio, jm.youngs_modulus,
+                                            jm.poisson_ratio),
+                  "split": bench.wear.split}
+        kw.update(overrides)
+        return cls(**kw)
+
+    @property
+    def r_eff(self) -> float:
+        return conformal_radius(self.bearing_radius, self.journal_radius)
+
+    def half_width(self, fn):
+        """Hertz half-width b (m) for normal force ``fn`` (N)."""
+        return hertz_half_width(fn, self.r_eff, self.modulus, self.axial_length)
+
+    def pressure(self, fn):
+        """Mean Hertz pressure P (Pa) for normal force ``fn`` (N)."""
+        return contact_pressure(fn, self.half_width(fn), self.axial_length)
+
+    def depth_increments(self, fn, dt, omega_rel, vt=None) -> np.ndarray:
+        """Total depth increment h = K_n P dS (m) per step (paper eq. 18), before the split."""
+        fn = np.asarray(fn, dtype=float)
+        vt = np.zeros_like(fn) if vt is None else np.asarray(vt, dtype=float)
+        ds = sliding_distance(np.asarray(dt, float), np.asarray(omega_rel, float), vt, self.bearing_radius,
+                              self.sliding)
+        return self.coefficient * np.where(fn > 0, self.pressure(fn), 0.0) * ds
+
+
+def _deposit(n: int, centre_regions: np.ndarray, half_regions: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """Spread ``depth`` (m) evenly over arcs [c - w, c + w] (region units, periodic over ``n``).
+
+    Each region gets depth times the fraction of it the arc covers, so sum(result) * region width
+    = sum(depth * 2 w) * region width: the deposited volume is exact. Vectorised with a
+    difference array; ``w`` must be below n/2.
+    """
+    out = np.zeros(n)
+    if depth.size == 0:
+        return out
+    a0 = np.mod(centre_regions - half_regions, n)
+    a1 = a0 + 2 * half_regions  # in [0, 2n)
+    i0 = np.floor(a0).astype(int)
+    i1 = np.floor(a1).astype(int)
+    ext = np.zeros(2 * n + 2)
+    diff = np.zeros(2 * n + 3)
+    same = i0 == i1
+    np.add.at(ext, i0[same], depth[same] * (a1[same] - a0[same]))
+    d = ~same
+    np.add.at(ext, i0[d], depth[d] * (i0[d] + 1 - a0[d]))
+    np.add.at(ext, i1[d], depth[d] * (a1[d] - i1[d]))
+    np.add.at(diff, i0[d] + 1, depth[d])
+    np.add.at(diff, i1[d], -depth[d])
+    ext += np.cumsum(diff)[: 2 * n + 2]
+    out += ext[:n] + ext[n: 2 * n]
+    out[:2] += ext[2 * n: 2 * n + 2]
+    return out
+
+
+def _swept_deposit(n: int, start: np.ndarray, sweep: np.ndarray, half: np.ndarray,
+                   depth: np.ndarray) -> np.ndarray:
+    """Deposit ``depth`` (m) of footprints of half-width ``half`` that move by ``sweep`` from
+    ``start`` during their step (region units): each step is cut into ceil(4 |sweep| / half) equal
+    sub-steps (at most 256), each depositing its share over its own footprint, so a contact point
+    that runs over several regions in one step wears all of them, not only where the step ends."""
+    m = np.clip(np.ceil(4 * np.abs(sweep) / np.maximum(half, 1e-12)), 1, 256).astype(int)
+    rows = np.repeat(np.arange(m.size), m)
+    j = np.arange(rows.size) - np.repeat(np.cumsum(m) - m, m)
+    centre = start[rows] + sweep[rows] * (j + 0.5) / m[rows]
+    return _deposit(n, np.mod(centre, n), half[rows], depth[rows] / m[rows])
+
+
+def accumulate_wear(record: pd.DataFrame, law: WearLaw, regions: int = 1000, *,
+                    cycles: float = 0.0, label: str = "") -> JointSurfaces:
+    """Wear depths (m) per region from one joint's contact record (paper eq. 18-21).
+
+    ``record``: one row per accepted step, in time order, with columns ``dt`` (s), ``fn`` (N),
+    ``omega_rel`` (rad/s, journal minus bearing), ``vt`` (m/s), ``phi_bearing``, ``phi_journal``
+    (rad, contact direction in each body's frame at the end of the step). Rows with fn <= 0 wear
+    nothing. With the ``"hertz"`` footprint a step's wear is spread along the arc the contact
+    direction swept since the previous row (see :func:`_swept_deposit`); ``"region"`` puts it in
+    the region at the step's end, as the paper does. Returns the surfaces worn by that record alone
+    (add them to the previous state), with ``cycles`` and ``label`` as given.
+    """
+    missing = {"dt", "fn", "omega_rel", "phi_bearing", "phi_journal"} - set(record.columns)
+    if missing:
+        raise ValueError(f"contact record lacks columns {sorted(missing)}")
+    on = record["fn"].to_numpy() > 0
+    rec = record[on]
+    fn = rec["fn"].to_numpy(float)
+    vt = rec["vt"].to_numpy(float) if "vt" in rec else np.zeros_like(fn)
+    bad = ~np.isfinite(fn) | ~np.isfinite(rec["dt"].to_numpy(float))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"contact record row at t = {rec['t'].iloc[i] if 't' in rec else i}: "
+                         f"non-finite fn = {fn[i]} or dt")
+    h = law.depth_increments(fn, rec["dt"].to_numpy(float), rec["omega_rel"].to_numpy(float), vt)
+    scale = regions / (2 * np.pi)
+    sides = []
+    for col, share, radius in (("phi_bearing", law.split, law.bearing_radius),
+                               ("phi_journal", 1 - law.split, law.journal_radius)):
+        phi = record[col].to_numpy(float)
+        end = np.mod(phi[on], 2 * np.pi) * scale
+        if law.footprint == "region":
+            depth = np.zeros(regions)
+            np.add.at(depth, np.floor(end).astype(int) % regions, share * h)
+        else:
+            swept = np.mod(np.diff(phi, prepend=phi[:1]) + np.pi, 2 * np.pi) - np.pi  # rad, in (-pi, pi]
+            sweep = swept[on] * scale
+            half = np.minimum(law.half_width(fn) / radius * scale, 0.49 * regions)
+            depth = _swept_deposit(regions, end - sweep, sweep, half, share * h)
+        sides.append(depth)
+    return JointSurfaces(np.maximum(sides[0], 0.0), np.maximum(sides[1], 0.0), cycles, label)
+
+
+def worn_volume(surfaces: JointSurfaces, law: WearLaw) -> float:
+    """Material removed from bearing and journal together (m^3): sum of depth x region arc x L.
+
+    Small-depth approximation (depth << radius), consistent with Archard's V = K_n F S (eq. 15).
+    """
+    arc_b = 2 * np.pi * law.bearing_radius / surfaces.bearing.size
+    arc_j = 2 * np.pi * law.journal_radius / surfaces.journal.size
+    return float((surfaces.bearing.sum() * arc_b + surfaces.journal.sum() * arc_j) * law.axial_length)

@@ -1,0 +1,125 @@
+"""A 20-cycle session through each backend against the emulators: the MCAP holds, block for block,
+exactly what the emulator sent, and read_session turns it into consistent frames."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from wearbench.acquisition.backends import open_rig
+from wearbench.acquisition.drivers import ACCELERATION, ENCODER
+from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.session_file import read_session
+
+from .conftest import (
+    FAST,
+    HARMONIC,
+    assert_same_blocks,
+    sent_from_can,
+    sent_from_device,
+    sent_from_serial_log,
+)
+
+
+def _check_session(path, bench, cycles: float = 20) -> None:
+    s = read_session(path)
+    assert s.finished and s.problem is None
+    assert s.metadata["result"]["reason"] == "completed"
+    assert s.bench is not None and s.bench.sha256 == bench.sha256
+    assert s.clearances == pytest.approx({"A": 0.3e-3, "B": 0.3e-3})
+    # the encoder turned the planned cycles while the accelerometer was recorded
+    turned = (s.encoder.angle.iloc[-1] - s.encoder.angle.iloc[0]) / (2 * math.pi)
+    assert cycles - 0.5 < turned < cycles + 1.0
+    steady = s.encoder.speed.iloc[20:-20]
+    assert np.median(steady) == pytest.approx(FAST, rel=0.01)
+    rate = bench.sensor("accelerometer").sample_rate
+    assert np.allclose(np.diff(s.acceleration.time), 1 / rate, atol=1e-6)
+    assert s.acceleration.time.iloc[0] == 0.0
+    # the encoder angle at time 0 is the drive's crank angle there (counts + recorded offset)
+    motor = s.motor[s.motor.enabled]
+    assert np.interp(s.encoder.time.iloc[100], motor.time, motor.angle) == pytest.approx(
+        s.encoder.angle.iloc[100], abs=0.05)
+    assert s.quality[ACCELERATION]["dropped"] == 0 and s.quality[ENCODER]["repeated"] == 0
+
+
+def test_sim_session_equals_emulator(bench, tmp_path):
+    rig = open_rig(bench, "sim", {"speedup": math.inf, "config": HARMONIC})
+    sent = sent_from_device(rig.drive.device)
+    out = tmp_path / "sim.mcap"
+    try:
+        result = Recorder(rig, bench, SessionPlan(speed=FAST, cycles=20), out).run()
+    finally:
+        rig.close()
+    assert result.completed, result.reason
+    assert 20 <= result.cycles < 20.5
+    counts = assert_same_blocks(out, sent)
+    assert counts[ACCELERATION] == result.blocks[ACCELERATION]
+    _check_session(out, bench)
+
+
+def test_serial_session_equals_emulator(bench, tmp_path):
+    from wearbench.hardware.emulators.serial_server import start_serial_emulator
+
+    log = tmp_path / "sent.bin"
+    proc, port = start_serial_emulator(bench, HARMONIC, sent_log=log)
+    out = tmp_path / "serial.mcap"
+    try:
+        rig = open_rig(bench, "serial", {"port": port})
+        try:
+            result = Recorder(rig, bench, SessionPlan(speed=FAST, cycles=20), out).run()
+        finally:
+            rig.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    assert result.completed, result.reason
+    assert_same_blocks(out, sent_from_serial_log(log))
+    _check_session(out, bench)
+
+
+@pytest.mark.parametrize("backend", ["can", "canopen"])
+def test_can_session_equals_emulator(bench, tmp_path, backend):
+    from wearbench.hardware.emulators.can_server import CanEmulator
+
+    channel = f"wearbench-test-{backend}-{tmp_path.name}"
+    out = tmp_path / f"{backend}.mcap"
+    with CanEmulator(bench, channel=channel, config=HARMONIC) as emulator:
+        rig = open_rig(bench, backend, {"interface": "virtual", "channel": channel})
+        try:
+            result = Recorder(rig, bench, SessionPlan(speed=FAST, cycles=20), out).run()
+        finally:
+            rig.close()
+    assert result.completed, result.reason
+    assert_same_blocks(out, sent_from_can(emulator))
+    _check_session(out, bench)
+
+
+def test_speed_profile_sim_and_serial(bench):
+    """The drive's speed profile runs on the device: after the points' times the crank is at the
+    last speed (sim on its stepped clock, serial against the emulator process)."""
+    from wearbench.hardware.emulators.serial_server import start_serial_emulator
+
+    rig = open_rig(bench, "sim", {"speedup": math.inf, "config": HARMONIC})
+    try:
+        rig.drive.enable()
+        rig.drive.set_profile([0.0, 0.3], [20.0, 40.0], 200.0)
+        rig.clock.sleep(0.8)
+        assert rig.drive.state().speed == pytest.approx(40.0)
+    finally:
+        rig.close()
+    proc, port = start_serial_emulator(bench, HARMONIC)
+    try:
+        rig = open_rig(bench, "serial", {"port": port})
+        try:
+            rig.drive.enable()
+            rig.drive.set_profile([0.0, 0.2], [10.0, -15.0], 200.0)
+            time.sleep(0.6)
+            assert rig.drive.state().speed == pytest.approx(-15.0, abs=1e-3)
+            rig.drive.disable()
+        finally:
+            rig.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)

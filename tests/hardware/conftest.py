@@ -1,0 +1,20 @@
+"""Fixtures for the hardware tests: the test bed bench and emulator configs built from raw tables."""
+
+from __future__ import annotations
+
+import pytest
+from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.hardware.emulators.config import EmulatorConfig
+
+
+@pytest.fixture(scope="session")
+def testbed():
+    return load_bench(shipped_bench("ninebar-testbed"))
+
+
+@pytest.fixture
+def make_config(testbed):
+    def make(**sections) -> EmulatorConfig:
+        table = {"signal": "none", **sections}
+        return EmulatorConfig.from_table(table, bench=testbed)
+    return make

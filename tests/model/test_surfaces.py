@@ -1,0 +1,101 @@
+"""Worn-surface contract: validation, .npz round trip, interpolation, loading from a bench file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.model.surfaces import (
+    JointSurfaces,
+    SurfaceError,
+    depth_at,
+    region_of,
+    surfaces_from_bench,
+)
+
+
+def test_round_trip(tmp_path):
+    rng = np.random.default_rng(1)
+    s = JointSurfaces(rng.random(1000) * 1e-5, rng.random(1000) * 2e-5, 4e5, "second wear", {"joint": "B"})
+    path = s.save(tmp_path / "b")  # suffix added
+    assert path.suffix == ".npz"
+    t = JointSurfaces.load(path)
+    np.testing.assert_array_equal(t.bearing, s.bearing)
+    np.testing.assert_array_equal(t.journal, s.journal)
+    assert (t.cycles, t.label, t.meta) == (4e5, "second wear", {"joint": "B"})
+
+
+@pytest.mark.parametrize(("bearing", "message"), [
+    (np.array([0.0, -1e-6, 0.0]), r"bearing\[1\] = -1e-06 m: expected depths >= 0"),
+    (np.array([0.0, np.nan, 0.0]), r"bearing\[1\] = nan: expected finite"),
+    (np.zeros((3, 3)), r"shape \(3, 3\): expected a 1-D array"),
+    (np.zeros(2), r"at least 3 regions"),
+])
+def test_bad_depths_named(bearing, message):
+    with pytest.raises(SurfaceError, match=message):
+        JointSurfaces(bearing, np.zeros(3))
+
+
+def test_bad_file_named(tmp_path):
+    bad = tmp_path / "x.npz"
+    np.savez(bad, bearing=np.zeros(4))
+    with pytest.raises(SurfaceError, match=r"x\.npz: format = ''"):
+        JointSurfaces.load(bad)
+    (tmp_path / "junk.npz").write_text("not a zip")
+    with pytest.raises(SurfaceError, match="junk.npz: not a worn-surface"):
+        JointSurfaces.load(tmp_path / "junk.npz")
+    with pytest.raises(OSError, match="does not exist"):
+        JointSurfaces.load(tmp_path / "missing.npz")
+
+
+def test_region_centres_and_periodicity():
+    d = np.array([0.0, 1.0, 4.0, 2.0])
+    centres = 2 * np.pi * (np.arange(4) + 0.5) / 4
+    np.testing.assert_allclose(depth_at(d, centres), d)
+    np.testing.assert_allclose(depth_at(d, centres + 2 * np.pi), d)
+    # half-way between the last and first centre (angle 0): mean of the two
+    assert depth_at(d, 0.0) == pytest.approx(1.0)
+    assert region_of(2 * np.pi - 1e-9, 4) == 3
+    assert region_of(-1e-9, 4) == 3
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(0, 1e-4), min_size=3, max_size=50), st.floats(-20, 20))
+def test_interpolation_is_bounded_by_neighbours(depths, phi):
+    d = np.array(depths)
+    v = depth_at(d, phi)
+    n = d.size
+    i = int(np.floor(np.mod(phi, 2 * np.pi) * n / (2 * np.pi) - 0.5)) % n
+    lo, hi = sorted((d[i], d[(i + 1) % n]))
+    assert lo - 1e-18 <= v <= hi + 1e-18
+
+
+def test_surfaces_from_bench(tmp_path):
+    src = shipped_bench("ninebar").read_text()
+    s = JointSurfaces(np.full(1000, 1e-6), np.zeros(1000), 2e5, "first wear")
+    s.save(tmp_path / "A.npz")
+    text = src.replace('axial_length = "20 mm"         # FILLED IN',
+                       'axial_length = "20 mm"\nsurfaces = "A.npz"', 1)
+    assert text != src
+    (tmp_path / "worn.toml").write_text(text)
+    bench = load_bench(tmp_path / "worn.toml")
+    got = surfaces_from_bench(bench)
+    assert list(got) == ["A"]
+    assert got["A"].label == "first wear" and got["A"].bearing[0] == 1e-6
+    (tmp_path / "A.npz").write_bytes(b"broken")
+    with pytest.raises(SurfaceError, match=r"worn\.toml: joint A\.clearance\.surfaces"):
+        surfaces_from_bench(bench)
+
+
+def test_shipped_worn_surfaces_load():
+    worn = shipped_bench("ninebar").parent / "worn"
+    for j in ("A", "B"):
+        first = JointSurfaces.load(worn / f"ninebar-testbed_{j}_200k.npz")
+        second = JointSurfaces.load(worn / f"ninebar-testbed_{j}_400k.npz")
+        assert (first.cycles, second.cycles) == (200_000, 400_000)
+        assert first.bearing.size == first.journal.size == 1000
+        # wear only accumulates: the second state is at least as deep everywhere
+        assert (second.bearing >= first.bearing).all() and (second.journal >= first.journal).all()
+        assert first.meta["joint"] == j and first.meta["bench"] == "ninebar-testbed"

@@ -1,0 +1,164 @@
+"""Wear on the real model: unworn surfaces change nothing, sharp steps do not break the integrator,
+a simulated stage conserves the Archard volume; the `wear` and `study` commands write their files."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from wearbench.cli import main
+from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.model import build_scene, simulate
+from wearbench.model.surfaces import JointSurfaces
+from wearbench.model.wear_stages import StagePlan, run_stages
+
+SPEED = -5 * math.pi
+CLEAR = {"A": 0.6e-3, "B": 0.6e-3}
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return load_bench(shipped_bench("ninebar"))
+
+
+def test_unworn_surfaces_reproduce_even_clearance_exactly(bench):
+    zero = {j: JointSurfaces.unworn(1000) for j in CLEAR}
+    plain = simulate(build_scene(bench, clearances=CLEAR, surfaces={}), revolutions=0.5, speed=SPEED)
+    worn0 = simulate(build_scene(bench, clearances=CLEAR, surfaces=zero), revolutions=0.5, speed=SPEED)
+    assert plain.summary["steps"] == worn0.summary["steps"]
+    pd.testing.assert_frame_equal(plain.table, worn0.table, rtol=1e-12, atol=0)
+
+
+def test_sharp_steps_neither_stall_nor_explode(bench):
+    # 40 um deep pockets with vertical walls every 10 regions on both surfaces of both joints
+    step = np.where((np.arange(1000) // 10) % 2 == 0, 40e-6, 0.0)
+    rough = {j: JointSurfaces(step, step[::-1].copy(), 0, "steps") for j in CLEAR}
+    smooth = simulate(build_scene(bench, clearances=CLEAR, surfaces={}), revolutions=1, speed=SPEED)
+    res = simulate(build_scene(bench, clearances=CLEAR, surfaces=rough), revolutions=1, speed=SPEED)
+    t = res.table
+    assert t["t"].iloc[-1] == pytest.approx(2 * math.pi / abs(SPEED), rel=1e-6)
+    assert np.isfinite(t.select_dtypes("number").to_numpy()).all()
+    # journal stays near its bearing: radial penetration stays a fraction of the clearance (a
+    # blow-up would run through it); it exceeds the smooth case's because it is measured radially
+    # into the pocket walls
+    for j, c in CLEAR.items():
+        assert t[f"{j}_pen"].max() < 0.25 * c
+    # bounded work: not more than 20x the steps of the smooth surfaces
+    assert res.summary["steps"] < 20 * smooth.summary["steps"]
+
+
+def test_simulated_stage_conserves_archard_volume_and_wears_contact_zones(bench):
+    plan = StagePlan.from_bench(bench, stages=1, sim_cycles=1.0)
+    run = run_stages(bench, plan, clearances=CLEAR, speed=SPEED)
+    stage = run.stages[0]
+    for j in CLEAR:
+        s = stage.surfaces[j]
+        assert s.cycles == plan.stage_cycles and s.label == "first wear"
+        assert s.bearing.max() > 0 and s.journal.max() > 0
+        assert stage.volume[j] == pytest.approx(stage.archard_volume[j], rel=1e-9)
+
+
+def test_wear_command_writes_surfaces_summary_and_plots(tmp_path):
+    out = tmp_path / "wear"
+    code = main(["wear", str(shipped_bench("ninebar")), "--clearance", "0.6mm", "--speed", "-5pi", "--stages", "2",
+                 "--sim-cycles", "0.5", "--convergence", "1,2", "--out", str(out)])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    conv = pd.read_csv(out / "convergence.csv")
+    assert sorted(set(conv["stages"])) == [1, 2] and set(conv["total_cycles"]) == {400_000}
+    # the finest staging is the reference: zero difference against itself
+    assert conv.loc[conv["stages"] == 2, "bearing_rms_diff_rel"].max() == 0
+    assert [s["label"] for s in summary["stages"]] == ["first wear", "second wear"]
+    a1 = summary["stages"][0]["joints"]["A"]["bearing"]["max_depth_m"]
+    a2 = summary["stages"][1]["joints"]["A"]["bearing"]["max_depth_m"]
+    assert 0 < a1 < a2
+    second = JointSurfaces.load(out / "surfaces" / "B_2.npz")
+    assert second.label == "second wear" and second.cycles == 400_000
+    assert (out / "depths.csv").exists() and (out / "wear_depth.png").exists() and (out / "surface_A.png").exists()
+
+
+def test_wear_command_bad_clearance_is_one_line(tmp_path, capsys):
+    code = main(["wear", str(shipped_bench("ninebar")), "--clearance", "Z=0.6mm", "--out", str(tmp_path)])
+    assert code == 2
+    assert "no clearance joint 'Z'" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_study_quick_writes_table3_and_figures(tmp_path):
+    out = tmp_path / "study"
+    assert main(["study", str(shipped_bench("ninebar")), "--quick", "--out", str(out)]) == 0
+    t3 = pd.read_csv(out / "table3.csv", header=[0, 1], index_col=0)
+    assert list(t3.index) == ["clearance A", "clearance B"]
+    assert t3.shape == (2, 6) and (t3.to_numpy() > 0).all()
+    study = json.loads((out / "study.json").read_text())
+    assert {t["finding"] for t in study["trends"]}
+    assert (out / "figures" / "fig09-11_slider.png").exists()
+    assert (out / "figures" / "fig29-30_poincare_0.45mm.png").exists()
+    assert (out / "wear" / "surfaces" / "A_2.npz").exists()
+
+
+DISC = """
+driver = []
+[bench]
+name = "disc"
+[operating]
+speed = "0 rad/s"
+gravity = ["0 m/s^2", "-9.81 m/s^2"]
+[materials.steel]
+youngs_modulus = "206 GPa"
+poisson_ratio = 0.3
+hardness = "217 MPa"
+[contact]
+restitution = 0.9
+friction_coefficient = 0.0
+[frame]
+points = { O = ["0 m", "0 m"] }
+[[body]]
+name = "disc"
+mass = "1 kg"
+inertia = "1e-4 kg*m^2"
+points = { c = ["0 m", "0 m"] }
+[[joint]]
+name = "J"
+type = "revolute"
+bodies = ["frame", "disc"]
+points = ["O", "c"]
+[joint.clearance]
+bearing_body = "frame"
+bearing_radius = "15 mm"
+journal_radius = "14.5 mm"
+bearing_material = "steel"
+journal_material = "steel"
+axial_length = "20 mm"
+"""
+
+
+def test_journal_spinning_on_its_bearing_under_gravity_wears_as_closed_form_archard():
+    """A 1 kg journal resting on the bottom of a fixed bearing, spinning at omega without friction:
+    the contact stays at the bearing's 270 deg with F = m g, so Archard gives bearing depth
+    split K_n P(mg) R1 omega t, and the journal wears evenly over whole revolutions."""
+    from wearbench.hardware.bench import parse_bench
+    from wearbench.model.wear import WearLaw, accumulate_wear, worn_volume
+
+    bench = parse_bench(DISC)
+    scene = build_scene(bench, surfaces={})
+    omega, t_end, mg = 8 * math.pi, 0.5, 9.81  # two whole revolutions
+    law = WearLaw.from_bench(bench, "J")
+    k = 4 / (3 * 2 * (1 - 0.3**2) / 206e9) * math.sqrt(0.015 * 0.0145 / 0.0005)  # conformal stiffness
+    q0 = scene.q0.copy()
+    q0[0:3] = (0.0, -(0.5e-3 + (mg / k) ** (1 / 1.5)), 0.0)  # statically seated at the bottom
+    v0 = np.zeros_like(scene.v0)
+    v0[2] = omega
+    res = simulate(scene, t_end=t_end, initial=(q0, v0), record_contacts=True)
+    rec = res.contacts["J"]
+    assert rec["fn"].iloc[len(rec) // 2:].mean() == pytest.approx(mg, rel=1e-3)
+    s = accumulate_wear(rec, law, 4000)
+    h = law.coefficient * law.pressure(mg) * law.bearing_radius * omega * t_end  # eq. 17 at constant P
+    assert s.bearing.max() == pytest.approx(law.split * h, rel=2e-3)
+    assert (np.argmax(s.bearing) + 0.5) * 360 / 4000 == pytest.approx(270.0, abs=0.5)
+    assert worn_volume(s, law) == pytest.approx(law.coefficient * mg * law.bearing_radius * omega * t_end, rel=0.01)
+    journal = s.journal[s.journal > 0]
+    assert journal.size > 3900 and journal.std() < 0.02 * journal.mean()  # even all round

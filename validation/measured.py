@@ -1,0 +1,100 @@
+"""A measured session as validation sees it: acceleration and encoder in pandas, cut into cycles.
+
+Holds ``MeasuredSession`` (time signals, cycle table, crank-angle view, recorded conditions) and
+``load_session`` (from a session MCAP via wearbench.acquisition.session_file.read_session).
+Imports acquisition only inside ``load_session``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from wearbench.validation.cycles import angle_view, cut_cycles, reference_angle
+
+__all__ = ["MeasuredSession", "load_session"]
+
+
+@dataclass
+class MeasuredSession:
+    """Acceleration (time, acc) and encoder (time, angle, speed, index) of one session, device clock.
+
+    cycles: ``cut_cycles`` table; angles: ``angle_view`` of the acceleration (cycle, angle, value);
+    fs: acceleration sample rate (Hz, median of the time steps); gaps: number of acceleration time
+    steps longer than 1.5 sample periods (dropped samples); windows spanning a gap are not scored.
+    """
+
+    label: str
+    acceleration: pd.DataFrame
+    encoder: pd.DataFrame
+    bench: Any = None  # wearbench.hardware.bench.Bench or None
+    clearances: dict[str, float] = field(default_factory=dict)
+    wear_state: dict[str, str] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    path: Path | None = None
+    speed_tolerance: float = 0.02
+    points_per_rev: int = 720
+
+    def __post_init__(self) -> None:
+        for name, frame, cols in (("acceleration", self.acceleration, ("time", "acc")),
+                                  ("encoder", self.encoder, ("time", "angle"))):
+            missing = [c for c in cols if c not in frame.columns]
+            if missing:
+                raise ValueError(f"session {self.label}: {name} lacks column(s) {missing}")
+        self.acceleration = self.acceleration.sort_values("time", kind="stable").reset_index(drop=True)
+        self.encoder = self.encoder.sort_values("time", kind="stable").reset_index(drop=True)
+        t = self.acceleration["time"].to_numpy(float)
+        if t.size < 16:
+            raise ValueError(f"session {self.label}: only {t.size} acceleration samples")
+        if self.encoder["angle"].isna().all():
+            raise ValueError(f"session {self.label}: the encoder angle is missing (no counts per revolution "
+                             "in the bench or calibration)")
+        dt = np.diff(t)
+        self.fs = float(1.0 / np.median(dt))
+        self.gap_times = t[:-1][dt > 1.5 / self.fs]
+        self.start_angle = reference_angle(self.encoder)
+        self.cycles = cut_cycles(self.encoder, start_angle=self.start_angle,
+                                 speed_tolerance=self.speed_tolerance)
+        a = self.encoder["angle"].to_numpy(float)
+        self.direction = 1.0 if a[-1] >= a[0] else -1.0
+        self.angles = angle_view(t, self.acceleration["acc"].to_numpy(float), self.encoder, self.cycles,
+                                 start_angle=self.start_angle, points_per_rev=self.points_per_rev)
+
+    @property
+    def gaps(self) -> int:
+        return int(self.gap_times.size)
+
+    @property
+    def steady_speed(self) -> float:
+        """Mean crank speed (rad/s, signed) over the steady cycles."""
+        steady = self.cycles[self.cycles["steady"]]
+        if steady.empty:
+            raise ValueError(f"session {self.label}: no steady complete crank cycle in the record")
+        return float(2 * np.pi * len(steady) / (steady["t_end"] - steady["t_start"]).sum()) * self.direction
+
+    @property
+    def encoder_joint(self) -> str:
+        if self.bench is None:
+            return "O1"
+        try:
+            return self.bench.sensor("encoder").joint or self.bench.drivers[0].joint
+        except KeyError:
+            return self.bench.drivers[0].joint
+
+
+def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSession:
+    """Read a session MCAP (tolerates unfinished files) into a ``MeasuredSession``."""
+    from wearbench.acquisition.session_file import read_session
+
+    path = Path(path)
+    s = read_session(path)
+    if s.acceleration.empty:
+        raise ValueError(f"{path}: the session holds no acceleration samples")
+    if s.encoder.empty:
+        raise ValueError(f"{path}: the session holds no encoder samples")
+    return MeasuredSession(label=label or path.stem, acceleration=s.acceleration[["time", "acc"]],
+                           encoder=s.encoder, bench=s.bench, clearances=dict(s.clearances),
+                           wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path)
