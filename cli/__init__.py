@@ -11,7 +11,7 @@ import importlib
 import sys
 from importlib.metadata import version
 
-__all__ = ["main", "COMMANDS"]
+__all__ = ["COMMANDS", "main"]
 
 # subcommand -> module in wearbench.cli
 COMMANDS: dict[str, str] = {

@@ -7,7 +7,6 @@ import math
 
 from rich.console import Console
 from rich.table import Table
-
 from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench
 
 
@@ -42,7 +41,7 @@ def _check(args: argparse.Namespace) -> int:
 
         scene = build_scene(bench)
         print(f"{file}: ok ({bench.name}: {len(bench.bodies)} bodies, {len(bench.joints)} joints, "
-              f"{scene.dof} degrees of freedom with drivers released: {scene.description})")
+              f"{scene.dof} degrees of freedom with the drivers applied: {scene.description})")
     return 0
 
 

@@ -14,15 +14,29 @@ from __future__ import annotations
 import hashlib
 import math
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from wearbench.hardware.units import QuantityError, parse_quantity
 
 __all__ = [
-    "BENCH_DIR", "BenchError", "Bench", "Body", "Joint", "Clearance", "ContactLaw", "Material",
-    "Driver", "Sensor", "WearSettings", "Motor", "Hardware", "load_bench", "shipped_bench",
+    "BENCH_DIR",
+    "Bench",
+    "BenchError",
+    "Body",
+    "Clearance",
+    "ContactLaw",
+    "Driver",
+    "Hardware",
+    "Joint",
+    "Material",
+    "Motor",
+    "Sensor",
+    "WearSettings",
+    "load_bench",
+    "shipped_bench",
 ]
 
 BENCH_DIR = Path(__file__).parent / "benches"
@@ -183,11 +197,11 @@ class Bench:
     def clearance_joints(self) -> tuple[Joint, ...]:
         return tuple(j for j in self.joints if j.clearance is not None)
 
-    def with_speed(self, speed: float) -> "Bench":
+    def with_speed(self, speed: float) -> Bench:
         """The same bench at motor speed ``speed`` (rad/s)."""
         return replace(self, speed=float(speed))
 
-    def with_clearances(self, clearances: Mapping[str, float | None]) -> "Bench":
+    def with_clearances(self, clearances: Mapping[str, float | None]) -> Bench:
         """The same bench with radial clearances (m) by joint name; ``None`` makes a joint ideal.
 
         The bearing radius is kept and the journal radius becomes bearing radius - clearance.
@@ -231,9 +245,9 @@ class _Reader:
 
     def keys(self, data: dict, key: str, required: set[str], optional: set[str] = frozenset()) -> None:
         allowed = required | set(optional)
-        for k in data:
+        for k, v in data.items():
             if k not in allowed:
-                raise self.fail(f"{key}.{k}" if key else k, data[k],
+                raise self.fail(f"{key}.{k}" if key else k, v,
                                 f"unknown key; expected one of {sorted(allowed)}")
         for k in sorted(required):
             if k not in data:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 
-__all__ = ["UNITS", "QuantityError", "parse_quantity", "format_quantity"]
+__all__ = ["UNITS", "QuantityError", "format_quantity", "parse_quantity"]
 
 _G0 = 9.80665
 
@@ -53,7 +53,7 @@ def _examples(dimension: str) -> str:
     return ", ".join(repr(u) for u in UNITS[dimension])
 
 
-def parse_quantity(value: str | float | int, dimension: str, *, bare_unit: str | None = None) -> float:
+def parse_quantity(value: str | float, dimension: str, *, bare_unit: str | None = None) -> float:
     """Return ``value`` in SI units of ``dimension``.
 
     ``value`` is text such as ``"0.6mm"``, ``"-5pi rad/s"``, ``"300 rpm"`` or ``"pi/2 rad"``. A bare

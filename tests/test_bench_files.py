@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-
 from wearbench.hardware.bench import BENCH_DIR, BenchError, load_bench, parse_bench, shipped_bench
 
 NINEBAR = shipped_bench("ninebar")

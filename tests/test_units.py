@@ -7,7 +7,6 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
 from wearbench.hardware.units import UNITS, QuantityError, format_quantity, parse_quantity
 
 

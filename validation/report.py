@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 from wearbench.validation.compare import SessionComparison, TheoryRanking
 from wearbench.validation.metrics import grade
 
@@ -194,6 +195,49 @@ def _score_table(comparisons: Sequence[SessionComparison], path: Path) -> Path:
     return _save(fig, path)
 
 
+def _ranking(rankings: Mapping[str, Sequence[TheoryRanking]], path: Path) -> Path:
+    """ISO rating of every session (rows) against every candidate theory (columns); best boxed."""
+    sessions = list(rankings)
+    named = {r.label for ranks in rankings.values() for r in ranks}  # a session's own theory in its column
+    candidates = [s for s in sessions if s in named]
+    candidates += sorted(named - set(candidates))
+    grid = np.full((len(sessions), len(candidates)), np.nan)
+    for i, name in enumerate(sessions):
+        for r in rankings[name]:
+            grid[i, candidates.index(r.label)] = r.rating
+    fig, ax = _figure(figsize=(2.2 + 1.6 * len(candidates), 1.2 + 0.55 * len(sessions)))
+    ax.imshow(grid, cmap="viridis", vmin=0, vmax=1, aspect="auto")
+    for i, name in enumerate(sessions):
+        best = candidates.index(rankings[name][0].label)
+        for j in range(len(candidates)):
+            if np.isfinite(grid[i, j]):
+                ax.text(j, i, f"{grid[i, j]:.3f}", ha="center", va="center", fontsize=8,
+                        color="black" if grid[i, j] > 0.6 else "white", weight="bold" if j == best else None)
+        ax.add_patch(Rectangle((best - 0.5, i - 0.5), 1, 1, fill=False, edgecolor="tab:red", lw=2))
+    ax.set_xticks(range(len(candidates)), candidates, rotation=20, ha="right", fontsize=8)
+    ax.set_yticks(range(len(sessions)), sessions, fontsize=8)
+    ax.set_xlabel("theory")
+    ax.set_ylabel("measured session")
+    ax.set_title("ISO/TS 18571 rating of each session against each theory (best boxed)", fontsize=9)
+    return _save(fig, path)
+
+
+def _summary(comparisons: Sequence[SessionComparison],
+             rankings: Mapping[str, Sequence[TheoryRanking]]) -> list[dict]:
+    """Per session: its score and grade, peak |a| measured and predicted, the best-explaining theory."""
+    out = []
+    for c in comparisons:
+        rating = float(c.summary.loc["iso_rating", "mean"])
+        d = c.as_dict()
+        ranks = rankings.get(c.label)
+        out.append({"session": c.label, "theory": c.theory.label, "windows": len(c.windows),
+                    "iso_rating": rating, "grade": grade(rating), "peak_acc_measured": d["peak_acc_measured"],
+                    "peak_acc_theory": d["peak_acc_theory"],
+                    "best_explained_by": ranks[0].label if ranks else None,
+                    "best_rating": ranks[0].rating if ranks else None})
+    return out
+
+
 def _img(path: Path) -> str:
     data = base64.b64encode(path.read_bytes()).decode("ascii")
     return f'<img alt="{html.escape(path.stem)}" src="data:image/png;base64,{data}">'
@@ -211,17 +255,18 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
            (f"<p class='note'>generated {e(scores['generated'])}; filter: {e(scores['options']['filter'])}; "
            f"windows: {e(scores['options']['windows'])}</p>"),
            ("<h2>Summary</h2><table><tr><th>session</th><th>theory</th><th>windows</th><th>ISO R (mean ± sd)</th>"
-           "<th>grade</th><th>shift (ms / deg)</th><th>peak |a| test</th><th>peak |a| theory</th>"
-           "<th>NRMSE</th><th>correlation</th><th>S&amp;G C</th></tr>")]
-    for c in comparisons:
+           "<th>grade</th><th>peak |a| test (m/s²)</th><th>peak |a| theory (m/s²)</th>"
+           + ("<th>best explained by</th>" if rankings else "")
+           + "<th>shift (ms / deg)</th><th>NRMSE</th><th>correlation</th><th>S&amp;G C</th></tr>")]
+    for c, row in zip(comparisons, scores["summary"]):
         s = c.summary
         shift = np.mean([w.shift_s for w in c.windows]) * 1e3
         deg = np.mean([w.shift_deg for w in c.windows])
-        d = c.as_dict()
+        best = f"<td>{e(row['best_explained_by'] or '-')}</td>" if rankings else ""
         out.append(f"<tr><td>{e(c.label)}</td><td>{e(c.theory.label)}</td><td>{len(c.windows)}</td>"
-                   f"<td>{s.loc['iso_rating', 'mean']:.3f} ± {s.loc['iso_rating', 'std']:.3f}</td>"
-                   f"<td>{grade(s.loc['iso_rating', 'mean'])}</td><td>{shift:+.2f} / {deg:+.2f}</td>"
-                   f"<td>{d['peak_acc_measured']:.1f}</td><td>{d['peak_acc_theory']:.1f}</td>"
+                   f"<td>{row['iso_rating']:.3f} ± {s.loc['iso_rating', 'std']:.3f}</td>"
+                   f"<td>{row['grade']}</td><td>{row['peak_acc_measured']:.1f}</td>"
+                   f"<td>{row['peak_acc_theory']:.1f}</td>{best}<td>{shift:+.2f} / {deg:+.2f}</td>"
                    f"<td>{s.loc['nrmse', 'mean']:.3f}</td><td>{s.loc['correlation', 'mean']:.3f}</td>"
                    f"<td>{s.loc['sg_comprehensive', 'mean']:.3f}</td></tr>")
     out.append("</table>")
@@ -233,7 +278,8 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
             out.append(f"<tr><td>{e(session)}</td><td>{e(ranks[0].label)}</td><td>{ranks[0].rating:.3f} ± "
                        f"{ranks[0].rating_std:.3f}</td><td>{others}</td></tr>")
         out.append("</table>")
-    for key, heading in (("sessions", "Sessions side by side"), ("table", "Scores (mean ± sd over windows)")):
+    for key, heading in (("ranking", "Every session against every theory"), ("sessions", "Sessions side by side"),
+                         ("table", "Scores (mean ± sd over windows)")):
         if figures.get(key):
             out.append(f"<h2>{heading}</h2>" + "".join(_img(p) for p in figures[key]))
     for i, c in enumerate(comparisons):
@@ -267,7 +313,7 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
         raise ValueError("report: no comparisons to write")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    figures: dict[int | str, list[Path]] = {}  # per comparison (index), and "table", "sessions"
+    figures: dict[int | str, list[Path]] = {}  # per comparison (index), "table", "sessions", "ranking"
     used: set[str] = set()
     for i, c in enumerate(comparisons):
         slug = _slug(c.label)
@@ -280,9 +326,12 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
     if len(comparisons) > 1:
         figures["sessions"] = [_side_by_side(comparisons, out / "sessions_measured.png", with_theory=False),
                                _side_by_side(comparisons, out / "sessions_comparison.png", with_theory=True)]
+    if rankings:
+        figures["ranking"] = [_ranking(rankings, out / "ranking.png")]
     options = comparisons[0].options.as_dict()
     scores = {"generated": datetime.now(UTC).isoformat(timespec="seconds"), "title": title,
               "options": options, "method_notes": list(DEPARTURES),
+              "summary": _summary(comparisons, rankings or {}),
               "sessions": [c.as_dict() for c in comparisons],
               "rankings": {k: [{"label": r.label, "rating": r.rating, "rating_std": r.rating_std} for r in v]
                            for k, v in (rankings or {}).items()}}

@@ -41,6 +41,7 @@ __all__ = [
     "ManualClock",
     "MonotonicClock",
     "MotorStatus",
+    "table_speed",
 ]
 
 TWO_PI = 2 * math.pi
@@ -129,6 +130,12 @@ class _Scheduled:
     kind: str  # "speed" | "stall"
     target: float = 0.0
     accel: float = 0.0
+
+
+def table_speed(speed: float) -> float:
+    """The motor speed (rad/s) whose model table the device plays at ``speed``: rounded to 5
+    significant digits, so 2 pi, its float32 and its 1e-4 CAN encoding share one table."""
+    return float(f"{float(speed):.5g}")
 
 
 def _sensor(bench: Bench, kind: str, default: Sensor) -> Sensor:
@@ -234,7 +241,7 @@ class BenchDevice:
         Speeds that agree to 5 significant digits share one table (computed at the rounded speed and
         scaled by (speed/table speed)^2), so 2 pi, its float32 and its 1e-4 CAN encoding are one table.
         """
-        key = float(f"{float(speed):.5g}")
+        key = table_speed(speed)
         if key not in self._tables:
             kind = self.config.signal if self.config.signal != "white" else "none"
             rate = max(20000.0, 2 * self.sample_rate)

@@ -3,13 +3,15 @@
 :func:`model_table` runs the multibody model (``wearbench.model.build_scene``/``simulate``) for the
 bench with the device's TRUE clearances and worn surfaces at the commanded speed, keeps the last
 (steady-state) revolution and resamples it on a uniform grid of motor angle, so the device only
-interpolates at 20 kHz. Tables are cached on disk per (bench sha, speed, truth, settings) in
+interpolates at 20 kHz. Tables are cached on disk per (bench sha, clearances, surfaces, speed, truth,
+settings, model source) in
 ``$WEARBENCH_CACHE`` (default ``~/.cache/wearbench``)/``emulator``. ``harmonic`` is a kinematic test
 pattern, ``none`` a zero signal. Imports numpy and, lazily, the model.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -58,8 +60,23 @@ def harmonic_table(speed: float, points: int = 4096) -> SignalTable:
     return SignalTable(speed, acc, "harmonic test pattern")
 
 
+def _file_sha(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@functools.cache
+def _model_source_sha() -> str:
+    """Digest of the model package's source, so a changed model never replays an old table."""
+    import wearbench.model
+
+    digest = hashlib.sha256()
+    for path in sorted(Path(wearbench.model.__file__).parent.glob("*.py")):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
 def _truth_key(truth: Truth) -> dict:
-    wear = {j: hashlib.sha256(Path(p).read_bytes()).hexdigest() for j, p in sorted(truth.wear.items())}
+    wear = {j: _file_sha(p) for j, p in sorted(truth.wear.items())}
     return {"clearances": {j: round(c, 12) for j, c in sorted(truth.clearances.items())}, "wear": wear}
 
 
@@ -71,10 +88,12 @@ def model_table(bench: Bench, truth: Truth, speed: float, *, revolutions: float 
     """
     if speed == 0:
         raise ValueError("model_table: speed 0 has no steady revolution")
-    joints = {j.name: [j.clearance.bearing_radius, j.clearance.journal_radius, str(j.clearance.surfaces)]
+    joints = {j.name: [j.clearance.bearing_radius, j.clearance.journal_radius,
+                       _file_sha(j.clearance.surfaces) if j.clearance.surfaces else None]
               for j in bench.clearance_joints}  # a Bench changed in memory keeps its file's sha
-    key = json.dumps({"v": _MODEL_TABLE_VERSION, "bench": bench.sha256, "joints": joints, "speed": round(speed, 6),
-                      "truth": _truth_key(truth), "revolutions": revolutions, "rate": rate}, sort_keys=True)
+    key = json.dumps({"v": _MODEL_TABLE_VERSION, "model": _model_source_sha(), "bench": bench.sha256,
+                      "joints": joints, "speed": round(speed, 6), "truth": _truth_key(truth),
+                      "revolutions": revolutions, "rate": rate}, sort_keys=True)
     path = cache_dir() / f"{bench.name}-{hashlib.sha256(key.encode()).hexdigest()[:20]}.npz"
     if cache and path.exists():
         with np.load(path) as data:

@@ -75,3 +75,19 @@ def test_truth_wear_surfaces_enter_the_signal(testbed, tmp_path):
     table = model_table(testbed, cfg.truth, W)
     clean = model_table(testbed, Truth(), W)
     assert np.sqrt(np.mean((table.acc - clean.acc) ** 2)) > 1e-3 * np.abs(clean.acc).max()
+
+
+def test_cached_table_follows_the_content_of_a_rewritten_surface_file(testbed, tmp_path):
+    """The disk cache is keyed on what a surface file holds, not its name: re-wearing a joint into
+    the same file must not replay the old table."""
+    from wearbench.model.surfaces import JointSurfaces
+
+    n = 360
+    phi = (np.arange(n) + 0.5) * 2 * np.pi / n
+    path = tmp_path / "A.npz"
+    JointSurfaces(bearing=np.zeros(n), journal=np.zeros(n), label="new").save(path)
+    first = model_table(testbed, Truth(wear={"A": path}), W)
+    JointSurfaces(bearing=60e-6 * np.maximum(0, np.cos(phi)) ** 4, journal=np.zeros(n), label="worn").save(path)
+    second = model_table(testbed, Truth(wear={"A": path}), W)
+    assert len(list((tmp_path / "cache" / "emulator").glob("*.npz"))) == 2
+    assert np.sqrt(np.mean((first.acc - second.acc) ** 2)) > 1e-3 * np.abs(first.acc).max()
