@@ -5,7 +5,7 @@ seconds per wall second; the serial emulator process over a pty and the CAN emul
 virtual bus, each streaming 20 kHz + 1 kHz in real time for DURATION s to a host that counts
 blocks and sequence gaps, with the emulator's CPU share (of one core).
 
-    /work/venv/bin/python benchmarks/emulator_throughput.py [DURATION]
+    .venv/bin/python benchmarks/emulator_throughput.py [DURATION]
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Runs the paper's stage (100 counted cycles x 2000) and cheaper variants (fewer c
 a settling revolution, scaled to the same 200,000 cycles), and prints per variant the wall time,
 integrator steps and the stage's max depth per joint with its error against the 100-cycle stage.
 
-    /work/venv/bin/python benchmarks/wear_stage.py [--variants 100,20+1,10+1,5+1]
+    .venv/bin/python benchmarks/wear_stage.py [--variants 100,20+1,10+1,5+1]
 
 A variant "N+S" counts N cycles after S settling revolutions.
 """
