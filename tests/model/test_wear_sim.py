@@ -15,6 +15,8 @@ from wearbench.model import build_scene, simulate
 from wearbench.model.surfaces import JointSurfaces
 from wearbench.model.wear_stages import StagePlan, run_stages
 
+from .conftest import disc_bench
+
 SPEED = -5 * math.pi
 CLEAR = {"A": 0.6e-3, "B": 0.6e-3}
 
@@ -100,50 +102,13 @@ def test_study_quick_writes_table3_and_figures(tmp_path):
     assert (out / "wear" / "surfaces" / "A_2.npz").exists()
 
 
-DISC = """
-driver = []
-[bench]
-name = "disc"
-[operating]
-speed = "0 rad/s"
-gravity = ["0 m/s^2", "-9.81 m/s^2"]
-[materials.steel]
-youngs_modulus = "206 GPa"
-poisson_ratio = 0.3
-hardness = "217 MPa"
-[contact]
-restitution = 0.9
-friction_coefficient = 0.0
-[frame]
-points = { O = ["0 m", "0 m"] }
-[[body]]
-name = "disc"
-mass = "1 kg"
-inertia = "1e-4 kg*m^2"
-points = { c = ["0 m", "0 m"] }
-[[joint]]
-name = "J"
-type = "revolute"
-bodies = ["frame", "disc"]
-points = ["O", "c"]
-[joint.clearance]
-bearing_body = "frame"
-bearing_radius = "15 mm"
-journal_radius = "14.5 mm"
-bearing_material = "steel"
-journal_material = "steel"
-axial_length = "20 mm"
-"""
-
-
 def test_journal_spinning_on_its_bearing_under_gravity_wears_as_closed_form_archard():
     """A 1 kg journal resting on the bottom of a fixed bearing, spinning at omega without friction:
     the contact stays at the bearing's 270 deg with F = m g, so Archard gives bearing depth
     split K_n P(mg) R1 omega t, and the journal wears evenly over whole revolutions."""
-    from wearbench.hardware.bench import parse_bench
     from wearbench.model.wear import WearLaw, accumulate_wear, worn_volume
 
-    bench = parse_bench(DISC)
+    bench = disc_bench(g=-9.81, ce=0.9, cf=0.0)
     scene = build_scene(bench, surfaces={})
     omega, t_end, mg = 8 * math.pi, 0.5, 9.81  # two whole revolutions
     law = WearLaw.from_bench(bench, "J")
