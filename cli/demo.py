@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import math
 import shutil
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -148,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
             stage(f"theory {case.label}")
             clearances = {j.name: case.clearance for j in bench.clearance_joints}
             surfaces = {j: JointSurfaces.load(p) for j, p in case.files.items()} or None
+            # at the speed whose table the emulator plays: a twin experiment (see the README)
             theories[case.label] = simulate_theory(bench, speed=table_speed(bench.speed), clearances=clearances,
                                                    surfaces=surfaces, revolutions=options.revolutions,
                                                    output_rate=bench.sensor("accelerometer").sample_rate)
@@ -155,14 +155,13 @@ def run(args: argparse.Namespace) -> int:
             config = EmulatorConfig.from_table(emulator_table(bench, case), bench=bench)
             BenchDevice(bench, config).prepare(bench.speed)
             bar.advance(task)
+        def show(p) -> None:
+            bar.update(task, info=f"{p.phase} {p.cycles:.1f}/{cycles} cycles, dropped {p.dropped}")
+
         paths = {}
         for case in cases:
             stage(f"record {case.label} ({backend})")
             paths[case.label] = sessions_dir / f"{case.slug}.mcap"
-
-            def show(p, case=case) -> None:
-                bar.update(task, info=f"{p.phase} {p.cycles:.1f}/{cycles} cycles, dropped {p.dropped}")
-
             record_case(bench, case, paths[case.label], backend=backend, cycles=cycles, on_progress=show)
             bar.advance(task)
         rankings, comparisons = {}, []
@@ -180,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.monotonic() - start
     print(summary_text(report.scores))
     print(f"\nreport: {report.html}\nscores: {report.scores_json}\nsessions: {sessions_dir}/ "
-          f"({len(cases)} MCAP files)\n{len(report.figures)} figures; {elapsed:.0f} s", file=sys.stdout)
+          f"({len(cases)} MCAP files)\n{len(report.figures)} figures; {elapsed:.0f} s")
     return 0
 
 
