@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
         task = bar.add_task("demo", total=steps, info="")
 
         def stage(text: str) -> None:
-            bar.update(task, description=f"{text:34s}", info="")
+            bar.update(task, description=f"{text:30s}", info="")
 
         theories = {}
         for case in cases:
@@ -156,11 +156,12 @@ def run(args: argparse.Namespace) -> int:
             BenchDevice(bench, config).prepare(bench.speed)
             bar.advance(task)
         def show(p) -> None:
-            bar.update(task, info=f"{p.phase} {p.cycles:.1f}/{cycles} cycles, dropped {p.dropped}")
+            dropped = f", dropped {p.dropped}" if p.dropped else ""
+            bar.update(task, info=f"{p.phase} {p.cycles:.1f}/{cycles}{dropped}")
 
         paths = {}
         for case in cases:
-            stage(f"record {case.label} ({backend})")
+            stage(f"record {case.label}")
             paths[case.label] = sessions_dir / f"{case.slug}.mcap"
             record_case(bench, case, paths[case.label], backend=backend, cycles=cycles, on_progress=show)
             bar.advance(task)
