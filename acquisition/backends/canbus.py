@@ -63,7 +63,7 @@ def open_bus(options: Mapping[str, Any]) -> can.BusABC:
 class BenchFrames(can.Listener):
     """Receives the bench frames: replies, the encoder position, blocks and events for the source."""
 
-    def __init__(self, counts_per_rev: int):
+    def __init__(self, counts_per_rev: int, phase: float = 0.0):
         self.inbox: queue.Queue = queue.Queue()
         self.cond = threading.Condition()
         self.status: dict | None = None  # last MotorStatus signals
@@ -71,6 +71,7 @@ class BenchFrames(can.Listener):
         self.stream_status: dict | None = None
         self.stream_count = 0
         self.counts_per_rev = counts_per_rev
+        self.phase = phase  # rad: crank angle at count 0 (the bench's driver phase)
         self.lsb = 0.0
         self.sample_rate = 0.0
         self.encoder_rate = 0.0
@@ -146,8 +147,17 @@ class BenchFrames(can.Listener):
                     raise
                 self.inbox.put(Event("retry", f"CAN: no {what} within {timeout:g} s; sending it again"))
 
-    def angle(self) -> float:
-        return self.counts * 2 * math.pi / self.counts_per_rev
+    def angle(self, counts: int | None = None) -> float:
+        """Crank angle (rad) at ``counts`` (default: the latest): the driver phase plus the turns counted."""
+        return self.phase + (self.counts if counts is None else counts) * 2 * math.pi / self.counts_per_rev
+
+    @classmethod
+    def for_bench(cls, bench: Bench) -> BenchFrames:
+        """Frames of ``bench``: its encoder's counts per revolution and its driver's phase, so angles
+        are crank angles as the model and the serial device give them."""
+        enc = bench.sensor("encoder")
+        phase = next((d.phase for d in bench.drivers if d.joint == enc.joint), 0.0)
+        return cls(enc.counts_per_rev, phase)
 
 
 def _send(bus: can.BusABC, name: str, values: dict) -> None:
@@ -291,7 +301,7 @@ def _check(bench: Bench, options: Mapping[str, Any], allowed: set[str], section:
 def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     reply_timeout = _check(bench, options, BUS_OPTIONS, "can")
     bus = open_bus(options)
-    frames = BenchFrames(bench.sensor("encoder").counts_per_rev)
+    frames = BenchFrames.for_bench(bench)
     notifier = can.Notifier(bus, [frames], timeout=0.1)
     closer = _Bus(bus, notifier)
     drive, source = CanDrive(bus, frames, reply_timeout), CanSource(bus, frames, bench, reply_timeout)

@@ -13,7 +13,6 @@ shipped ``cia402_drive.eds``). Imports python-can, canopen and the ``can`` backe
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Mapping
@@ -74,7 +73,6 @@ class Cia402Drive(MotorDrive):
         self._cond = threading.Condition()
         self._tpdo = {"statusword": None, "velocity": 0, "position": 0, "error": 0, "mode": 0}
         self._tpdo_count = 0
-        self.counts_per_rev = frames.counts_per_rev
 
     # ---- start-up ---------------------------------------------------------------------------
 
@@ -114,7 +112,7 @@ class Cia402Drive(MotorDrive):
         except (canopen.SdoAbortedError, canopen.SdoCommunicationError, KeyError):
             cpr = 0
         if cpr:
-            self.counts_per_rev = int(cpr)
+            self.frames.counts_per_rev = int(cpr)
         node.nmt.state = "OPERATIONAL"
         self._wait_tpdo(lambda t: t["statusword"] is not None, "TPDO1 statusword")
         self._wait_tpdo(lambda t: t["mode"] == PROFILE_VELOCITY, "mode display = profile velocity")
@@ -194,7 +192,7 @@ class Cia402Drive(MotorDrive):
         if state_of(sw) in ("fault", "fault reaction active"):
             fault = _FAULTS.get(t["error"], f"error code 0x{t['error']:04X}")
         return MotorState(device_time=enc_time if enc_time is not None else 0.0,
-                          angle=counts * 2 * math.pi / self.counts_per_rev, speed=t["velocity"] / 1000.0,
+                          angle=f.angle(counts), speed=t["velocity"] / 1000.0,
                           counts=counts, index_count=index, enabled=state_of(sw) == "operation enabled",
                           fault=fault, host_time=time.time())
 
@@ -204,7 +202,7 @@ def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     node_id = int(options.get("node_id", 5))
     eds = str(options.get("eds", EDS_PATH))
     bus = open_bus(options)
-    frames = BenchFrames(bench.sensor("encoder").counts_per_rev)
+    frames = BenchFrames.for_bench(bench)
     network = canopen.Network(bus)
     network.listeners.append(frames)
     network.NOTIFIER_CYCLE = 0.1

@@ -12,6 +12,7 @@ from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.recorder import Recorder, SessionPlan
 from wearbench.acquisition.session_file import read_session
+from wearbench.validation.cycles import reference_angle
 
 from .conftest import (
     FAST,
@@ -42,6 +43,10 @@ def _check_session(path, bench, cycles: float = 20) -> None:
     assert np.interp(s.encoder.time.iloc[100], motor.time, motor.angle) == pytest.approx(
         s.encoder.angle.iloc[100], abs=0.05)
     assert s.quality[ACCELERATION]["dropped"] == 0 and s.quality[ENCODER]["repeated"] == 0
+    # angles are crank angles (driver phase included): the index pulse fires where the emulator puts it,
+    # at crank angle 0 (1 kHz encoder at FAST: the pulse is located to half a sample, 0.031 rad)
+    ref = reference_angle(s.encoder)
+    assert min(ref, 2 * math.pi - ref) < 0.04, f"index pulse at crank angle {math.degrees(ref):.2f} deg"
 
 
 def test_sim_session_equals_emulator(bench, tmp_path):
