@@ -192,6 +192,7 @@ def serve(bench: Bench, config: EmulatorConfig | None = None, *, announce=print,
                     sent_log.write(out[:n])
                 del out[:n]
             if engine.disconnected and not out:
+                time.sleep(0.2)  # let the host read the last frames before the port vanishes
                 return DISCONNECT_EXIT
         return 0
     finally:

@@ -141,6 +141,8 @@ def test_serial_disconnect_mid_stream(bench, tmp_path):
     assert "device disconnected" in result.reason
     _assert_stopped(out, "device disconnected")
     assert_same_blocks(out, sent_from_serial_log(log), min_blocks=3)
+    # the device's last word before the link went down was read and recorded too
+    assert read_session(out).events.message.str.contains("link going down").any()
 
 
 def test_serial_malformed_frames_are_counted(bench, tmp_path):
