@@ -119,6 +119,15 @@ class _SequenceCheck:
         return note
 
 
+def _failure_reason(exc: Exception, what: str) -> str:
+    """The stop reason recorded when `exc` ends a session inside `what`."""
+    if isinstance(exc, DeviceDisconnected):
+        return f"device disconnected: {exc}"
+    if isinstance(exc, DeviceTimeout):
+        return f"device stopped answering: {exc}"
+    return f"{what} failed: {type(exc).__name__}: {exc}"
+
+
 class Recorder:
     """Runs one session on ``rig`` and writes it to ``out`` (a path or an unbuffered binary file)."""
 
@@ -207,12 +216,8 @@ class Recorder:
                     except queue.Full:
                         self.stop("the writer cannot keep up: the recording queue stayed full", "error")
                         return
-        except DeviceDisconnected as exc:
-            self.stop(f"device disconnected: {exc}", "error")
-        except DeviceTimeout as exc:
-            self.stop(f"device stopped answering: {exc}", "error")
         except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
-            self.stop(f"{source.name} reader failed: {type(exc).__name__}: {exc}", "error")
+            self.stop(_failure_reason(exc, f"{source.name} reader"), "error")
         finally:
             self._cpu[f"reader:{source.name}"] = time.thread_time()
 
@@ -447,12 +452,8 @@ class Recorder:
                 self._run(prog)
             except KeyboardInterrupt:
                 self.stop("interrupted (KeyboardInterrupt)", "interrupt")
-            except DeviceDisconnected as exc:
-                self.stop(f"device disconnected: {exc}", "error")
-            except DeviceTimeout as exc:
-                self.stop(f"device stopped answering: {exc}", "error")
             except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
-                self.stop(f"session failed: {type(exc).__name__}: {exc}", "error")
+                self.stop(_failure_reason(exc, "session"), "error")
             self._check_signal()
             self.stop("stopped", "stop")  # no-op when a reason is already set
             self._shutdown(prog)
