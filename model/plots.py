@@ -74,11 +74,18 @@ def contact_force_figure(results: Sequence[SimulationResult]) -> plt.Figure:
     return fig
 
 
+def _joint_panels(results: Sequence[SimulationResult], height: float) -> tuple[list[str], plt.Figure, np.ndarray]:
+    """The clearance joints of ``results`` and a row of one panel per joint (one panel if none)."""
+    joints = list(results[0].summary["peak_fn"])
+    n = max(1, len(joints))
+    fig, axes = plt.subplots(1, n, figsize=(4.5 * n, height), squeeze=False)
+    return joints, fig, axes[0]
+
+
 def trajectory_figure(results: Sequence[SimulationResult]) -> plt.Figure:
     """Journal centre trajectory relative to the bearing centre inside the clearance circle (figs 14-15)."""
-    joints = list(results[0].summary["peak_fn"])
-    fig, axes = plt.subplots(1, max(1, len(joints)), figsize=(4.5 * max(1, len(joints)), 4.5), squeeze=False)
-    for ax, j in zip(axes[0], joints):
+    joints, fig, axes = _joint_panels(results, height=4.5)
+    for ax, j in zip(axes, joints):
         for i, r in enumerate(results):
             ax.plot(r.table[f"{j}_ex"] * 1e3, r.table[f"{j}_ey"] * 1e3, lw=0.6, label=_label(r, i))
         if results[0].scene is not None:
@@ -98,9 +105,8 @@ def trajectory_figure(results: Sequence[SimulationResult]) -> plt.Figure:
 def poincare_figure(results: Sequence[SimulationResult]) -> plt.Figure:
     """Poincare section of each clearance joint: (e_x, e_y) velocity map sampled once per crank revolution
     (fig. 16); falls back to the slider when the scene has no clearance joint."""
-    joints = list(results[0].summary["peak_fn"])
-    fig, axes = plt.subplots(1, max(1, len(joints)), figsize=(4.5 * max(1, len(joints)), 4), squeeze=False)
-    for ax, j in zip(axes[0], joints or [None]):
+    joints, fig, axes = _joint_panels(results, height=4)
+    for ax, j in zip(axes, joints or [None]):
         for i, r in enumerate(results):
             cols = (f"{j}_ex", f"{j}_ey") if j else ("slider_pos", "slider_vel")
             sec = r.poincare(cols)
@@ -115,9 +121,8 @@ def poincare_figure(results: Sequence[SimulationResult]) -> plt.Figure:
 
 def phase_figure(results: Sequence[SimulationResult]) -> plt.Figure:
     """Phase portraits of the eccentricity (e_x vs de_x/dt) of each clearance joint (fig. 17)."""
-    joints = list(results[0].summary["peak_fn"])
-    fig, axes = plt.subplots(1, max(1, len(joints)), figsize=(4.5 * max(1, len(joints)), 4), squeeze=False)
-    for ax, j in zip(axes[0], joints):
+    joints, fig, axes = _joint_panels(results, height=4)
+    for ax, j in zip(axes, joints):
         for i, r in enumerate(results):
             ph = r.phase(j)
             ax.plot(ph["ex"] * 1e3, ph["vx"], lw=0.5, label=_label(r, i))
