@@ -57,15 +57,6 @@ OK, SINGULAR, NO_CONVERGENCE = 0, 1, 2
 
 
 @njit(cache=True, inline="always")
-def _pos(q, b, sx, sy):
-    if b < 0:
-        return sx, sy
-    c = math.cos(q[3 * b + 2])
-    s = math.sin(q[3 * b + 2])
-    return q[3 * b] + c * sx - s * sy, q[3 * b + 1] + s * sx + c * sy
-
-
-@njit(cache=True, inline="always")
 def _rot(q, b, sx, sy):
     """A_b s (global components of a body-fixed vector)."""
     if b < 0:
@@ -73,6 +64,15 @@ def _rot(q, b, sx, sy):
     c = math.cos(q[3 * b + 2])
     s = math.sin(q[3 * b + 2])
     return c * sx - s * sy, s * sx + c * sy
+
+
+@njit(cache=True, inline="always")
+def _pos(q, b, sx, sy):
+    """r_b + A_b s (global position of a body-fixed point; ground is b < 0)."""
+    rx, ry = _rot(q, b, sx, sy)
+    if b < 0:
+        return rx, ry
+    return q[3 * b] + rx, q[3 * b + 1] + ry
 
 
 @njit(cache=True, inline="always")
