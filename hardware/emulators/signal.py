@@ -11,7 +11,6 @@ pattern, ``none`` a zero signal. Imports numpy and, lazily, the model.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import os
@@ -64,17 +63,6 @@ def _file_sha(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-@functools.cache
-def _model_source_sha() -> str:
-    """Digest of the model package's source, so a changed model never replays an old table."""
-    import wearbench.model
-
-    digest = hashlib.sha256()
-    for path in sorted(Path(wearbench.model.__file__).parent.glob("*.py")):
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
-
-
 def _truth_key(truth: Truth) -> dict:
     wear = {j: _file_sha(p) for j, p in sorted(truth.wear.items())}
     return {"clearances": {j: round(c, 12) for j, c in sorted(truth.clearances.items())}, "wear": wear}
@@ -88,10 +76,11 @@ def model_table(bench: Bench, truth: Truth, speed: float, *, revolutions: float 
     """
     if speed == 0:
         raise ValueError("model_table: speed 0 has no steady revolution")
+    from wearbench.model.digest import model_source_digest
     joints = {j.name: [j.clearance.bearing_radius, j.clearance.journal_radius,
                        _file_sha(j.clearance.surfaces) if j.clearance.surfaces else None]
               for j in bench.clearance_joints}  # a Bench changed in memory keeps its file's sha
-    key = json.dumps({"v": _MODEL_TABLE_VERSION, "model": _model_source_sha(), "bench": bench.sha256,
+    key = json.dumps({"v": _MODEL_TABLE_VERSION, "model": model_source_digest(), "bench": bench.sha256,
                       "joints": joints, "speed": round(speed, 6), "truth": _truth_key(truth),
                       "revolutions": revolutions, "rate": rate}, sort_keys=True)
     path = cache_dir() / f"{bench.name}-{hashlib.sha256(key.encode()).hexdigest()[:20]}.npz"
