@@ -34,8 +34,11 @@ __all__ = [
     "Material",
     "Motor",
     "Sensor",
+    "Tolerances",
     "WearSettings",
+    "WearState",
     "load_bench",
+    "load_states",
     "shipped_bench",
 ]
 
@@ -141,6 +144,37 @@ class WearSettings:
 
 
 @dataclass(frozen=True)
+class Tolerances:
+    """How a built bench differs from its file: one standard deviation of each quantity.
+
+    A realisation draws each value from a normal distribution cut at 3 standard deviations (the
+    ripple amplitude as its absolute value). The defaults are those of a machined lab bench: parts
+    weighed to a few %, bores and pivots placed to a fraction of a mm, friction and restitution
+    within the spread reported for dry steel/aluminium pairs, a servo drive's speed accuracy.
+    """
+
+    mass: float = 0.03          # relative, each body's mass
+    inertia: float = 0.05       # relative, each body's moment of inertia
+    length: float = 0.2e-3      # m, each coordinate of each body point (so link lengths and pin places)
+    ground: float = 0.2e-3      # m, each coordinate of each ground point
+    friction: float = 0.2       # relative, friction coefficient of each clearance joint
+    restitution: float = 0.03   # absolute, restitution coefficient (kept in [0.7, 0.99])
+    exponent: float = 0.05      # absolute, contact force exponent (kept in [1.0, 2.0])
+    speed: float = 0.003        # relative, true motor speed against the commanded one
+    ripple: float = 0.002       # relative, amplitude of the once-per-revolution speed ripple
+    start: float = 0.3          # start state: journal velocity spread, in clearances per radian of crank
+
+
+@dataclass(frozen=True)
+class WearState:
+    """A candidate state of the clearance joints: what identification chooses between."""
+
+    name: str
+    clearances: Mapping[str, float] = field(default_factory=dict)  # m, per joint; missing = bench's
+    surfaces: Mapping[str, Path] = field(default_factory=dict)     # worn-surface files; missing = new
+
+
+@dataclass(frozen=True)
 class Motor:
     max_speed: float = 62.83  # rad/s
     max_acceleration: float = 200.0  # rad/s^2
@@ -173,6 +207,8 @@ class Bench:
     hardware: Hardware
     assembly: Mapping[str, tuple[float, float]]  # joint name -> position at t = 0
     emulator: Mapping[str, Any] = field(default_factory=dict)  # raw [emulator] table (hardware/)
+    tolerances: Tolerances = field(default_factory=Tolerances)
+    states: tuple[WearState, ...] = ()  # named candidate states ([[state]] tables)
 
     def body(self, name: str) -> Body:
         for b in self.bodies:
@@ -486,7 +522,59 @@ def _hardware(r: _Reader, data: dict) -> Hardware:
 
 
 _TOP = {"bench", "operating", "motor", "materials", "contact", "wear", "frame", "body", "joint", "driver",
-        "assembly", "sensor", "hardware", "emulator"}
+        "assembly", "sensor", "hardware", "emulator", "tolerances", "state"}
+
+_RELATIVE = {"mass", "inertia", "friction", "restitution", "exponent", "speed", "ripple", "start"}
+
+
+def _tolerances(r: _Reader, data: dict) -> Tolerances:
+    key = "tolerances"
+    r.keys(data, key, set(), _RELATIVE | {"length", "ground"})
+    d = Tolerances()
+    values = {name: float(r.number(data, key, name, low=0.0, high=1.0, default=getattr(d, name)))
+              for name in _RELATIVE}
+    for name in ("length", "ground"):
+        values[name] = r.quantity(data, key, name, "length", nonnegative=True, default=getattr(d, name))
+    return Tolerances(**values)
+
+
+def _states(r: _Reader, raw: Any, joints: Mapping[str, Joint], base_dir: Path | None,
+                key: str = "state") -> tuple[WearState, ...]:
+    """Parse ``[[state]]`` tables: name, clearances {joint = length}, wear {joint = "new" | file.npz}."""
+    if not isinstance(raw, list):
+        raise r.fail(key, raw, "expected an array of tables [[state]]")
+    clear = {n: j for n, j in joints.items() if j.clearance is not None}
+    states: list[WearState] = []
+    for i, item in enumerate(raw):
+        k = f"{key}[{i}]"
+        r.table(item, k)
+        r.keys(item, k, {"name"}, {"clearances", "wear"})
+        name = r.text(item, k, "name")
+        if any(s.name == name for s in states):
+            raise r.fail(f"{k}.name", name, "expected a unique state name")
+        clearances: dict[str, float] = {}
+        for jname, value in r.table(item.get("clearances", {}), f"{k}.clearances").items():
+            if jname not in clear:
+                raise r.fail(f"{k}.clearances.{jname}", value, f"expected a clearance joint: {sorted(clear)}")
+            c = r.quantity({jname: value}, f"{k}.clearances", jname, "length", positive=True)
+            if not c < clear[jname].clearance.bearing_radius:
+                raise r.fail(f"{k}.clearances.{jname}", value,
+                             f"expected less than the bearing radius {clear[jname].clearance.bearing_radius} m")
+            clearances[jname] = c
+        surfaces: dict[str, Path] = {}
+        for jname, value in r.table(item.get("wear", {}), f"{k}.wear").items():
+            if jname not in clear:
+                raise r.fail(f"{k}.wear.{jname}", value, f"expected a clearance joint: {sorted(clear)}")
+            if not isinstance(value, str) or not value:
+                raise r.fail(f"{k}.wear.{jname}", value, 'expected "new" or the path of a worn-surface .npz file')
+            if value == "new":
+                continue
+            p = Path(value) if base_dir is None or Path(value).is_absolute() else base_dir / value
+            if not p.is_file():
+                raise r.fail(f"{k}.wear.{jname}", value, f"expected a saved worn-surface file; {p} does not exist")
+            surfaces[jname] = p
+        states.append(WearState(name, clearances, surfaces))
+    return tuple(states)
 
 
 def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
@@ -588,6 +676,8 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
     sensors = tuple(_sensor(r, i, raw, bodies, joints) for i, raw in enumerate(data.get("sensor", [])))
     hardware = _hardware(r, data.get("hardware", {"backend": "sim"}))
     emulator = r.table(data.get("emulator", {}), "emulator")
+    tolerances = _tolerances(r, r.table(data.get("tolerances", {}), "tolerances"))
+    states = _states(r, data.get("state", []), joints, base_dir)
 
     return Bench(
         name=r.text(head, "bench", "name"),
@@ -609,7 +699,23 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
         hardware=hardware,
         assembly=assembly,
         emulator=emulator,
+        tolerances=tolerances,
+        states=states,
     )
+
+
+def load_states(path: str | Path, bench: Bench) -> tuple[WearState, ...]:
+    """Candidate states from a TOML file of ``[[state]]`` tables (as in a bench file) for ``bench``."""
+    path = Path(path)
+    r = _Reader(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise BenchError(path, "(file)", None, f"cannot read the states file: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise r.fail("(syntax)", None, f"not valid TOML: {exc}") from None
+    r.keys(data, "", {"state"})
+    return _states(r, data["state"], {j.name: j for j in bench.joints}, path.parent)
 
 
 def load_bench(path: str | Path) -> Bench:
