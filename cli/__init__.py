@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "recover": "recover",
     "emulate": "emulate",
     "compare": "compare",
+    "identify": "identify",
     "demo": "demo",
 }
 

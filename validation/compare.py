@@ -35,7 +35,7 @@ from wearbench.validation.metrics import WindowScores, aggregate, score_window
 from wearbench.validation.theory import TheoryCurve, load_theory, resolve_surfaces, simulate_theory
 
 __all__ = ["CompareOptions", "SessionComparison", "TheoryRanking", "WindowResult", "compare_session",
-           "compare_sessions", "rank_theories", "theory_curve"]
+           "compare_sessions", "motor_speed", "rank_theories", "theory_curve"]
 
 
 @dataclass(frozen=True)
@@ -127,7 +127,7 @@ class SessionComparison:
         }
 
 
-def _motor_speed(session: MeasuredSession) -> float:
+def motor_speed(session: MeasuredSession) -> float:
     """Motor speed (rad/s) that turns the encoder's crank at the measured steady speed."""
     crank = session.steady_speed
     if session.bench is None:
@@ -154,7 +154,7 @@ def theory_curve(session: MeasuredSession, theory: Any = None, *, options: Compa
         known = {j.name for j in session.bench.clearance_joints}
         clearances = {j: c for j, c in session.clearances.items() if j in known} or None
         rate = options.output_rate or session.fs
-        table = simulate_theory(session.bench, speed=_motor_speed(session), clearances=clearances,
+        table = simulate_theory(session.bench, speed=motor_speed(session), clearances=clearances,
                                 surfaces=worn, revolutions=options.revolutions, output_rate=rate)
         return TheoryCurve.from_table(table, joint, label or "simulated", periodic=options.periodic_theory)
     if isinstance(theory, (str, Path)):

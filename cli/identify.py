@@ -1,0 +1,65 @@
+"""`wearbench identify`: which candidate wear state explains each recorded session, with probabilities.
+
+Thin front of ``wearbench.validation.identify.identify_sessions``; prints one line per session.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "identify", help="posterior probability of each candidate wear state for session MCAPs",
+        description="Simulate an ensemble of every candidate state (benches drawn within the bench file's "
+        "[tolerances], random start states; cached), compare the statistics of the session's crank cycles "
+        "with each ensemble, and print the posterior probability of each state. The top state is named only "
+        "above --threshold, otherwise 'undecided' with the cycles that would decide it; 'none of the "
+        "candidates' when no state explains the session.")
+    p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="recorded session file(s)")
+    p.add_argument("--candidates", metavar="STATES.toml",
+                   help="file of [[state]] tables (name, clearances, wear); default: the [[state]] tables of the "
+                        "bench file recorded in the session")
+    p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
+    p.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
+    p.add_argument("--ensemble-cycles", type=int, default=8, help="settled cycles per realisation (8)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, help="local workers (default: the machine's cores)")
+    p.add_argument("--json", metavar="FILE", help="write every result as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from rich.console import Console
+    from rich.table import Table
+    from wearbench.validation.ensemble import EnsembleSettings
+    from wearbench.validation.identify import IdentifyOptions, identify_sessions
+
+    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
+    results = identify_sessions(args.sessions, candidates=args.candidates, settings=settings,
+                                options=IdentifyOptions(threshold=args.threshold), scheduler=args.scheduler,
+                                workers=args.workers)
+    states = list(results[0].posterior)
+    table = Table(title=f"posterior probability of each state (named at p >= {args.threshold:g})")
+    table.add_column("session")
+    table.add_column("cycles", justify="right")
+    for s in states:
+        table.add_column(s, justify="right")
+    table.add_column("verdict")
+    table.add_column("explains it")
+    for r in results:
+        needed = f" (about {r.cycles_needed} cycles would decide)" if r.verdict == "undecided" and r.cycles_needed else ""
+        table.add_row(r.session, str(r.cycles), *(f"{r.posterior[s]:.3f}" for s in states), r.verdict + needed,
+                      ", ".join(s for s in states if r.explains[s]) or "none")
+    console = Console()
+    console.print(table)
+    for r in results:
+        for note in r.notes:
+            console.print(f"{r.session}: {note}")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as f:
+            json.dump([r.as_dict() for r in results], f, indent=1)
+        console.print(f"results: {args.json}")
+    return 0

@@ -1,0 +1,201 @@
+"""Theory as an ensemble: many realisations of each candidate state, reduced to cycle statistics.
+
+Each realisation is one bench drawn within the bench's ``[tolerances]`` with a random start
+(``wearbench.model.realisation``), settled, then simulated for ``cycles`` crank revolutions. A
+realisation is reduced on the worker to what the comparison needs (per-cycle features, the
+filtered curve of each cycle on a crank-angle grid, per-cycle peaks), so only kilobytes travel
+back. Realisations run on the compute layer (``wearbench.model.compute``: dask.distributed,
+local by default) and are cached by content: bench physics, state (surfaces by their bytes),
+tolerances, seed, settings and the model's source digest.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from wearbench.hardware.bench import Bench, WearState
+from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
+from wearbench.validation.filters import parse_filter
+
+__all__ = ["Ensemble", "EnsembleSettings", "build_ensembles", "ensembles_key", "load_ensembles", "physics_key",
+           "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
+
+@dataclass(frozen=True)
+class EnsembleSettings:
+    """How many realisations, how long each, and what is kept of them."""
+
+    realisations: int = 32    # M, realisations per state
+    cycles: int = 8           # C, settled crank cycles kept per realisation
+    settle: float = 2.0       # motor revolutions simulated and dropped first
+    seed: int = 1             # realisation i of a state uses seed + i
+    output_rate: float = 20_000.0  # Hz, the model's output grid: above the sensor's band so impacts do not alias
+    grid: int = 720           # points per revolution of the kept filtered curves
+    curve_filter: str = "cfc180"  # filter of the kept curves (bands and window scores)
+    features: FeatureSpec = field(default_factory=FeatureSpec)
+
+    def __post_init__(self) -> None:
+        if self.realisations < 3 or self.cycles < 2:
+            raise ValueError(f"ensemble: realisations = {self.realisations}, cycles = {self.cycles}: expected at "
+                             "least 3 realisations of at least 2 cycles")
+        if not self.settle >= 0 or not self.output_rate > 0:
+            raise ValueError(f"ensemble: settle = {self.settle}, output_rate = {self.output_rate}: expected "
+                             "settle >= 0 revolutions and a positive output rate (Hz)")
+        parse_filter(self.curve_filter)
+
+
+@dataclass(frozen=True)
+class Ensemble:
+    """One state's ensemble: features (M, C, p), filtered curves (M, C, grid), peaks (M, C)."""
+
+    state: str
+    settings: EnsembleSettings
+    features: np.ndarray
+    curves: np.ndarray
+    peaks: np.ndarray
+    speed: float  # commanded motor speed (rad/s)
+    failures: tuple[str, ...] = ()  # realisations that failed (SimulationError text)
+
+    @property
+    def realisations(self) -> int:
+        return int(self.features.shape[0])
+
+    def band(self, lo: float = 5.0, hi: float = 95.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per crank angle of the curve grid: (low percentile, median, high percentile) over all cycles."""
+        flat = self.curves.reshape(-1, self.curves.shape[-1])
+        return tuple(np.percentile(flat, [lo, 50.0, hi], axis=0))
+
+
+def _file_digest(path) -> str:
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def physics_key(bench: Bench) -> str:
+    """Digest of what a bench's physics depends on (not its file name, text or hardware table)."""
+    joints = tuple(replace(j, clearance=replace(j.clearance, surfaces=_file_digest(j.clearance.surfaces)
+                                                if j.clearance.surfaces else None))
+                   if j.clearance is not None else j for j in bench.joints)
+    physics = replace(bench, path=None, source="", sha256="", description="", joints=joints, emulator={},
+                      hardware=None, states=())
+    return hashlib.sha256(repr(physics).encode()).hexdigest()
+
+
+def _state_key(state: WearState) -> dict:
+    return {"name": state.name, "clearances": {j: round(c, 12) for j, c in sorted(state.clearances.items())},
+            "surfaces": {j: _file_digest(p) for j, p in sorted(state.surfaces.items())}}
+
+
+def realisation_summary(bench: Bench, state: WearState, seed: int, *, speed: float,
+                        settings: EnsembleSettings) -> dict[str, np.ndarray]:
+    """Simulate one realisation and reduce it to per-cycle features, curves and peaks (a worker task)."""
+    from wearbench.model.realisation import simulate_state
+
+    run = simulate_state(bench, state, seed, revolutions=settings.cycles + 1.0, settle=settings.settle,
+                         speed=speed, output_rate=settings.output_rate)
+    feats = cycle_features(run.t, run.crank, run.acc, settings.features)
+    curves, peaks = cycle_curves(run.t, run.crank, run.acc, grid=settings.grid,
+                                 filter_spec=parse_filter(settings.curve_filter, remove_bias=False))
+    n = min(feats.cycles, curves.shape[0], settings.cycles)
+    return {"features": feats.values[:n], "curves": curves[:n], "peaks": peaks[:n]}
+
+
+def ensembles_key(bench: Bench, states: Sequence[WearState], speed: float, settings: EnsembleSettings) -> str:
+    """Content address of a set of ensembles (also keys shipped precomputed ones)."""
+    from wearbench.model.compute import task_key
+
+    return task_key("ensembles", physics_key(bench), asdict(bench.tolerances), [_state_key(s) for s in states],
+                    round(speed, 9), asdict(settings))
+
+
+def shipped_ensembles_path(bench: Bench) -> Path:
+    """Where precomputed ensembles of a shipped bench live (``hardware/benches/ensembles/NAME.npz``)."""
+    from wearbench.hardware.bench import BENCH_DIR
+
+    return BENCH_DIR / "ensembles" / f"{bench.name}.npz"
+
+
+def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float | None = None,
+                    settings: EnsembleSettings = EnsembleSettings(), scheduler: str | None = None,
+                    workers: int | None = None, cache: bool = True,
+                    progress: str | None = "theory ensembles") -> dict[str, Ensemble]:
+    """Ensembles of every candidate ``state`` of ``bench`` at commanded motor ``speed`` (rad/s).
+
+    Precomputed ensembles shipped for the bench are used when their content key matches (same
+    physics, states, speed, settings and model source); otherwise all realisations of all states
+    go to the compute layer as one batch. A realisation that fails numerically is reported in
+    ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
+    """
+    from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
+
+    speed = bench.speed if speed is None else float(speed)
+    if not states:
+        raise ValueError(f"{bench.name}: no candidate states (give [[state]] tables or --candidates)")
+    shipped = shipped_ensembles_path(bench)
+    if cache and shipped.exists():
+        found = load_ensembles(shipped, key=ensembles_key(bench, states, speed, settings))
+        if found is not None:
+            return found
+    physics = physics_key(bench)
+    tasks, owners = [], []
+    for state in states:
+        for i in range(settings.realisations):
+            seed = settings.seed + i
+            key = task_key("ensemble-realisation", physics, asdict(bench.tolerances), _state_key(state), seed,
+                           round(speed, 9), asdict(settings))
+            tasks.append(Task(realisation_summary, {"bench": bench, "state": state, "seed": seed, "speed": speed,
+                                                    "settings": settings}, key, f"{state.name} #{i}"))
+            owners.append(state.name)
+    results = run_tasks(tasks, scheduler=scheduler, workers=workers, cache=cache, progress=progress)
+    out: dict[str, Ensemble] = {}
+    for state in states:
+        mine = [r for r, o in zip(results, owners, strict=True) if o == state.name]
+        good = [r for r in mine if not isinstance(r, TaskFailure)]
+        failed = tuple(f"{r.label}: {r.error}" for r in mine if isinstance(r, TaskFailure))
+        if len(good) < 3:
+            raise RuntimeError(f"ensemble {state.name!r}: only {len(good)} of {len(mine)} realisations succeeded; "
+                               + "; ".join(failed[:3]))
+        c = min(g["features"].shape[0] for g in good)
+        out[state.name] = Ensemble(state.name, settings, np.stack([g["features"][:c] for g in good]),
+                                   np.stack([g["curves"][:c] for g in good]), np.stack([g["peaks"][:c] for g in good]),
+                                   speed, failed)
+    return out
+
+
+def save_ensembles(ensembles: Mapping[str, Ensemble], path: str | Path, *, key: str) -> Path:
+    """Write ensembles to one ``.npz`` (float32 curves) tagged with ``key`` (see :func:`ensembles_key`)."""
+    arrays: dict[str, np.ndarray] = {"key": np.array(key), "states": np.array(list(ensembles))}
+    for i, e in enumerate(ensembles.values()):
+        arrays[f"features_{i}"] = e.features
+        arrays[f"curves_{i}"] = e.curves.astype(np.float32)
+        arrays[f"peaks_{i}"] = e.peaks
+        arrays[f"meta_{i}"] = np.array(json.dumps({"speed": e.speed, "failures": list(e.failures),
+                                                   "settings": asdict(e.settings)}))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, path)
+    return path
+
+
+def load_ensembles(path: str | Path, *, key: str | None = None) -> dict[str, Ensemble] | None:
+    """Ensembles saved by :func:`save_ensembles`; None when ``key`` is given and differs (stale)."""
+    with np.load(path) as data:
+        if key is not None and str(data["key"]) != key:
+            return None
+        out = {}
+        for i, name in enumerate(data["states"]):
+            meta = json.loads(str(data[f"meta_{i}"]))
+            st = meta["settings"]
+            settings = EnsembleSettings(**{**st, "features": FeatureSpec(**{**st["features"],
+                                                                            "band": tuple(st["features"]["band"])})})
+            out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"], data[f"curves_{i}"].astype(float),
+                                      data[f"peaks_{i}"], float(meta["speed"]), tuple(meta["failures"]))
+    return out
+
+

@@ -1,0 +1,152 @@
+"""Per-cycle features of the slider acceleration that survive chaos, addressed by crank angle.
+
+Impacts in clearance joints are chaotic: two realisations of one state part within tens of
+milliseconds, so one trajectory is never compared sample by sample with another. What a state
+fixes is the statistics of each crank cycle at each crank angle. A cycle becomes a vector of
+two blocks over ``bins`` equal crank-angle bins (absolute crank angle of the encoder joint, so
+test and theory share the bins):
+
+- ``curve``: the mean, in each bin, of the acceleration low-passed at ``lowpass`` Hz (zero-phase
+  Butterworth): the kinematics and the slow dynamics, m/s^2.
+- ``energy``: log10 of the mean square, in each bin, of the acceleration band-passed to
+  ``band`` (Hz): how hard the joints impact there. Bands above about 1 kHz are left out on
+  purpose: a real accelerometer's mounting resonance changes them and the model knows nothing of
+  it. ``floor`` (m^2/s^4) keeps the logarithm finite in quiet bins.
+
+Pure numpy/scipy; imports only ``wearbench.validation.filters``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy import signal
+from wearbench.validation.filters import FilterSpec, apply_filter
+
+__all__ = ["CycleFeatures", "FeatureSpec", "cycle_features"]
+
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class FeatureSpec:
+    """What a cycle's feature vector holds (see the module docstring)."""
+
+    bins: int = 36                            # crank-angle bins per revolution (10 deg)
+    lowpass: float = 50.0                     # Hz
+    band: tuple[float, float] = (100.0, 1000.0)  # Hz
+    floor: float = 1.0                        # m^2/s^4 added before the logarithm
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    @property
+    def size(self) -> int:
+        return 2 * self.bins
+
+
+@dataclass(frozen=True)
+class CycleFeatures:
+    """Features of the complete cycles of one record: ``values`` (cycles, 2 bins) = [curve | energy]."""
+
+    spec: FeatureSpec
+    values: np.ndarray
+    clipped: np.ndarray  # (cycles,) samples at the sensor's range in each cycle (0 if unknown)
+
+    @property
+    def cycles(self) -> int:
+        return int(self.values.shape[0])
+
+    @property
+    def curve(self) -> np.ndarray:
+        return self.values[:, : self.spec.bins]
+
+    @property
+    def energy(self) -> np.ndarray:
+        return self.values[:, self.spec.bins:]
+
+
+def _band(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
+    lo, hi = band
+    hi = min(hi, 0.45 * fs)
+    if not 0 < lo < hi:
+        raise ValueError(f"features: band {band} Hz does not fit below the Nyquist frequency {fs / 2:g} Hz")
+    sos = signal.butter(4, (lo, hi), btype="bandpass", fs=fs, output="sos")
+    return signal.sosfiltfilt(sos, x, padtype="odd", padlen=min(x.size - 1, int(10 * fs / lo)))
+
+
+def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: FeatureSpec = FeatureSpec(), *,
+                   range_: float | None = None) -> CycleFeatures:
+    """Features of every complete crank revolution of a record.
+
+    t: sample times (s, uniform rate); angle: unwrapped absolute crank angle at those times (rad;
+    either sense of rotation); acc: slider acceleration (m/s^2). A cycle runs from one crossing of
+    crank angle 0 (mod 2 pi, in the sense of rotation) to the next; partial cycles at the ends are
+    dropped. range_: the sensor's range (m/s^2): samples at or beyond it count as clipped.
+    """
+    t = np.asarray(t, dtype=float)
+    angle = np.asarray(angle, dtype=float)
+    acc = np.asarray(acc, dtype=float)
+    if not t.size == angle.size == acc.size or t.size < 16:
+        raise ValueError(f"features: expected equal arrays of at least 16 samples, got {t.size}, {angle.size}, "
+                         f"{acc.size}")
+    if not np.all(np.isfinite(acc)):
+        raise ValueError(f"features: {int(np.sum(~np.isfinite(acc)))} non-finite acceleration samples")
+    fs = float(1.0 / np.median(np.diff(t)))
+    u = angle if angle[-1] >= angle[0] else -angle
+    u = np.maximum.accumulate(u)
+    cycle = np.floor(u / TWO_PI).astype(np.int64)
+    first, last = cycle[0] + 1, cycle[-1] - 1  # complete cycles only
+    if last < first:
+        return CycleFeatures(spec, np.zeros((0, spec.size)), np.zeros(0, dtype=np.int64))
+    keep = (cycle >= first) & (cycle <= last)
+    # over whole cycles the slider acceleration averages to zero: what remains is sensor bias
+    centred = acc - acc[keep].mean()
+    curve = apply_filter(centred, fs, FilterSpec(kind="butter", cutoff=spec.lowpass, order=4, remove_bias=False))
+    power = _band(centred, fs, spec.band) ** 2
+    k = cycle[keep] - first
+    b = np.minimum((np.mod(u[keep], TWO_PI) * (spec.bins / TWO_PI)).astype(np.int64), spec.bins - 1)
+    cells = k * spec.bins + b
+    n_cells = (last - first + 1) * spec.bins
+    count = np.bincount(cells, minlength=n_cells).astype(float)
+    if np.any(count == 0):
+        raise ValueError(f"features: a {360 / spec.bins:g} deg crank-angle bin holds no sample at {fs:g} Hz; "
+                         "the record is too coarse or the crank stood still")
+    mean_curve = np.bincount(cells, curve[keep], n_cells) / count
+    mean_power = np.bincount(cells, power[keep], n_cells) / count
+    values = np.hstack([mean_curve.reshape(-1, spec.bins),
+                        np.log10(mean_power.reshape(-1, spec.bins) + spec.floor)])
+    clipped = np.zeros(last - first + 1, dtype=np.int64)
+    if range_ is not None:
+        hit = np.abs(acc[keep]) >= range_ * (1 - 1e-6)
+        clipped = np.bincount(k[hit], minlength=clipped.size)
+    return CycleFeatures(spec, values, clipped)
+
+
+def cycle_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int = 720,
+                 filter_spec: FilterSpec | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Each complete cycle of a record as a curve on ``grid`` equal crank-angle steps (cycles cut at
+    crank angle 0 as in :func:`cycle_features`), and each cycle's peak |acc| (m/s^2).
+
+    filter_spec: the zero-phase filter applied to the whole record first (default CFC 180);
+    the record's mean over whole cycles (sensor bias) is removed.
+    """
+    t = np.asarray(t, dtype=float)
+    acc = np.asarray(acc, dtype=float)
+    u = np.asarray(angle, dtype=float)
+    u = np.maximum.accumulate(u if u[-1] >= u[0] else -u)
+    fs = float(1.0 / np.median(np.diff(t)))
+    k0, k1 = int(np.floor(u[0] / TWO_PI)) + 1, int(np.floor(u[-1] / TWO_PI)) - 1
+    if k1 < k0:
+        return np.zeros((0, grid)), np.zeros(0)
+    whole = (u >= k0 * TWO_PI) & (u < (k1 + 1) * TWO_PI)
+    filtered = apply_filter(acc - acc[whole].mean(), fs, filter_spec or FilterSpec(remove_bias=False))
+    steps = np.arange(grid) * (TWO_PI / grid)
+    curves = np.empty((k1 - k0 + 1, grid))
+    peaks = np.empty(k1 - k0 + 1)
+    for c, k in enumerate(range(k0, k1 + 1)):
+        curves[c] = np.interp(k * TWO_PI + steps, u, filtered)
+        inside = (u >= k * TWO_PI) & (u < (k + 1) * TWO_PI)
+        peaks[c] = float(np.max(np.abs(acc[inside])))
+    return curves, peaks

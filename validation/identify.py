@@ -1,0 +1,283 @@
+"""Which candidate state explains a session: posterior probabilities from theory ensembles.
+
+For each candidate state its ensemble gives the statistics of cycle features
+(``statistics.StateStatistics``). A session's ``n`` complete cycles give the mean feature vector;
+its likelihood under each state, tempered by a factor learnt from the ensembles themselves
+(leave-one-realisation-out: each held-out realisation plays a session of its ``C`` cycles and
+the temperature minimises their log loss), gives the posterior with a uniform prior. The top
+state is named only when its probability reaches ``threshold``; otherwise the answer is
+"undecided", with the number of cycles that would decide it if the session went on as it began.
+Whether a state is consistent with the session at all is a separate test: the session's
+Mahalanobis distance against the distances of the ensemble's own held-out realisations (a gamma
+fitted by moments). When no state passes it the answer is "none of the candidates". A state
+"explains" the session when it is consistent and not ruled out by another (posterior at least
+``1 - threshold``).
+
+Validation verdict per state: the fraction of measured cycles inside the theory's cycle band
+(single-cycle distance below the 95th percentile of the ensemble's own cycles), and the crank
+angles where measured cycles leave the 5-95 % band of a feature more often than one in three.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy import optimize, special, stats
+from wearbench.validation.ensemble import Ensemble
+from wearbench.validation.features import CycleFeatures
+from wearbench.validation.statistics import StateStatistics
+
+__all__ = ["Identification", "IdentifyOptions", "StateModels", "fit_states", "identify_features"]
+
+UNDECIDED = "undecided"
+NONE = "none of the candidates"
+
+
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """Decision rules. Floors are standard deviations added to every feature (see statistics.py)."""
+
+    threshold: float = 0.9          # name the top state at posterior >= threshold
+    consistency: float = 0.001      # a state is consistent with the session when its p-value >= this
+    floor_curve: float = 0.5        # m/s^2, low-passed curve bins
+    floor_energy: float = 0.05      # log10 units, impact-band energy bins
+    max_cycles: int = 500           # horizon of "cycles needed"
+
+    def __post_init__(self) -> None:
+        if not 0.5 <= self.threshold < 1:
+            raise ValueError(f"threshold = {self.threshold}: expected a probability in [0.5, 1)")
+        if not 0 < self.consistency < 0.5:
+            raise ValueError(f"consistency = {self.consistency}: expected a p-value in (0, 0.5)")
+
+
+@dataclass(frozen=True)
+class StateModels:
+    """Fitted statistics of every candidate state, their calibration, and their own distances."""
+
+    states: tuple[str, ...]
+    stats: Mapping[str, StateStatistics]
+    temperature: float
+    null: Mapping[str, tuple[float, float]]  # state -> (gamma shape, scale) of held-out distances
+    cycle_limit: Mapping[str, float]  # state -> 95th percentile of single-cycle distances
+    lo: Mapping[str, np.ndarray]  # state -> per-feature 5th percentile over cycles
+    hi: Mapping[str, np.ndarray]
+    options: IdentifyOptions
+
+
+@dataclass
+class Identification:
+    """The answer for one session (see the module docstring)."""
+
+    session: str
+    cycles: int
+    posterior: dict[str, float]
+    verdict: str
+    p_top: float
+    consistent: dict[str, bool]  # the state's distance test passes (absolute)
+    explains: dict[str, bool]  # consistent and not ruled out by another state (posterior >= 1 - threshold)
+    p_value: dict[str, float]
+    cycles_needed: int | None  # cycles in all that would decide it (None: not within max_cycles)
+    inside: dict[str, float]  # fraction of cycles inside each state's cycle band
+    leaves: dict[str, list[str]]  # crank-angle ranges where cycles leave each state's band
+    clipped: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _floor(spec_bins: int, options: IdentifyOptions) -> np.ndarray:
+    return np.concatenate([np.full(spec_bins, options.floor_curve ** 2), np.full(spec_bins, options.floor_energy ** 2)])
+
+
+def _posterior(ll: np.ndarray, temperature: float) -> np.ndarray:
+    z = ll / temperature
+    return np.exp(z - special.logsumexp(z))
+
+
+def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions()) -> StateModels:
+    """Fit each state's statistics and calibrate the temperature and the consistency test."""
+    if len(ensembles) < 1:
+        raise ValueError("identify: no candidate ensembles")
+    names = tuple(ensembles)
+    bins = next(iter(ensembles.values())).settings.features.bins
+    floor = _floor(bins, options)
+    fitted = {s: StateStatistics.fit(e.features, floor) for s, e in ensembles.items()}
+    # held-out realisations: their distance to their own state (refit without them), and their
+    # log likelihood under every state, for the null distribution and the temperature
+    lls, truth, null = [], [], {}
+    for si, (s, e) in enumerate(ensembles.items()):
+        d2 = []
+        for r in range(e.realisations):
+            loo = StateStatistics.fit(np.delete(e.features, r, axis=0), floor)
+            xbar, n = e.features[r].mean(axis=0), e.features.shape[1]
+            d2.append(loo.distance2(xbar, n))
+            lls.append([loo.log_likelihood(xbar, n) if t == s else fitted[t].log_likelihood(xbar, n) for t in names])
+            truth.append(si)
+        d2 = np.asarray(d2)
+        mean, var = float(d2.mean()), float(d2.var(ddof=1))
+        null[s] = (mean * mean / var, var / mean)
+    lls_a, truth_a = np.asarray(lls), np.asarray(truth)
+
+    def log_loss(log_t: float) -> float:
+        z = lls_a / np.exp(log_t)
+        return float(-np.mean(z[np.arange(len(truth_a)), truth_a] - special.logsumexp(z, axis=1)))
+
+    temperature = 1.0
+    if len(names) > 1:
+        best = optimize.minimize_scalar(log_loss, bounds=(0.0, np.log(1e4)), method="bounded")
+        temperature = float(np.exp(best.x))
+    limit, lo, hi = {}, {}, {}
+    for s, e in ensembles.items():
+        flat = e.features.reshape(-1, e.features.shape[-1])
+        cov1 = fitted[s].covariance(1)
+        inv = np.linalg.inv(cov1)
+        d = flat - fitted[s].mean
+        limit[s] = float(np.percentile(np.einsum("ij,jk,ik->i", d, inv, d), 95))
+        lo[s], hi[s] = np.percentile(flat, 5, axis=0), np.percentile(flat, 95, axis=0)
+    return StateModels(names, fitted, temperature, null, limit, lo, hi, options)
+
+
+def _ranges(flags: np.ndarray, bins: int) -> list[str]:
+    """Crank-angle ranges (deg) of the runs of True in a per-bin flag array."""
+    width = 360.0 / bins
+    out, i = [], 0
+    while i < bins:
+        if flags[i]:
+            j = i
+            while j + 1 < bins and flags[j + 1]:
+                j += 1
+            out.append(f"{i * width:.0f}-{(j + 1) * width:.0f} deg")
+            i = j + 1
+        else:
+            i += 1
+    return out
+
+
+def identify_features(features: CycleFeatures, models: StateModels, *, label: str = "session") -> Identification:
+    """Posterior, verdict, consistency and bands for a session's cycle ``features``."""
+    opts = models.options
+    x = features.values
+    n = features.cycles
+    if n < 1:
+        raise ValueError(f"identify {label}: the session holds no complete crank cycle")
+    xbar = x.mean(axis=0)
+    names = models.states
+    ll = np.array([models.stats[s].log_likelihood(xbar, n) for s in names])
+    post = _posterior(ll, models.temperature)
+    top = int(np.argmax(post))
+    p_value, consistent = {}, {}
+    for s in names:
+        shape, scale = models.null[s]
+        p_value[s] = float(stats.gamma.sf(models.stats[s].distance2(xbar, n), shape, scale=scale))
+        consistent[s] = p_value[s] >= opts.consistency
+    if not any(consistent.values()):
+        verdict = NONE
+    elif post[top] >= opts.threshold and consistent[names[top]]:
+        verdict = names[top]
+    else:
+        verdict = UNDECIDED
+    needed = None
+    if verdict == UNDECIDED and any(consistent.values()):
+        for m in np.unique(np.geomspace(n + 1, opts.max_cycles, 60).astype(int)):
+            p = _posterior(np.array([models.stats[s].log_likelihood(xbar, m) for s in names]), models.temperature)
+            if p.max() >= opts.threshold:
+                needed = int(m)
+                break
+    elif verdict != NONE:
+        needed = n
+    bins = features.spec.bins
+    inside, leaves = {}, {}
+    for s in names:
+        st = models.stats[s]
+        d = x - st.mean
+        d2 = np.einsum("ij,jk,ik->i", d, np.linalg.inv(st.covariance(1)), d)
+        inside[s] = float(np.mean(d2 <= models.cycle_limit[s]))
+        out = (x < models.lo[s]) | (x > models.hi[s])
+        often = out.mean(axis=0) > 1 / 3
+        leaves[s] = ([f"curve {r}" for r in _ranges(often[:bins], bins)]
+                     + [f"impacts {r}" for r in _ranges(often[bins:], bins)])
+    notes = []
+    clipped = int(features.clipped.sum())
+    if clipped:
+        notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
+    explains = {s: consistent[s] and float(p) >= 1 - opts.threshold for s, p in zip(names, post, strict=True)}
+    return Identification(label, n, {s: float(p) for s, p in zip(names, post, strict=True)}, verdict,
+                          float(post[top]), consistent, explains, p_value, needed, inside, leaves, clipped, notes)
+
+
+def session_features(session, spec=None) -> CycleFeatures:
+    """Cycle features of a measured session (``MeasuredSession``): acceleration at the encoder's crank
+    angle, interpolated to every acceleration sample; clipped samples counted at the sensor's range."""
+    from wearbench.validation.features import FeatureSpec, cycle_features
+
+    acc = session.acceleration
+    t = acc["time"].to_numpy(float)
+    enc = session.encoder
+    angle = np.interp(t, enc["time"].to_numpy(float), enc["angle"].to_numpy(float))
+    range_ = None
+    if session.bench is not None:
+        try:
+            range_ = session.bench.sensor("accelerometer").range
+        except KeyError:
+            range_ = None
+    return cycle_features(t, angle, acc["acc"].to_numpy(float), spec or FeatureSpec(), range_=range_)
+
+
+def _motor_command(session) -> float:
+    """The commanded motor speed (rad/s) of a session, from its metadata, else from the measured crank."""
+    raw = session.metadata.get("session", {}).get("speed_rad_s")
+    if raw is not None:
+        return float(raw)
+    from wearbench.validation.compare import motor_speed
+
+    return motor_speed(session)
+
+
+def identify_sessions(sessions, *, candidates=None, settings=None, options: IdentifyOptions = IdentifyOptions(),
+                      scheduler: str | None = None, workers: int | None = None, ensembles=None,
+                      progress: str | None = "theory ensembles") -> list[Identification]:
+    """Identify each session (paths or ``MeasuredSession``) among candidate states.
+
+    candidates: a ``[[state]]`` TOML file, a sequence of ``WearState``, or None for the states of the
+    bench recorded in each session. Ensembles are built once per (bench, commanded speed) on the
+    compute layer and cached on disk; ``ensembles`` ({state: Ensemble}) skips building them.
+    """
+    from pathlib import Path
+
+    from wearbench.hardware.bench import load_states
+    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.measured import MeasuredSession, load_session
+
+    settings = settings or EnsembleSettings()
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    groups: dict[tuple, list[int]] = {}
+    for i, s in enumerate(loaded):
+        if s.bench is None and ensembles is None:
+            raise ValueError(f"session {s.label}: no bench file recorded in it; candidate states need one")
+        key = (s.bench.sha256 if s.bench is not None else "", round(_motor_command(s), 6))
+        groups.setdefault(key, []).append(i)
+    out: list[Identification | None] = [None] * len(loaded)
+    for idx in groups.values():
+        first = loaded[idx[0]]
+        ens = ensembles
+        if ens is None:
+            bench = first.bench
+            if candidates is None:
+                states = bench.states
+            elif isinstance(candidates, (str, Path)):
+                states = load_states(candidates, bench)
+            else:
+                states = tuple(candidates)
+            if not states:
+                raise ValueError(f"session {first.label}: the bench {bench.name!r} declares no [[state]] tables; "
+                                 "give the candidate states with --candidates STATES.toml")
+            ens = build_ensembles(bench, states, speed=_motor_command(first), settings=settings,
+                                  scheduler=scheduler, workers=workers, progress=progress)
+        models = fit_states(ens, options)
+        spec = next(iter(ens.values())).settings.features
+        for i in idx:
+            out[i] = identify_features(session_features(loaded[i], spec), models, label=loaded[i].label)
+    return out

@@ -1,0 +1,108 @@
+"""The statistics of a state's cycle features, learnt from a theory ensemble, and how likely a
+measured session's cycles are under them.
+
+An ensemble of a state holds ``M`` realisations (benches drawn within their tolerances, random
+start states) of ``C`` settled cycles each, every cycle a feature vector ``x`` (see
+``features.py``). Cycles of one realisation share its bench; cycles of a measured session share
+the real bench. So the model is hierarchical: ``x = mu + b + w``, with ``b ~ N(0, Sb)`` the
+realisation's offset (bench against file) and ``w ~ N(0, Sw)`` the cycle's own (chaotic) part.
+The mean of ``n`` cycles of one bench is then ``N(mu, Sb + Sw / n)``; the ensemble mean adds
+``(Sb + Sw / C) / M``. ``Sw`` is the pooled within-realisation covariance, ``Sb`` the covariance
+of the realisation means less ``Sw / C`` (clipped to positive semi-definite). Both are shrunk
+towards their diagonals (Schäfer & Strimmer 2005, target "D", analytic intensity), because the
+ensemble has fewer realisations than features. ``floor`` adds a per-feature variance for what
+no ensemble holds: the sensor chain and the model's own error.
+
+Pure numpy/scipy; imports nothing from wearbench but the feature spec.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg
+
+__all__ = ["StateStatistics", "shrunk_covariance"]
+
+
+def shrunk_covariance(x: np.ndarray) -> np.ndarray:
+    """Covariance of the rows of ``x`` (n, p) shrunk towards its diagonal.
+
+    Schäfer & Strimmer (2005), "A shrinkage approach to large-scale covariance matrix estimation",
+    Stat. Appl. Genet. Mol. Biol. 4(1), target D: the correlations are shrunk towards 0 with the
+    intensity lambda = sum Var(r_ij) / sum r_ij^2 (i != j), clipped to [0, 1].
+    """
+    x = np.asarray(x, dtype=float)
+    n, p = x.shape
+    if n < 3:
+        raise ValueError(f"covariance: needs at least 3 samples, got {n}")
+    xc = x - x.mean(axis=0)
+    sd = xc.std(axis=0, ddof=1)
+    sd_safe = np.where(sd > 0, sd, 1.0)
+    z = xc / sd_safe
+    w = z[:, :, None] * z[:, None, :]  # (n, p, p)
+    wbar = w.mean(axis=0)
+    r = wbar * n / (n - 1)
+    var_r = n / (n - 1) ** 3 * ((w - wbar) ** 2).sum(axis=0)
+    off = ~np.eye(p, dtype=bool)
+    denom = float((r[off] ** 2).sum())
+    lam = 1.0 if denom == 0 else float(np.clip(var_r[off].sum() / denom, 0.0, 1.0))
+    rs = r * (1.0 - lam)
+    np.fill_diagonal(rs, 1.0)
+    return rs * np.outer(sd, sd)
+
+
+def _psd(a: np.ndarray) -> np.ndarray:
+    a = 0.5 * (a + a.T)
+    vals, vecs = np.linalg.eigh(a)
+    return (vecs * np.clip(vals, 0.0, None)) @ vecs.T
+
+
+@dataclass(frozen=True)
+class StateStatistics:
+    """Mean and covariances of a state's cycle features (see the module docstring)."""
+
+    mean: np.ndarray  # (p,)
+    within: np.ndarray  # Sw (p, p)
+    between: np.ndarray  # Sb (p, p)
+    floor: np.ndarray  # (p,) variance added for what the ensemble does not hold
+    realisations: int  # M
+    cycles: int  # C, cycles per realisation
+    _factors: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    @classmethod
+    def fit(cls, values: np.ndarray, floor: np.ndarray) -> StateStatistics:
+        """From an ensemble's features ``values`` (M realisations, C cycles, p features)."""
+        values = np.asarray(values, dtype=float)
+        if values.ndim != 3 or values.shape[0] < 3 or values.shape[1] < 2:
+            raise ValueError(f"state statistics: expected (realisations >= 3, cycles >= 2, features), "
+                             f"got {values.shape}")
+        m, c, p = values.shape
+        means = values.mean(axis=1)
+        within = shrunk_covariance((values - means[:, None, :]).reshape(-1, p)) * (m * c - 1) / (m * (c - 1))
+        between = _psd(shrunk_covariance(means) - within / c)
+        return cls(means.mean(axis=0), within, between, np.asarray(floor, dtype=float), m, c)
+
+    def covariance(self, n: float) -> np.ndarray:
+        """Covariance of the mean of ``n`` cycles of one bench about this ensemble's mean."""
+        ens = (self.between + self.within / self.cycles) / self.realisations
+        return self.between + self.within / n + ens + np.diag(self.floor)
+
+    def _factor(self, n: float) -> tuple[np.ndarray, float]:
+        """Cholesky factor of ``covariance(n)`` and its log determinant, kept per ``n``."""
+        if n not in self._factors:
+            chol = linalg.cholesky(self.covariance(n), lower=True)
+            self._factors[n] = (chol, 2.0 * float(np.log(np.diag(chol)).sum()))
+        return self._factors[n]
+
+    def distance2(self, xbar: np.ndarray, n: float) -> float:
+        """Squared Mahalanobis distance of a session's mean features over ``n`` cycles."""
+        chol, _ = self._factor(n)
+        z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - self.mean, lower=True)
+        return float(z @ z)
+
+    def log_likelihood(self, xbar: np.ndarray, n: float) -> float:
+        """Gaussian log density of a session's mean features over ``n`` cycles."""
+        _, logdet = self._factor(n)
+        return -0.5 * (self.distance2(xbar, n) + logdet + self.mean.size * np.log(2 * np.pi))
