@@ -278,7 +278,7 @@ def _truth(r: _Reader, d: dict, bench: Bench | None) -> Truth:
                      "non-twin truth; twin = true plays the nominal model)")
     if not twin and "seed" not in d:
         raise r.fail(f"{k}.twin", d["twin"], "expected a seed with twin = false (the draw of the truth)")
-    seed = None if twin else int(r.number(d, k, "seed", low=0, integer=True))
+    seed = None if twin else int(r.number(d, k, "seed", low=0, high=2**31 - 1, integer=True))
     if "state" in d:
         state = _named_state(r, d, k, bench)
         return Truth(dict(state.clearances), dict(state.surfaces), d.get("wear_stage", state.name),

@@ -5,10 +5,10 @@ Order (each stage can be off): mounting resonance (second-order low-pass at ``re
 damping ratio ``damping``, bilinear with pre-warping) -> anti-alias filter (Butterworth or Bessel
 low-pass of ``aa_order`` at ``aa_cutoff`` x sample rate) -> sampling (keep every ``oversample``-th
 sample of the internal rate) -> bias -> white noise -> clipping at +/- range -> ADC quantisation.
-The two filters run on the signal at the internal rate ``oversample x sample rate`` (``oversample``
-= 1 when no anti-alias filter is set, so a clean chain is plain point sampling), so what lies
-above the sample rate's Nyquist frequency is attenuated as the analogue filter of a DAQ would, before
-it can alias. Imports numpy, scipy and the emulator config.
+The two filters run on the signal at the internal rate ``oversample x sample rate`` (see
+:func:`oversampling`; 1 for a clean chain, which is plain point sampling), so what lies above the
+sample rate's Nyquist frequency is attenuated as the analogue filter of a DAQ would, before it can
+alias. Imports numpy, scipy and the emulator config.
 """
 
 from __future__ import annotations
@@ -27,12 +27,14 @@ _RESONANCE_LIMIT = 0.45  # the mounting resonance must lie below this fraction o
 
 
 def oversampling(acc: Accelerometer, sample_rate: float) -> int:
-    """Internal samples per output sample: 1 without an anti-alias filter, else enough for
-    ``INTERNAL_RATE`` and for the mounting resonance (2.5 x its frequency), at least 2."""
+    """Internal samples per output sample. Without an anti-alias filter: 1 (plain point sampling)
+    unless the mounting resonance lies above 0.4 x the sample rate, then enough for it (2.5 x its
+    frequency): the resonance rings above Nyquist and aliases, as it would on a DAQ without an
+    anti-alias filter. With one: enough for ``INTERNAL_RATE`` and for the resonance, at least 2."""
+    need = 2.5 * acc.resonance
     if acc.aa_filter == "none":
-        return 1
-    need = max(INTERNAL_RATE, 2.5 * acc.resonance)
-    return max(2, math.ceil(need / sample_rate - 1e-9))
+        return 1 if acc.resonance < 0.4 * sample_rate else math.ceil(need / sample_rate - 1e-9)
+    return max(2, math.ceil(max(INTERNAL_RATE, need) / sample_rate - 1e-9))
 
 
 class SensorChain:
@@ -49,7 +51,7 @@ class SensorChain:
         self.oversample = oversampling(acc, self.sample_rate)
         self.internal_rate = self.sample_rate * self.oversample
         self._rng = rng
-        self.clipped = 0  # samples clipped so far
+        self.clipped = 0  # samples at full scale so far (the ADC's extreme codes: what a host sees as clipped)
         sections = []
         fr = acc.resonance
         if fr:
@@ -80,7 +82,6 @@ class SensorChain:
         if acc.noise:
             x = x + self._rng.normal(0.0, acc.noise, x.size)
         if acc.clipping:
-            self.clipped += int(np.count_nonzero(np.abs(x) >= self.range))
             x = np.clip(x, -self.range, self.range)
         if acc.adc_bits:
             half = 2 ** (acc.adc_bits - 1)
@@ -88,7 +89,10 @@ class SensorChain:
             counts = np.rint(x / lsb)
             if acc.clipping:
                 counts = np.clip(counts, -half, half - 1)
+                self.clipped += int(np.count_nonzero((counts >= half - 1) | (counts <= -half)))
             return counts_to_m_s2(counts * 2 ** (16 - acc.adc_bits), self.range / 32768.0)
+        if acc.clipping:
+            self.clipped += int(np.count_nonzero(np.abs(x) >= self.range))
         return x.astype(np.float32)
 
 
