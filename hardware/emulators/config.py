@@ -10,6 +10,8 @@ Example::
 
     [emulator]
     signal = "model"            # "model" | "harmonic" (test pattern) | "white" (shaker) | "none"
+    revolutions = 40            # non-twin truth: revolutions of the run the device plays (then wraps)
+    settle = 2                  # revolutions simulated and dropped before them
     [emulator.accelerometer]
     noise = "0.05 m/s^2"        # white noise std
     bias = "0.2 m/s^2"
@@ -18,6 +20,9 @@ Example::
     drift = "40 ppm"            # sample clock runs fast by this much
     resonance = "1.5 kHz"       # mounting transfer: slider structural resonance (second order)
     damping = 0.05
+    aa_filter = "butterworth"   # anti-alias low-pass before sampling: "butterworth" | "bessel" | "none"
+    aa_order = 8
+    aa_cutoff = 0.3             # -3 dB frequency as a fraction of the sample rate
     [emulator.motor]
     ripple = 0.01               # relative speed ripple, harmonic per motor revolution below
     ripple_harmonic = 1
@@ -25,7 +30,9 @@ Example::
     index = true
     index_angle = "0 deg"       # crank angle of the index pulse
     [emulator.truth]            # what the device really has, whatever the host claims
-    clearances = { A = "0.32 mm", B = "0.28 mm" }
+    seed = 7                    # a bench drawn from [tolerances] (non-twin); absent or twin = true: the nominal model
+    state = "0.3 mm first wear" # a [[state]] of the bench (its clearances and wear) ...
+    clearances = { A = "0.32 mm", B = "0.28 mm" }  # ... or the clearances and wear themselves
     wear = { A = "worn-A.npz" } # worn surfaces (JointSurfaces .npz, relative to the bench file)
     wear_stage = "first wear"
     accel_delay = "0.5 ms"      # accelerometer signal delay behind the crank angle
@@ -46,9 +53,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from wearbench.hardware.bench import Bench, _Reader
+from wearbench.hardware.bench import Bench, WearState, _Reader
 
 __all__ = [
+    "AA_FILTERS",
     "SIGNALS",
     "Accelerometer",
     "EmulatorConfig",
@@ -56,9 +64,12 @@ __all__ = [
     "Faults",
     "MotorImperfections",
     "Truth",
+    "emulator_config",
 ]
 
 SIGNALS = ("model", "harmonic", "white", "none")
+AA_FILTERS = ("none", "butterworth", "bessel")
+DEFAULT_REVOLUTIONS = 40  # non-twin run: 20-cycle sessions plus their start-up play without a wrap
 
 
 @dataclass(frozen=True)
@@ -70,7 +81,10 @@ class Accelerometer:
     drift: float = 0.0        # fraction (ppm * 1e-6), + = sample clock fast
     resonance: float = 0.0    # Hz, 0 = no mounting transfer
     damping: float = 0.05     # damping ratio of the mounting resonance
-    white_level: float = 10.0  # m/s^2 rms of the "white" test signal
+    white_level: float = 10.0  # m/s^2 rms of the "white" test signal (at the chain's internal rate)
+    aa_filter: str = "none"   # anti-alias low-pass before sampling: "butterworth" | "bessel" | "none"
+    aa_order: int = 8
+    aa_cutoff: float = 0.3    # -3 dB frequency / sample rate
 
 
 @dataclass(frozen=True)
@@ -87,10 +101,23 @@ class EncoderImperfections:
 
 @dataclass(frozen=True)
 class Truth:
+    """What the device really is. ``seed`` None: the nominal bench, one steady revolution looped
+    (a twin of the model); a seed: the bench drawn from its ``[tolerances]`` with that seed, played
+    as a long run with cycle-to-cycle variation (see :mod:`wearbench.hardware.emulators.signal`)."""
+
     clearances: Mapping[str, float] = field(default_factory=dict)  # m, per joint; missing = bench's
     wear: Mapping[str, Path] = field(default_factory=dict)         # worn surfaces per joint
     wear_stage: str = ""
     accel_delay: float = 0.0  # s
+    seed: int | None = None
+
+    @property
+    def twin(self) -> bool:
+        return self.seed is None
+
+    def state(self) -> WearState:
+        """The truth's clearances and wear as a candidate state (named by its wear stage)."""
+        return WearState(self.wear_stage or "truth", dict(self.clearances), dict(self.wear))
 
 
 @dataclass(frozen=True)
@@ -110,7 +137,8 @@ class EmulatorConfig:
 
     seed: int = 0
     signal: str = "model"
-    revolutions: float = 3.0       # model revolutions simulated; the last one is kept
+    revolutions: int = DEFAULT_REVOLUTIONS  # non-twin truth: whole revolutions played after settling
+    settle: float = 2.0            # model revolutions simulated and dropped first (twin: then 1 kept)
     accel_block: int = 200         # samples per accelerometer block
     encoder_block: int = 10        # samples per encoder block
     buffer: float = 2.0            # s of samples the device holds before it overruns
@@ -132,18 +160,20 @@ class EmulatorConfig:
             if getattr(f, name) is not None:
                 faults[name] = f"{getattr(f, name)!r} s"
         return {
-            "seed": self.seed, "signal": self.signal, "revolutions": self.revolutions,
+            "seed": self.seed, "signal": self.signal, "revolutions": self.revolutions, "settle": self.settle,
             "accel_block": self.accel_block, "encoder_block": self.encoder_block,
             "buffer": f"{self.buffer!r} s", "cache": self.cache,
             "accelerometer": {"noise": f"{a.noise!r} m/s^2", "bias": f"{a.bias!r} m/s^2",
                               "clipping": a.clipping, "adc_bits": a.adc_bits,
                               "drift": f"{a.drift * 1e6!r} ppm", "resonance": f"{a.resonance!r} Hz",
-                              "damping": a.damping, "white_level": f"{a.white_level!r} m/s^2"},
+                              "damping": a.damping, "white_level": f"{a.white_level!r} m/s^2",
+                              "aa_filter": a.aa_filter, "aa_order": a.aa_order, "aa_cutoff": a.aa_cutoff},
             "motor": {"ripple": m.ripple, "ripple_harmonic": m.ripple_harmonic},
             "encoder": {"index": e.index, "index_angle": f"{e.index_angle!r} rad"},
             "truth": {"clearances": {j: f"{c!r} m" for j, c in t.clearances.items()},
                       "wear": {j: str(Path(p).resolve()) for j, p in t.wear.items()},
-                      "wear_stage": t.wear_stage, "accel_delay": f"{t.accel_delay!r} s"},
+                      "wear_stage": t.wear_stage, "accel_delay": f"{t.accel_delay!r} s",
+                      **({"twin": True} if t.seed is None else {"seed": t.seed})},
             "faults": faults,
         }
 
@@ -160,23 +190,30 @@ class EmulatorConfig:
         r = _Reader(src)
         data = r.table(dict(table), "emulator")
         sections = {"accelerometer", "motor", "encoder", "truth", "faults"}
-        r.keys(data, "emulator", set(), {"seed", "signal", "revolutions", "accel_block",
+        r.keys(data, "emulator", set(), {"seed", "signal", "revolutions", "settle", "accel_block",
                                          "encoder_block", "buffer", "cache"} | sections)
         for s in sections:
             r.table(data.get(s, {}), f"emulator.{s}")
+        motor, truth = _motor(r, data.get("motor", {})), _truth(r, data.get("truth", {}), bench)
+        if truth.seed is not None and motor.ripple:
+            raise r.fail("emulator.motor.ripple", data["motor"]["ripple"],
+                         "expected 0 (or no ripple key) with [emulator.truth] seed: a drawn truth takes its "
+                         "speed error and ripple from the bench's [tolerances] speed and ripple")
         return cls(
             seed=int(r.number(data, "emulator", "seed", low=0, default=0, integer=True)),
             signal=r.text(data, "emulator", "signal", choices=SIGNALS, default="model"),
-            revolutions=r.number(data, "emulator", "revolutions", low=1.0, high=100.0, default=3.0),
+            revolutions=int(r.number(data, "emulator", "revolutions", low=1, high=1000, default=DEFAULT_REVOLUTIONS,
+                                     integer=True)),
+            settle=r.number(data, "emulator", "settle", low=0.0, high=50.0, default=2.0),
             accel_block=int(r.number(data, "emulator", "accel_block", low=1, high=2000, default=200, integer=True)),
             encoder_block=int(r.number(data, "emulator", "encoder_block", low=1, high=1000, default=10,
                                        integer=True)),
             buffer=r.quantity(data, "emulator", "buffer", "time", positive=True, default=2.0),
             cache=_flag(r, data, "emulator", "cache", True),
             accelerometer=_accelerometer(r, data.get("accelerometer", {})),
-            motor=_motor(r, data.get("motor", {})),
+            motor=motor,
             encoder=_encoder(r, data.get("encoder", {})),
-            truth=_truth(r, data.get("truth", {}), bench),
+            truth=truth,
             faults=_faults(r, data.get("faults", {})),
             table=dict(table),
         )
@@ -191,7 +228,8 @@ def _flag(r: _Reader, data: dict, key: str, name: str, default: bool) -> bool:
 
 def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
     k = "emulator.accelerometer"
-    r.keys(d, k, set(), {"noise", "bias", "clipping", "adc_bits", "drift", "resonance", "damping", "white_level"})
+    r.keys(d, k, set(), {"noise", "bias", "clipping", "adc_bits", "drift", "resonance", "damping", "white_level",
+                         "aa_filter", "aa_order", "aa_cutoff"})
     bits = d.get("adc_bits", 16)
     if bits is False:
         bits = 0
@@ -208,6 +246,9 @@ def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
         resonance=r.quantity(d, k, "resonance", "frequency", nonnegative=True, default=0.0),
         damping=r.number(d, k, "damping", low=0.0, high=2.0, default=0.05, open_low=True),
         white_level=r.quantity(d, k, "white_level", "acceleration", nonnegative=True, default=10.0),
+        aa_filter=r.text(d, k, "aa_filter", choices=AA_FILTERS, default="none"),
+        aa_order=int(r.number(d, k, "aa_order", low=1, high=12, default=8, integer=True)),
+        aa_cutoff=r.number(d, k, "aa_cutoff", low=0.0, high=0.5, default=0.3, open_low=True),
     )
 
 
@@ -229,8 +270,19 @@ def _encoder(r: _Reader, d: dict) -> EncoderImperfections:
 
 def _truth(r: _Reader, d: dict, bench: Bench | None) -> Truth:
     k = "emulator.truth"
-    r.keys(d, k, set(), {"clearances", "wear", "wear_stage", "accel_delay"})
+    r.keys(d, k, set(), {"clearances", "wear", "wear_stage", "accel_delay", "seed", "twin", "state"})
     joints = {j.name: j for j in bench.clearance_joints} if bench is not None else None
+    twin = _flag(r, d, k, "twin", "seed" not in d)
+    if twin and "seed" in d:
+        raise r.fail(f"{k}.twin", d["twin"], "expected twin = false or no twin key with a seed (a seed draws a "
+                     "non-twin truth; twin = true plays the nominal model)")
+    if not twin and "seed" not in d:
+        raise r.fail(f"{k}.twin", d["twin"], "expected a seed with twin = false (the draw of the truth)")
+    seed = None if twin else int(r.number(d, k, "seed", low=0, high=2**31 - 1, integer=True))
+    if "state" in d:
+        state = _named_state(r, d, k, bench)
+        return Truth(dict(state.clearances), dict(state.surfaces), d.get("wear_stage", state.name),
+                     r.quantity(d, k, "accel_delay", "time", nonnegative=True, default=0.0), seed)
     clearances: dict[str, float] = {}
     for name, raw in r.table(d.get("clearances", {}), f"{k}.clearances").items():
         if joints is not None and name not in joints:
@@ -254,7 +306,25 @@ def _truth(r: _Reader, d: dict, bench: Bench | None) -> Truth:
     stage = d.get("wear_stage", "")
     if not isinstance(stage, str):
         raise r.fail(f"{k}.wear_stage", stage, "expected text (a wear stage label)")
-    return Truth(clearances, wear, stage, r.quantity(d, k, "accel_delay", "time", nonnegative=True, default=0.0))
+    return Truth(clearances, wear, stage, r.quantity(d, k, "accel_delay", "time", nonnegative=True, default=0.0),
+                 seed)
+
+
+def _named_state(r: _Reader, d: dict, k: str, bench: Bench | None) -> WearState:
+    """The bench's ``[[state]]`` named by ``truth.state`` (then clearances and wear come from it)."""
+    raw = d["state"]
+    if bench is None:
+        raise r.fail(f"{k}.state", raw, "expected clearances and wear instead: no bench to look the state up in")
+    names = [s.name for s in bench.states]
+    if raw not in names:
+        raise r.fail(f"{k}.state", raw, f"expected one of the bench's [[state]] names: {names}")
+    for other in ("clearances", "wear"):
+        if other in d:
+            raise r.fail(f"{k}.{other}", d[other], f"expected no {other} with state = {raw!r} (the state sets them)")
+    stage = d.get("wear_stage", raw)
+    if not isinstance(stage, str):
+        raise r.fail(f"{k}.wear_stage", stage, "expected text (a wear stage label)")
+    return next(s for s in bench.states if s.name == raw)
 
 
 def _faults(r: _Reader, d: dict) -> Faults:
@@ -274,3 +344,39 @@ def _faults(r: _Reader, d: dict) -> Faults:
         bus_off_duration=r.quantity(d, k, "bus_off_duration", "time", positive=True, default=0.2),
         reply_delay=r.quantity(d, k, "reply_delay", "time", nonnegative=True, default=0.0),
     )
+
+
+def emulator_config(bench: Bench, state: WearState | str | None = None, seed: int | None = None, *,
+                    accelerometer: Mapping[str, Any] | None = None, table: Mapping[str, Any] | None = None,
+                    **emulator: Any) -> EmulatorConfig:
+    """The emulator config of ``bench`` whose truth is ``state`` drawn with ``seed``.
+
+    Starts from ``table`` (default the bench's ``[emulator]`` table) and sets ``[emulator.truth]``:
+    ``state`` a ``[[state]]`` name of the bench or a :class:`WearState` (None: the bench's own
+    clearances, no wear), ``seed`` an int for a non-twin truth drawn from ``[tolerances]`` (then the
+    table's ``[emulator.motor] ripple`` is dropped: the draw has its own) or None for the twin.
+    The truth's ``accel_delay`` is kept. ``accelerometer`` updates keys of
+    ``[emulator.accelerometer]`` (raw values with units, e.g. ``{"resonance": "25 kHz"}``);
+    ``emulator`` sets top-level keys (``revolutions``, ``settle``, ``signal``, ``cache``, ...).
+    Hand ``config.to_table()`` to the serial/CAN emulators or the sim backend's ``config`` option.
+    """
+    raw: dict[str, Any] = {k: (dict(v) if isinstance(v, Mapping) else v)
+                           for k, v in (bench.emulator if table is None else table).items()}
+    old = raw.get("truth", {})
+    truth: dict[str, Any] = {"accel_delay": old["accel_delay"]} if "accel_delay" in old else {}
+    if isinstance(state, str):
+        truth["state"] = state
+    elif state is not None:
+        truth["clearances"] = {j: f"{c!r} m" for j, c in state.clearances.items()}
+        truth["wear"] = {j: str(Path(p).resolve()) for j, p in state.surfaces.items()}
+        truth["wear_stage"] = state.name
+    if seed is None:
+        truth["twin"] = True
+    else:
+        truth["seed"] = int(seed)
+        raw["motor"] = {k: v for k, v in raw.get("motor", {}).items() if k != "ripple"}
+    raw["truth"] = truth
+    if accelerometer:
+        raw["accelerometer"] = {**raw.get("accelerometer", {}), **accelerometer}
+    raw.update(emulator)
+    return EmulatorConfig.from_table(raw, bench=bench)

@@ -5,14 +5,22 @@ uses it directly. Time comes from ``clock`` (seconds, monotonic); :meth:`BenchDe
 every block completed up to the clock's now, so the device runs in real time under a wall clock and
 as fast as a test likes under a :class:`ManualClock`.
 
-Motor: the nominal speed ramps to the commanded speed at the acceleration limit; speed ripple of
-relative amplitude r at harmonic k of the motor angle gives the closed form
-``theta = theta_n + (r/k)(1 - cos k theta_n)``, ``omega = omega_n (1 + r sin k theta_n)``.
-Accelerometer chain per sample: model signal at the motor angle of the true sampling instant
-(minus the truth delay) -> mounting resonance (second-order low-pass, bilinear with pre-warping)
--> bias -> noise -> clipping at the range -> ADC quantisation. The sample clock runs at
-``rate (1 + drift)`` while blocks are stamped at the nominal rate.
-Imports the bench, the protocol records and codes, config and signal; not the transports.
+Motor: the nominal (commanded) speed ramps to the commanded speed at the acceleration limit; the
+true motor turns at ``s`` times it with a speed ripple of relative amplitude r at harmonic k of the
+motor angle and phase phi. With ``psi = k sigma s theta_n + phi`` (sigma: the sign of the bench's
+speed) the closed form is ``theta = s theta_n + sigma (r/k)(cos phi - cos psi)``,
+``omega = s omega_n (1 + r sin psi)``. A twin truth has s = 1, phi = 0 and the ``[emulator.motor]``
+ripple; a truth with a seed takes s, r, phi (k = 1) from its realisation
+(:func:`wearbench.model.realisation.draw_realisation`), the same motion its model run was simulated
+with, so the encoder and the acceleration belong to one motion. The encoder and the motor status
+report the true motion.
+Accelerometer: the model signal at the true motor angle of each instant (minus the truth delay) at
+the sensor chain's internal rate, then the chain of :mod:`wearbench.hardware.emulators.sensor`
+(mounting resonance, anti-alias filter, sampling, bias, noise, clipping, ADC). The sample clock runs
+at ``rate (1 + drift)`` while blocks are stamped at the nominal rate. Clipped samples are counted
+(:attr:`BenchDevice.clipped_samples`) and reported as INFO events, at most one a second.
+Imports the bench, the protocol records and codes, config, signal and sensor, lazily the model's
+realisation; not the transports.
 """
 
 from __future__ import annotations
@@ -23,12 +31,12 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal as sps
 from wearbench.hardware.bench import Bench, Sensor
 from wearbench.hardware.emulators.config import EmulatorConfig
+from wearbench.hardware.emulators.sensor import SensorChain
 from wearbench.hardware.emulators.signal import SignalTable, signal_table
 from wearbench.hardware.protocol.blocks import AccelBlock, EncoderBlock, MotorStatus
-from wearbench.hardware.protocol.messages import ErrorCode, FaultCode, counts_to_m_s2
+from wearbench.hardware.protocol.messages import ErrorCode, FaultCode
 
 __all__ = [
     "MAX_SAMPLE_RATE",
@@ -176,9 +184,19 @@ class BenchDevice:
         self._enc_last_k = 0
         self._index_pulses = 0  # index pulses of the segments before the current one
         self._first_stream: float | None = None
-        self._filter: tuple[np.ndarray, np.ndarray] | None = None
-        self._zi: np.ndarray | None = None
-        self._build_filter()
+        self._motion_params = self._true_motion_params()
+        self._chain = self._build_chain()
+        self._clipped_reported = (0, -math.inf)  # (count, device time) of the last clipping event
+
+    def _true_motion_params(self) -> tuple[float, float, int, float, int]:
+        """(speed scale s, ripple r, harmonic k, phase phi, sigma) of the true motor (module docstring)."""
+        truth, motor = self.config.truth, self.config.motor
+        if truth.seed is None:
+            return 1.0, motor.ripple, motor.ripple_harmonic, 0.0, 1
+        from wearbench.model.realisation import draw_realisation
+
+        real = draw_realisation(self.bench, truth.seed)
+        return real.speed_scale, real.ripple, 1, real.ripple_phase, 1 if self.bench.speed >= 0 else -1
 
     # ---- motor --------------------------------------------------------------------------------
 
@@ -246,8 +264,8 @@ class BenchDevice:
             kind = self.config.signal if self.config.signal != "white" else "none"
             rate = max(20000.0, 2 * self.sample_rate)
             self._tables[key] = signal_table(kind, self.bench, self.config.truth, key or 1.0,
-                                             revolutions=self.config.revolutions, rate=rate,
-                                             cache=self.config.cache)
+                                             revolutions=self.config.revolutions, settle=self.config.settle,
+                                             rate=rate, cache=self.config.cache)
         return self._tables[key]
 
     @property
@@ -267,7 +285,7 @@ class BenchDevice:
         old = self.range, self.sample_rate
         self.range, self.sample_rate = float(range_m_s2), float(sample_rate_hz)
         try:
-            self._build_filter()
+            self._chain = self._build_chain()
         except DeviceError:
             self.range, self.sample_rate = old
             raise
@@ -288,7 +306,7 @@ class BenchDevice:
         if accel and self._accel is None:
             drift = self.config.accelerometer.drift
             self._accel = _Stream(now, self.sample_rate, self.sample_rate * (1 + drift), self.config.accel_block)
-            self._build_filter()
+            self._chain.reset()
         if encoder and self._encoder is None:
             self._encoder = _Stream(now, self.encoder_rate, self.encoder_rate, self.config.encoder_block)
             self._enc_last_k = int(self._encoder_state(self._motion(np.array([now]))[0])[1][0])
@@ -349,7 +367,7 @@ class BenchDevice:
             tz = seg.t0 + abs(seg.omega0) / seg.accel
             if a < tz < b:
                 times.insert(1, tz)
-        theta, _ = self._ripple(*seg.state(np.array(times)))
+        theta, _ = self._true(*seg.state(np.array(times)))
         return int(np.abs(np.diff(self._encoder_state(theta)[1])).sum())
 
     def _command(self, t: float, target: float, accel: float) -> None:
@@ -389,16 +407,24 @@ class BenchDevice:
         return theta, omega, tspeed
 
     def _motion(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Motor angle (rad, 0 at power-up) and speed (rad/s) at device times ``t``, with ripple."""
+        """True motor angle (rad, 0 at power-up) and speed (rad/s) at device times ``t``."""
         theta, omega, _ = self._nominal(np.asarray(t, dtype=np.float64))
-        return self._ripple(theta, omega)
+        return self._true(theta, omega)
 
-    def _ripple(self, theta: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nominal motion to motion with speed ripple (closed form, module docstring)."""
-        r, k = self.config.motor.ripple, self.config.motor.ripple_harmonic
+    def _true(self, theta: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nominal (commanded) motion to the true motion: speed error and ripple (module docstring)."""
+        s, r, k, phi, sigma = self._motion_params
+        if s != 1.0:
+            theta, omega = s * theta, s * omega
         if r:
-            theta, omega = theta + (r / k) * (1 - np.cos(k * theta)), omega * (1 + r * np.sin(k * theta))
+            psi = (k * sigma) * theta + phi
+            theta, omega = theta + (sigma * r / k) * (math.cos(phi) - np.cos(psi)), omega * (1 + r * np.sin(psi))
         return theta, omega
+
+    @property
+    def clipped_samples(self) -> int:
+        """Accelerometer samples clipped at the range since the chain was last configured."""
+        return self._chain.clipped
 
     def _encoder_state(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         counts = np.floor(self._ratio * theta * (self.counts_per_rev / TWO_PI) + 1e-9).astype(np.int64)
@@ -427,7 +453,8 @@ class BenchDevice:
             s.next_sample += lost * s.block
             self._events.append(DeviceEvent(now, FaultCode.OVERRUN,
                                             f"device buffer overrun: {lost} blocks of {s.block} samples lost"))
-            self._zi = None
+            if s is self._accel:
+                self._chain.reset()
             due = keep
         return max(0, due)
 
@@ -443,9 +470,7 @@ class BenchDevice:
         while due > 0:
             nb = min(due, chunk)
             n = nb * s.block
-            k = s.next_sample + np.arange(n)
-            t_true = s.start + k / s.true_rate
-            values = self._accel_samples(t_true)
+            values = self._accel_samples(s, s.next_sample, n)
             for b in range(nb):
                 seq = s.sequence + b
                 if self._dropped():
@@ -455,51 +480,41 @@ class BenchDevice:
             s.sequence += nb
             s.next_sample += n
             due -= nb
+        self._report_clipping(now)
         return out
 
-    def _accel_samples(self, t_true: np.ndarray) -> np.ndarray:
-        cfg = self.config.accelerometer
+    def _accel_samples(self, s: _Stream, first: int, n: int) -> np.ndarray:
+        """Samples ``first .. first + n - 1`` of stream ``s``: the physics at the chain's internal
+        rate (the last internal instant of each group is the sample's true instant), then the chain."""
+        m = self._chain.oversample
+        j = np.arange(first * m, (first + n) * m) - (m - 1)
+        t_true = s.start + j / (s.true_rate * m) if m > 1 else s.start + j / s.true_rate
         if self.config.signal == "white":
-            x = self._rng.normal(0.0, cfg.white_level, t_true.size)
+            x = self._rng.normal(0.0, self.config.accelerometer.white_level, t_true.size)
         else:
             t = t_true - self.config.truth.accel_delay
             theta_n, omega_n, tspeed = self._nominal(t)
-            theta, omega = self._ripple(theta_n, omega_n)
+            theta, omega = self._true(theta_n, omega_n)
+            # a run holds its own speed error and ripple: scale it by the commanded speed only
+            scale_speed = omega if self.config.truth.seed is None else omega_n
             x = np.empty_like(t)
             for sp in np.unique(tspeed):
-                m = tspeed == sp
-                x[m] = self.prepare(sp).at(theta[m], omega[m])
-        if self._filter is not None:
-            b, a = self._filter
-            if self._zi is None:
-                self._zi = sps.lfilter_zi(b, a) * x[0]
-            x, self._zi = sps.lfilter(b, a, x, zi=self._zi)
-        x = x + cfg.bias
-        if cfg.noise:
-            x = x + self._rng.normal(0.0, cfg.noise, x.size)
-        if cfg.clipping:
-            x = np.clip(x, -self.range, self.range)
-        if cfg.adc_bits:
-            half = 2 ** (cfg.adc_bits - 1)
-            lsb = self.range / half
-            counts = np.rint(x / lsb)
-            if cfg.clipping:
-                counts = np.clip(counts, -half, half - 1)
-            return counts_to_m_s2(counts * 2 ** (16 - cfg.adc_bits), self.lsb)
-        return x.astype(np.float32)
+                sel = tspeed == sp
+                x[sel] = self.prepare(sp).at(theta[sel], scale_speed[sel])
+        return self._chain.process(x)
 
-    def _build_filter(self) -> None:
-        fr, zeta = self.config.accelerometer.resonance, self.config.accelerometer.damping
-        self._zi = None
-        if not fr:
-            self._filter = None
-            return
-        fs = self.sample_rate
-        if fr >= 0.45 * fs:
-            raise DeviceError(ErrorCode.BAD_VALUE, f"mounting resonance {fr:g} Hz needs a sample rate above "
-                              f"{fr / 0.45:g} Hz, the accelerometer samples at {fs:g} Hz")
-        wn = 2 * fs * math.tan(math.pi * fr / fs)  # pre-warped so the peak lands at fr
-        self._filter = sps.bilinear([wn**2], [1.0, 2 * zeta * wn, wn**2], fs)
+    def _report_clipping(self, now: float) -> None:
+        count, when = self._clipped_reported
+        if self._chain.clipped > count and now - when >= 1.0:
+            self._events.append(DeviceEvent(now, FaultCode.INFO, f"accelerometer clipped at +/-{self.range:g} m/s^2: "
+                                            f"{self._chain.clipped} samples so far"))
+            self._clipped_reported = (self._chain.clipped, now)
+
+    def _build_chain(self) -> SensorChain:
+        try:
+            return SensorChain(self.config.accelerometer, self.sample_rate, self.range, self._rng)
+        except ValueError as exc:
+            raise DeviceError(ErrorCode.BAD_VALUE, str(exc)) from None
 
     def _read_encoder(self, now: float) -> list[EncoderBlock]:
         s = self._encoder

@@ -1,51 +1,80 @@
 """The accelerometer's physics: slider acceleration versus motor angle, one table per crank speed.
 
-:func:`model_table` runs the multibody model (``wearbench.model.build_scene``/``simulate``) for the
-bench with the device's TRUE clearances and worn surfaces at the commanded speed, keeps the last
-(steady-state) revolution and resamples it on a uniform grid of motor angle, so the device only
-interpolates at 20 kHz. Tables are cached on disk per (bench sha, clearances, surfaces, speed, truth,
-settings, model source) in
-``$WEARBENCH_CACHE`` (default ``~/.cache/wearbench``)/``emulator``. ``harmonic`` is a kinematic test
-pattern, ``none`` a zero signal. Imports numpy and, lazily, the model.
+Two kinds of model table, both from :func:`wearbench.model.realisation.simulate_state` with the
+device's TRUE state (clearances and worn surfaces of ``[emulator.truth]``):
+
+- twin (truth without a seed, :func:`model_table`): the nominal bench started centred, ``settle``
+  revolutions dropped and the next whole one kept and looped, so every cycle is the same (the twin
+  of the model the emulator always played, kept for comparison);
+- run (truth with a seed, :func:`run_table`): the bench drawn from its ``[tolerances]`` with that
+  seed (masses, lengths, contact, speed error and ripple, start state), ``revolutions`` whole
+  revolutions after ``settle``, played by unwrapped motor angle, so consecutive cycles differ as
+  the chaotic impacts of a real bench do. Device angle 0 (power-up) is the first whole revolution
+  of the run. A session longer than the run wraps to its start; the last quarter revolution before
+  the wrap is a raised-cosine crossfade from the run's end into the samples that precede its start,
+  so the played signal stays continuous and a cycle boundary keeps its crank angle (a twin's loop
+  closes the same way: an orbit that is not exactly periodic would otherwise jump at the seam).
+
+Tables are resampled on a uniform grid of motor angle (the device only interpolates at 20 kHz) and
+cached on disk in ``$WEARBENCH_CACHE`` (default ``~/.cache/wearbench``)/``emulator``, keyed on the
+content of every model parameter (:func:`table_key`). ``harmonic`` is a kinematic test pattern,
+``none`` a zero signal. Imports numpy, the bench schema and config, and lazily the model.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from wearbench.hardware.bench import Bench
 from wearbench.hardware.emulators.config import Truth
 
-__all__ = ["SignalTable", "cache_dir", "harmonic_table", "model_table", "signal_table"]
+__all__ = ["FADE", "SignalTable", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
+           "table_key"]
 
 TWO_PI = 2 * np.pi
-_MODEL_TABLE_VERSION = "1"
+FADE = 0.25 * TWO_PI  # rad of motor angle: the crossfade before a long run wraps to its start
+_MODEL_TABLE_VERSION = "2"
+# fields that do not change the model's acceleration (the emulator's own table, the host side)
+_NOT_PHYSICS = {"path", "source", "description", "emulator", "hardware", "states", "motor", "tolerances",
+                "range", "sensitivity", "sample_rate"}
 
 
 @dataclass(frozen=True, eq=False)
 class SignalTable:
-    """Slider acceleration (m/s^2) at motor angles ``2 pi i / n`` (i < n) for steady ``speed`` (rad/s)."""
+    """Slider acceleration (m/s^2) at motor progress ``period i / n`` (i < n) for steady commanded
+    ``speed`` (rad/s). Progress is ``direction x motor angle`` modulo ``period`` (2 pi: one looped
+    revolution; a long run: its whole revolutions)."""
 
     speed: float
     acc: np.ndarray
     source: str
+    period: float = TWO_PI
+    direction: int = 1
 
     def at(self, theta: np.ndarray, speed: np.ndarray | float | None = None) -> np.ndarray:
         """Acceleration at motor angles ``theta`` (rad), periodic linear interpolation; at another
         ``speed`` the table is scaled by (speed/self.speed)^2 (exact for the kinematic part)."""
         n = self.acc.size
-        x = np.mod(theta, TWO_PI) * (n / TWO_PI)
+        x = np.mod(self.direction * np.asarray(theta, dtype=np.float64), self.period) * (n / self.period)
         i0 = np.floor(x).astype(np.int64)
         w = x - i0
         out = (1 - w) * self.acc[i0 % n] + w * self.acc[(i0 + 1) % n]
         if speed is not None and self.speed != 0:
             out = out * (np.asarray(speed) / self.speed) ** 2
         return out
+
+    @property
+    def revolutions(self) -> float:
+        return self.period / TWO_PI
 
 
 def cache_dir() -> Path:
@@ -63,66 +92,134 @@ def _file_sha(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _truth_key(truth: Truth) -> dict:
-    wear = {j: _file_sha(p) for j, p in sorted(truth.wear.items())}
-    return {"clearances": {j: round(c, 12) for j, c in sorted(truth.clearances.items())}, "wear": wear}
+def _content(x: Any) -> Any:
+    """A JSON-able canonical form of ``x``: dataclasses by field (minus what is not physics), floats
+    exactly (hex), files by the SHA-256 of what they hold, arrays by their bytes."""
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        return {f.name: _content(getattr(x, f.name)) for f in dataclasses.fields(x) if f.name not in _NOT_PHYSICS}
+    if isinstance(x, Mapping):
+        return {str(k): _content(v) for k, v in sorted(x.items(), key=lambda kv: str(kv[0]))}
+    if isinstance(x, (list, tuple)):
+        return [_content(v) for v in x]
+    if isinstance(x, bool) or x is None or isinstance(x, (str, int)):
+        return x
+    if isinstance(x, float):
+        return float(x).hex()
+    if isinstance(x, Path):
+        return {"sha256": _file_sha(x)}
+    if isinstance(x, np.ndarray):
+        return {"array": hashlib.sha256(np.ascontiguousarray(x).tobytes()).hexdigest(), "shape": list(x.shape)}
+    raise TypeError(f"table_key: cannot key a {type(x).__name__}")
 
 
-def model_table(bench: Bench, truth: Truth, speed: float, *, revolutions: float = 3.0,
-                rate: float = 20000.0, cache: bool = True) -> SignalTable:
-    """Steady-state slider acceleration of the model at motor ``speed`` (rad/s) for the true state.
-
-    ``rate`` (Hz) is the table's time resolution; the last of ``revolutions`` is kept.
-    """
-    if speed == 0:
-        raise ValueError("model_table: speed 0 has no steady revolution")
+def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolutions: int, settle: float,
+              rate: float) -> str:
+    """SHA-256 over everything a model table depends on: the bench as drawn for the truth's seed
+    (every body, joint, contact law, material, point, driver, sensor axis; a bench changed in memory
+    is keyed on what it holds), the drawn speed error, ripple and start spread, the true clearances
+    and the content of the worn-surface files, the seed, speed, revolutions, settling, rate and the
+    model's source digest."""
     from wearbench.model.digest import model_source_digest
-    joints = {j.name: [j.clearance.bearing_radius, j.clearance.journal_radius,
-                       _file_sha(j.clearance.surfaces) if j.clearance.surfaces else None]
-              for j in bench.clearance_joints}  # a Bench changed in memory keeps its file's sha
-    key = json.dumps({"v": _MODEL_TABLE_VERSION, "model": model_source_digest(), "bench": bench.sha256,
-                      "joints": joints, "speed": round(speed, 6), "truth": _truth_key(truth),
-                      "revolutions": revolutions, "rate": rate}, sort_keys=True)
-    path = cache_dir() / f"{bench.name}-{hashlib.sha256(key.encode()).hexdigest()[:20]}.npz"
+    from wearbench.model.realisation import draw_realisation
+
+    real = draw_realisation(bench, truth.seed)
+    key = {"v": _MODEL_TABLE_VERSION, "kind": kind, "model": model_source_digest(), "bench": _content(real.bench),
+           "draw": _content(real.describe()), "clearances": _content(dict(truth.clearances)),
+           "wear": _content({j: Path(p) for j, p in truth.wear.items()}), "seed": truth.seed,
+           "speed": _content(float(speed)), "revolutions": revolutions, "settle": _content(float(settle)),
+           "rate": _content(float(rate))}
+    return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
+
+
+def _cached(path: Path, cache: bool) -> SignalTable | None:
     if cache and path.exists():
         with np.load(path) as data:
-            return SignalTable(float(data["speed"]), data["acc"], str(data["source"]))
-    from wearbench.model import build_scene, simulate
-    from wearbench.model.surfaces import JointSurfaces, surfaces_from_bench
+            return SignalTable(float(data["speed"]), data["acc"], str(data["source"]), float(data["period"]),
+                               int(data["direction"]))
+    return None
 
-    surfaces = surfaces_from_bench(bench)
-    surfaces.update({j: JointSurfaces.load(p) for j, p in truth.wear.items()})
-    clearances = dict(truth.clearances) or None
-    scene = build_scene(bench.with_speed(speed), clearances=clearances, surfaces=surfaces or None)
-    result = simulate(scene, revolutions=revolutions, speed=speed, output_rate=rate)
-    table = result.table
-    theta = np.abs(speed) * table["t"].to_numpy()
-    acc = table["slider_acc"].to_numpy()
-    if not np.all(np.isfinite(acc)):
-        raise RuntimeError(f"{bench.name}: model slider acceleration is not finite at speed {speed} rad/s")
-    last = theta >= theta[-1] - TWO_PI
-    if theta[-1] < TWO_PI or last.sum() < 16:
-        raise RuntimeError(f"{bench.name}: model returned {theta[-1] / TWO_PI:.2f} revolutions, too few for a table")
-    points = int(np.clip(rate * TWO_PI / abs(speed), 512, 200000))
-    grid = np.arange(points) * (TWO_PI / points)
-    angle = np.mod(theta[last], TWO_PI) if speed > 0 else np.mod(-theta[last], TWO_PI)
-    order = np.argsort(angle)
-    values = np.interp(grid, angle[order], acc[last][order], period=TWO_PI)
-    source = f"model ({scene.description}) at {speed:g} rad/s"
-    out = SignalTable(float(speed), values, source)
+
+def _store(path: Path, table: SignalTable, cache: bool) -> SignalTable:
     if cache:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, speed=np.array(speed), acc=values, source=np.array(source))
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(tmp, speed=np.array(table.speed), acc=table.acc, source=np.array(table.source),
+                 period=np.array(table.period), direction=np.array(table.direction))
         os.replace(tmp, path)
-    return out
+    return table
 
 
-def signal_table(kind: str, bench: Bench, truth: Truth, speed: float, *, revolutions: float = 3.0,
-                 rate: float = 20000.0, cache: bool = True) -> SignalTable:
-    """The table of signal ``kind`` ("model", "harmonic", "none"; "white" is generated per sample)."""
+def model_table(bench: Bench, truth: Truth, speed: float, *, settle: float = 2.0, rate: float = 20000.0,
+                cache: bool = True) -> SignalTable:
+    """Twin: the nominal model in the true state at motor ``speed`` (rad/s), the first whole
+    revolution after ``settle`` looped (with the crossfade of the module docstring at the seam, where
+    an orbit that is not exactly periodic would otherwise jump). ``rate`` (Hz): time resolution."""
+    return _loop_table(bench, dataclasses.replace(truth, seed=None), speed, 1, settle, rate, cache)
+
+
+def run_table(bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40, settle: float = 2.0,
+              rate: float = 20000.0, cache: bool = True) -> SignalTable:
+    """Non-twin: ``revolutions`` whole revolutions of the bench drawn with ``truth.seed`` at commanded
+    motor ``speed`` (rad/s; the realisation turns at its own speed error and ripple) after
+    ``settle``, by motor angle, with the crossfade of the module docstring at the wrap."""
+    if truth.seed is None:
+        raise ValueError("run_table: the truth has no seed (a twin plays model_table)")
+    return _loop_table(bench, truth, speed, revolutions, settle, rate, cache)
+
+
+def _loop_table(bench: Bench, truth: Truth, speed: float, revolutions: int, settle: float, rate: float,
+                cache: bool) -> SignalTable:
+    if speed == 0:
+        raise ValueError("model table: speed 0 has no steady revolution")
+    n_rev = int(revolutions)
+    if n_rev < 1 or n_rev != revolutions:
+        raise ValueError(f"model table: revolutions = {revolutions}: expected a whole number >= 1")
+    kind = "twin" if truth.seed is None else f"seed{truth.seed}"
+    key = table_key(bench, truth, speed, kind=kind, revolutions=n_rev, settle=settle, rate=rate)
+    path = cache_dir() / f"{bench.name}-{kind}-{key[:20]}.npz"
+    if (hit := _cached(path, cache)) is not None:
+        return hit
+    from wearbench.model.realisation import simulate_state
+
+    # 2 more revolutions than played: the table starts at a whole revolution past settling + FADE
+    run = simulate_state(bench, truth.state(), truth.seed, revolutions=n_rev + 2.0, settle=settle, speed=speed,
+                         output_rate=rate)
+    if not np.all(np.isfinite(run.acc)):
+        raise RuntimeError(f"{bench.name}: model slider acceleration is not finite at speed {speed} rad/s")
+    direction = 1 if speed > 0 else -1
+    progress = direction * run.motor_angle
+    if np.any(np.diff(progress) <= 0):
+        i = int(np.argmax(np.diff(progress) <= 0))
+        raise RuntimeError(f"{bench.name} ({kind}): the motor angle of the run turns back at t = {run.t[i]:.4f} s "
+                           "after settling; a table needs a monotonic motor")
+    start = TWO_PI * math.ceil((progress[0] + FADE) / TWO_PI)
+    period = n_rev * TWO_PI
+    if progress[-1] < start + period:
+        raise RuntimeError(f"{bench.name} ({kind}): the run ends at motor angle {progress[-1]:.3f} rad, before "
+                           f"the {n_rev} revolutions from {start:.3f} rad it must hold")
+    n = int(np.clip(rate * TWO_PI / abs(speed), 512, 200000)) * n_rev
+    p = np.arange(n) * (period / n)
+    values = np.interp(start + p, progress, run.acc)
+    fade = p >= period - FADE
+    w = 0.5 - 0.5 * np.cos(np.pi * (p[fade] - (period - FADE)) / FADE)
+    values[fade] = (1 - w) * values[fade] + w * np.interp(start + p[fade] - period, progress, run.acc)
+    real = run.realisation
+    if truth.seed is None:
+        source = f"model twin ({run.summary['description']}) at {speed:g} rad/s, one revolution looped"
+    else:
+        source = (f"model run of {bench.name} drawn with seed {truth.seed} (speed x{real.speed_scale:.5f}, ripple "
+                  f"{real.ripple:.2e}) in state {truth.state().name!r}, {n_rev} revolutions at {speed:g} rad/s")
+    return _store(path, SignalTable(float(speed), values, source, period, direction), cache)
+
+
+def signal_table(kind: str, bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40,
+                 settle: float = 2.0, rate: float = 20000.0, cache: bool = True) -> SignalTable:
+    """The table of signal ``kind`` ("model", "harmonic", "none"; "white" is generated per sample);
+    "model" is :func:`run_table` for a truth with a seed, else :func:`model_table` (twin)."""
     if kind == "model":
-        return model_table(bench, truth, speed, revolutions=revolutions, rate=rate, cache=cache)
+        if truth.seed is not None:
+            return run_table(bench, truth, speed, revolutions=revolutions, settle=settle, rate=rate, cache=cache)
+        return model_table(bench, truth, speed, settle=settle, rate=rate, cache=cache)
     if kind == "harmonic":
         return harmonic_table(speed)
     return SignalTable(speed, np.zeros(16), kind)

@@ -1,0 +1,64 @@
+"""The [emulator] table's truth and sensor chain: validation errors name file, key, value and what
+was expected; the programmatic builder for (bench, state, seed, sensor chain)."""
+
+from __future__ import annotations
+
+import pytest
+from wearbench.hardware.bench import BenchError
+from wearbench.hardware.emulators.config import EmulatorConfig, emulator_config
+
+
+@pytest.mark.parametrize("table, key, expected", [
+    ({"truth": {"seed": 3, "twin": True}}, "emulator.truth.twin", "twin = false or no twin key"),
+    ({"truth": {"twin": False}}, "emulator.truth.twin", "expected a seed"),
+    ({"truth": {"seed": -1}}, "emulator.truth.seed", "[0, 2147483647]"),
+    ({"truth": {"seed": 1.5}}, "emulator.truth.seed", "integer"),
+    ({"truth": {"state": "0.4 mm new"}}, "emulator.truth.state", "[[state]] names"),
+    ({"truth": {"state": "0.6 mm new", "clearances": {"A": "0.5 mm"}}}, "emulator.truth.clearances",
+     "no clearances with state"),
+    ({"truth": {"seed": 1}, "motor": {"ripple": 0.01}}, "emulator.motor.ripple", "[tolerances] speed and ripple"),
+    ({"accelerometer": {"aa_filter": "chebyshev"}}, "emulator.accelerometer.aa_filter", "butterworth"),
+    ({"accelerometer": {"aa_cutoff": 0.6}}, "emulator.accelerometer.aa_cutoff", "0.5"),
+    ({"accelerometer": {"aa_order": 0}}, "emulator.accelerometer.aa_order", "[1, 12]"),
+    ({"revolutions": 2.5}, "emulator.revolutions", "integer"),
+    ({"settle": -1}, "emulator.settle", "[0.0, 50.0]"),
+])
+def test_truth_and_chain_errors_name_file_key_value(testbed, table, key, expected):
+    with pytest.raises(BenchError) as e:
+        EmulatorConfig.from_table(table, bench=testbed)
+    assert e.value.key == key and "ninebar-testbed.toml" in str(e.value)
+    assert expected in str(e.value), str(e.value)
+
+
+def test_a_truth_without_seed_is_the_twin(testbed):
+    assert EmulatorConfig.from_table({}, bench=testbed).truth.twin
+    assert EmulatorConfig.from_table({"truth": {"twin": True}}, bench=testbed).truth.seed is None
+    seeded = EmulatorConfig.from_table({"truth": {"seed": 0, "twin": False}}, bench=testbed)
+    assert seeded.truth.seed == 0 and not seeded.truth.twin
+
+
+def test_the_shipped_test_bed_plays_a_drawn_truth_through_a_realistic_chain(testbed):
+    cfg = EmulatorConfig.from_bench(testbed)
+    assert cfg.truth.seed is not None and cfg.revolutions >= 30
+    assert cfg.truth.wear_stage in {s.name for s in testbed.states}
+    a = cfg.accelerometer
+    assert a.aa_filter == "butterworth" and a.aa_cutoff * testbed.sensor("accelerometer").sample_rate <= 0.4e4
+    assert a.resonance > testbed.sensor("accelerometer").sample_rate and a.noise > 0
+    assert testbed.sensor("accelerometer").range >= 150 * 9.80665  # impacts reach ~80 g (see the bench file)
+
+
+def test_config_builder_names_a_state_and_round_trips(testbed):
+    cfg = emulator_config(testbed, "0.3 mm first wear", 7, accelerometer={"noise": "0.2 m/s^2"}, revolutions=25)
+    state = next(s for s in testbed.states if s.name == "0.3 mm first wear")
+    assert cfg.truth.seed == 7 and not cfg.truth.twin and cfg.truth.wear_stage == state.name
+    assert dict(cfg.truth.clearances) == dict(state.clearances) and dict(cfg.truth.wear) == dict(state.surfaces)
+    assert cfg.motor.ripple == 0 and cfg.revolutions == 25  # the draw has its own ripple
+    assert cfg.accelerometer.noise == pytest.approx(0.2)
+    assert cfg.accelerometer.aa_filter == EmulatorConfig.from_bench(testbed).accelerometer.aa_filter  # kept
+    assert EmulatorConfig.from_table(cfg.to_table(), bench=testbed) == cfg
+    twin = emulator_config(testbed, state, None, table={"motor": {"ripple": 0.002}, "truth": {"accel_delay": "1 ms"}})
+    assert twin.truth.twin and dict(twin.truth.wear) == dict(state.surfaces) and twin.motor.ripple == 0.002
+    assert twin.truth.accel_delay == pytest.approx(1e-3)
+    assert EmulatorConfig.from_table(twin.to_table(), bench=testbed) == twin
+    nominal = emulator_config(testbed, None, 2)
+    assert nominal.truth.clearances == {} and nominal.truth.seed == 2
