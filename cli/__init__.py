@@ -25,6 +25,7 @@ COMMANDS: dict[str, str] = {
     "emulate": "emulate",
     "compare": "compare",
     "identify": "identify",
+    "ensemble": "ensemble",
     "demo": "demo",
 }
 

@@ -25,6 +25,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cycles", type=int, default=5, help="crank cycles per window (default 5)")
     p.add_argument("--max-shift", type=float, default=0.2, metavar="CYCLES",
                    help="residual time-shift search, fraction of a crank cycle, < 0.5 (default 0.2)")
+    p.add_argument("--max-delay", default="5ms", metavar="TIME",
+                   help="hold the shift search to the sensor chain's plausible delay (default 5ms)")
+    p.add_argument("--candidates", metavar="STATES.toml|bench",
+                   help="also identify each session among candidate states ([[state]] tables of a file, or "
+                        "'bench' for those of the session's bench file) against theory ensembles, and score its "
+                        "windows against the identified state's ensemble instead of one simulation")
     p.add_argument("--dtw-band", type=float, default=0.05, metavar="CYCLES",
                    help="DTW band half-width, fraction of a crank cycle (default 0.05)")
     p.add_argument("--no-shift", action="store_true", help="report the residual shift but do not remove it")
@@ -43,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
     from wearbench.cli.progress import progress
+    from wearbench.hardware.units import parse_quantity
     from wearbench.validation.compare import CompareOptions, compare_session
     from wearbench.validation.cycles import parse_windows
     from wearbench.validation.filters import parse_filter
@@ -55,7 +62,20 @@ def run(args: argparse.Namespace) -> int:
         filter=parse_filter(args.filter, detrend=args.detrend, remove_bias=not args.keep_bias),
         windows=parse_windows(args.windows, cycles=args.cycles), max_shift_cycles=args.max_shift,
         dtw_band_cycles=args.dtw_band, apply_shift=not args.no_shift, revolutions=args.revolutions,
-        periodic_theory=not args.contiguous_theory)
+        periodic_theory=not args.contiguous_theory, max_delay=parse_quantity(args.max_delay, "time"))
+    if args.candidates:
+        from wearbench.validation.assess import assess_sessions, write_assessment_report
+
+        if args.theory:
+            raise ValueError("--candidates and --theory exclude each other: the theory is the candidates' ensembles")
+        assessed = assess_sessions(args.sessions, candidates=None if args.candidates == "bench" else args.candidates,
+                                   compare_options=options)
+        report = write_assessment_report(assessed, args.out)
+        for a in assessed:
+            r = a.identification
+            print(f"{r.session}: {r.verdict} (" + ", ".join(f"{s} {p:.3f}" for s, p in r.posterior.items()) + ")")
+        print(f"report: {report.html}  scores: {report.scores_json}")
+        return 0
     theories = args.theory or [None]
     if len(theories) == 1:
         theories = theories * len(args.sessions)

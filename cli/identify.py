@@ -20,12 +20,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--candidates", metavar="STATES.toml",
                    help="file of [[state]] tables (name, clearances, wear); default: the [[state]] tables of the "
                         "bench file recorded in the session")
+    p.add_argument("--ensembles", metavar="FILE.npz", help="ensembles saved by 'wearbench ensemble' (no simulation)")
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
     p.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
     p.add_argument("--ensemble-cycles", type=int, default=8, help="settled cycles per realisation (8)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="dask scheduler (default: a local cluster)")
     p.add_argument("--workers", type=int, help="local workers (default: the machine's cores)")
     p.add_argument("--json", metavar="FILE", help="write every result as JSON")
+    p.add_argument("--out", metavar="DIR", help="also write the report (report.html, scores.json, figures) here")
     p.set_defaults(func=run)
 
 
@@ -34,13 +36,16 @@ def run(args: argparse.Namespace) -> int:
 
     from rich.console import Console
     from rich.table import Table
-    from wearbench.validation.ensemble import EnsembleSettings
-    from wearbench.validation.identify import IdentifyOptions, identify_sessions
+    from wearbench.validation.assess import assess_sessions, write_assessment_report
+    from wearbench.validation.ensemble import EnsembleSettings, load_ensembles
+    from wearbench.validation.identify import IdentifyOptions
 
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
-    results = identify_sessions(args.sessions, candidates=args.candidates, settings=settings,
-                                options=IdentifyOptions(threshold=args.threshold), scheduler=args.scheduler,
-                                workers=args.workers)
+    ensembles = load_ensembles(args.ensembles) if args.ensembles else None
+    assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=ensembles,
+                               options=IdentifyOptions(threshold=args.threshold), scheduler=args.scheduler,
+                               workers=args.workers)
+    results = [a.identification for a in assessed]
     states = list(results[0].posterior)
     table = Table(title=f"posterior probability of each state (named at p >= {args.threshold:g})")
     table.add_column("session")
@@ -62,4 +67,7 @@ def run(args: argparse.Namespace) -> int:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump([r.as_dict() for r in results], f, indent=1)
         console.print(f"results: {args.json}")
+    if args.out:
+        report = write_assessment_report(assessed, args.out, threshold=args.threshold)
+        console.print(f"report: {report.html}")
     return 0

@@ -230,6 +230,12 @@ class Bench:
         raise KeyError(f"{self.name}: no {kind} sensor")
 
     @property
+    def encoder_driver(self) -> Driver:
+        """The driver whose crank the encoder reads (the first driver when no encoder names one)."""
+        joint = next((s.joint for s in self.sensors if s.kind == "encoder" and s.joint), None)
+        return next((d for d in self.drivers if d.joint == joint), self.drivers[0])
+
+    @property
     def clearance_joints(self) -> tuple[Joint, ...]:
         return tuple(j for j in self.joints if j.clearance is not None)
 

@@ -142,7 +142,7 @@ def simulate_state(bench: Bench, state: WearState | None, seed: int | None, *, r
     result: SimulationResult = simulate(scene, t_end=t_end, speed=true_speed, output_rate=output_rate,
                                         initial=initial, speed_profile=profile, **options)
     table = result.table
-    driver = next(d for d in bench.drivers if d.joint == _encoder_joint(bench))
+    driver = bench.encoder_driver
     t = table["t"].to_numpy()
     crank = table[f"theta_{driver.joint}"].to_numpy()
     motor = (crank - driver.phase) / driver.ratio
@@ -150,10 +150,3 @@ def simulate_state(bench: Bench, state: WearState | None, seed: int | None, *, r
     return RealisationRun(real, t[keep] - t[keep][0], motor[keep], crank[keep],
                           table["slider_acc"].to_numpy()[keep], driver.joint, result.summary)
 
-
-def _encoder_joint(bench: Bench) -> str:
-    try:
-        joint = bench.sensor("encoder").joint
-    except KeyError:
-        joint = None
-    return joint or bench.drivers[0].joint

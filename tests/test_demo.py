@@ -1,6 +1,8 @@
-"""`wearbench demo --quick` end to end, as a newcomer runs it: emulator, drivers, MCAP, model,
-scoring and the report. The emulated bench plays the model's own revolution for its hidden state,
-so the theory of that state must explain each session best, and by a clear margin."""
+"""`wearbench demo --quick` end to end, as a newcomer runs it: emulator, drivers, MCAP, theory
+ensembles, identification and the report. Each session's truth is NOT a candidate theory: its
+emulator plays a bench drawn from the test bed's tolerances with its own seed (other masses,
+lengths, friction, speed, start state) through a sensor chain, so the demo's verdicts test the
+method, not the plumbing."""
 
 from __future__ import annotations
 
@@ -42,38 +44,35 @@ def numbers(value):
 def test_every_reported_number_is_finite(demo):
     out, _ = demo
     scores = json.loads((out / "report" / "scores.json").read_text())
-    assert [s["session"] for s in scores["summary"]] == list(CASES)
-    for row in scores["summary"]:  # a NaN would have been written as null
-        for key in ("iso_rating", "peak_acc_measured", "peak_acc_theory", "best_rating"):
-            assert isinstance(row[key], float) and math.isfinite(row[key]), (row["session"], key, row[key])
+    assert [r["session"] for r in scores["identification"]] == list(CASES)
     values = list(numbers(scores))
-    assert len(values) > 300 and all(math.isfinite(v) for v in values)
+    assert len(values) > 300 and all(math.isfinite(v) for v in values)  # a NaN would have been written as null
 
 
-def test_the_matching_theory_scores_best_by_a_margin(demo):
+def test_each_non_twin_state_is_named_with_high_probability(demo):
     out, stdout = demo
     scores = json.loads((out / "report" / "scores.json").read_text())
+    for case, row in zip(CASES, scores["identification"], strict=True):
+        p = row["posterior"]
+        assert set(p) == set(CASES) and sum(p.values()) == pytest.approx(1.0)
+        assert max(p, key=p.get) == case, (case, p)
+        assert row["verdict"] == case and p[case] >= 0.9, (case, row["verdict"], p)
+        assert row["consistent"][case] and row["explains"][case]
+        assert row["bands"]["state"] == case
     for case in CASES:
-        ranks = scores["rankings"][case]
-        assert {r["label"] for r in ranks} == set(CASES)
-        assert ranks[0]["label"] == case, (case, ranks)
-        assert ranks[0]["rating"] > 0.9 and ranks[0]["rating"] - ranks[1]["rating"] > 0.1, (case, ranks)
-    for row in scores["summary"]:
-        assert row["best_explained_by"] == row["session"] == row["theory"]
-        assert row["grade"] == "excellent"
-        # the same model state on both sides: the peaks agree up to sensor noise and a chaotic seam
-        assert 0.7 < row["peak_acc_measured"] / row["peak_acc_theory"] < 1.4, row
-    assert "best explained by" in stdout and "0.6 mm new" in stdout
+        assert case in stdout
+    assert "verdict" in stdout
 
 
-def test_sessions_record_the_true_state_readably(demo):
+def test_sessions_record_the_declared_state_readably(demo):
     out, _ = demo
     files = sorted((out / "sessions").glob("*.mcap"))
     assert len(files) == len(CASES)
     for path in files:
         s = load_session(path)
-        assert s.steady_speed == pytest.approx(2 * math.pi, rel=0.01)
-        assert s.gaps == 0
+        assert s.steady_speed == pytest.approx(2 * math.pi, rel=0.015)  # the truth's speed is drawn (0.3 %)
+        assert s.steady_speed != pytest.approx(2 * math.pi, rel=1e-5)  # and is not the commanded one
+        assert s.gaps == 0 and len(s.cycles) >= 19
         expected = 0.6e-3 if path.stem.startswith("0p6") else 0.3e-3
         assert s.clearances == pytest.approx({"A": expected, "B": expected})
         worn = "wear" in path.stem
@@ -84,12 +83,12 @@ def test_every_figure_exists_and_is_in_the_report(demo):
     out, _ = demo
     report = out / "report"
     html = (report / "report.html").read_text()
-    expected = ["ranking.png", "scores_table.png", "sessions_measured.png", "sessions_comparison.png"]
+    expected = ["posteriors.png", "scores_table.png", "sessions_measured.png", "sessions_comparison.png"]
     for case in CASES:
         slug = case.replace(" ", "_")
-        expected += [f"overlay_{slug}.png", f"angle_{slug}.png", f"spectrum_{slug}.png"]
+        expected += [f"band_{slug}.png", f"overlay_{slug}.png", f"angle_{slug}.png", f"spectrum_{slug}.png"]
     for name in expected:
         data = (report / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000, name
     assert html.count("<img ") == len(expected)
-    assert html.index("<h2>Summary</h2>") < html.index("<img ")  # the summary comes first
+    assert html.index("Which state explains each session") < html.index("<img ")  # the verdicts come first

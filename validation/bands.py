@@ -17,10 +17,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 from wearbench.validation.ensemble import Ensemble
 from wearbench.validation.metrics import score_window
+from wearbench.validation.theory import TheoryCurve
 
-__all__ = ["BandComparison", "compare_bands"]
+__all__ = ["BandComparison", "compare_bands", "ensemble_theory"]
 
 
 @dataclass
@@ -89,3 +91,16 @@ def compare_bands(curves: np.ndarray, peaks: np.ndarray, ensemble: Ensemble, *, 
                           _ratings(_windows(curves, window), reference, grid, max_lag),
                           _ratings(ens_windows, reference, grid, max_lag), np.asarray(peaks),
                           ensemble.peaks.ravel())
+
+
+def ensemble_theory(ensemble: Ensemble, bench) -> TheoryCurve:
+    """The ensemble median as a periodic theory curve by crank angle of the bench's encoder joint
+    (for the classic window comparison and its figures)."""
+    driver = bench.encoder_driver
+    joint = driver.joint
+    crank_speed = ensemble.speed * driver.ratio
+    grid = ensemble.curves.shape[-1]
+    median = ensemble.band()[1]
+    u = np.arange(grid) * (2 * np.pi / grid)
+    return TheoryCurve(f"{ensemble.state} (ensemble median)", joint, u, median, float(np.sign(crank_speed)),
+                       float(crank_speed), pd.DataFrame({"u": u, "slider_acc": median}), periodic=True)

@@ -40,7 +40,9 @@ __all__ = ["CompareOptions", "SessionComparison", "TheoryRanking", "WindowResult
 
 @dataclass(frozen=True)
 class CompareOptions:
-    """How to compare. max_shift_cycles: residual shift search, fraction of a crank cycle.
+    """How to compare. max_shift_cycles: residual shift search, fraction of a crank cycle; max_delay:
+    the same search held to the sensor chain's plausible delay (s; a DAQ's delta-sigma and anti-alias
+    filters delay by up to a few ms), so the search never fits the chaos of impacts.
     dtw_band_cycles: DTW band half-width, fraction of a cycle. periodic_theory: compare with the
     theory's last (settled) revolution repeated, as the emulator plays it, instead of its last
     revolutions in a row. revolutions/output_rate: for a simulated theory (output_rate None: the
@@ -49,6 +51,7 @@ class CompareOptions:
     filter: FilterSpec = field(default_factory=FilterSpec)
     windows: WindowSpec = field(default_factory=WindowSpec)
     max_shift_cycles: float = 0.2
+    max_delay: float = 5e-3
     dtw_band_cycles: float = 0.05
     apply_shift: bool = True
     periodic_theory: bool = True
@@ -61,10 +64,13 @@ class CompareOptions:
                              "signal aliases by whole cycles beyond half a cycle)")
         if not 0 <= self.dtw_band_cycles <= 1:
             raise ValueError(f"dtw_band_cycles = {self.dtw_band_cycles}: expected 0..1")
+        if not self.max_delay >= 0:
+            raise ValueError(f"max_delay = {self.max_delay} s: expected a non-negative delay")
 
     def as_dict(self) -> dict:
         return {"filter": self.filter.label, "windows": self.windows.label,
-                "max_shift_cycles": self.max_shift_cycles, "dtw_band_cycles": self.dtw_band_cycles,
+                "max_shift_cycles": self.max_shift_cycles, "max_delay_s": self.max_delay,
+                "dtw_band_cycles": self.dtw_band_cycles,
                 "apply_shift": self.apply_shift, "periodic_theory": self.periodic_theory,
                 "detrend": self.filter.detrend,
                 "remove_bias": self.filter.remove_bias}
@@ -174,7 +180,7 @@ def _score_window(session: MeasuredSession, theory: TheoryCurve, start: int, opt
     t1 = float(cyc["t_end"].iloc[start + n_cyc - 1])
     fs = session.fs
     cycle_samples = (t1 - t0) * fs / n_cyc
-    max_lag = int(options.max_shift_cycles * cycle_samples)
+    max_lag = int(min(options.max_shift_cycles * cycle_samples, options.max_delay * fs))
     margin = (pad_length(options.filter, fs) + max_lag + 8) / fs
     if np.any((session.gap_times >= t0 - margin) & (session.gap_times <= t1 + margin)):
         return "dropped samples in the window"

@@ -80,7 +80,7 @@ def physics_key(bench: Bench) -> str:
     joints = tuple(replace(j, clearance=replace(j.clearance, surfaces=_file_digest(j.clearance.surfaces)
                                                 if j.clearance.surfaces else None))
                    if j.clearance is not None else j for j in bench.joints)
-    physics = replace(bench, path=None, source="", sha256="", description="", joints=joints, emulator={},
+    physics = replace(bench, name="", path=None, source="", sha256="", description="", joints=joints, emulator={},
                       hardware=None, states=())
     return hashlib.sha256(repr(physics).encode()).hexdigest()
 
@@ -121,12 +121,12 @@ def shipped_ensembles_path(bench: Bench) -> Path:
 
 def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float | None = None,
                     settings: EnsembleSettings = EnsembleSettings(), scheduler: str | None = None,
-                    workers: int | None = None, cache: bool = True,
+                    workers: int | None = None, cache: bool = True, shipped: bool = True,
                     progress: str | None = "theory ensembles") -> dict[str, Ensemble]:
     """Ensembles of every candidate ``state`` of ``bench`` at commanded motor ``speed`` (rad/s).
 
-    Precomputed ensembles shipped for the bench are used when their content key matches (same
-    physics, states, speed, settings and model source); otherwise all realisations of all states
+    Precomputed ensembles shipped for the bench are used (``shipped``) when their content key matches
+    (same physics, states, speed, settings and model source); otherwise all realisations of all states
     go to the compute layer as one batch. A realisation that fails numerically is reported in
     ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
     """
@@ -135,9 +135,8 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     speed = bench.speed if speed is None else float(speed)
     if not states:
         raise ValueError(f"{bench.name}: no candidate states (give [[state]] tables or --candidates)")
-    shipped = shipped_ensembles_path(bench)
-    if cache and shipped.exists():
-        found = load_ensembles(shipped, key=ensembles_key(bench, states, speed, settings))
+    if shipped and cache and shipped_ensembles_path(bench).exists():
+        found = load_ensembles(shipped_ensembles_path(bench), key=ensembles_key(bench, states, speed, settings))
         if found is not None:
             return found
     physics = physics_key(bench)

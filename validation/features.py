@@ -127,7 +127,8 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
 def cycle_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int = 720,
                  filter_spec: FilterSpec | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Each complete cycle of a record as a curve on ``grid`` equal crank-angle steps (cycles cut at
-    crank angle 0 as in :func:`cycle_features`), and each cycle's peak |acc| (m/s^2).
+    crank angle 0 as in :func:`cycle_features`), and each cycle's peak |acc| after the filter
+    (m/s^2; raw peaks depend on the sensor chain's bandwidth, which the model does not have).
 
     filter_spec: the zero-phase filter applied to the whole record first (default CFC 180);
     the record's mean over whole cycles (sensor bias) is removed.
@@ -148,5 +149,5 @@ def cycle_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int
     for c, k in enumerate(range(k0, k1 + 1)):
         curves[c] = np.interp(k * TWO_PI + steps, u, filtered)
         inside = (u >= k * TWO_PI) & (u < (k + 1) * TWO_PI)
-        peaks[c] = float(np.max(np.abs(acc[inside])))
+        peaks[c] = float(np.max(np.abs(filtered[inside])))
     return curves, peaks

@@ -77,12 +77,7 @@ class MeasuredSession:
 
     @property
     def encoder_joint(self) -> str:
-        if self.bench is None:
-            return "O1"
-        try:
-            return self.bench.sensor("encoder").joint or self.bench.drivers[0].joint
-        except KeyError:
-            return self.bench.drivers[0].joint
+        return "O1" if self.bench is None else self.bench.encoder_driver.joint
 
 
 def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSession:

@@ -22,6 +22,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 from wearbench.validation.compare import SessionComparison, TheoryRanking
+from wearbench.validation.identify_report import NOTES as IDENTIFY_NOTES
+from wearbench.validation.identify_report import IdentifiedSession, identification_section
 from wearbench.validation.metrics import grade
 
 __all__ = ["ComparisonReport", "write_report"]
@@ -35,7 +37,8 @@ TABLE_METRICS = (("iso_rating", "ISO 18571 R"), ("iso_corridor", "corridor"), ("
 
 DEPARTURES = (
     ("ISO/TS 18571 with the standard's parameters and weights, except: the phase search is limited to "
-    "+/- max_shift_cycles of one crank cycle (a five-cycle periodic window shifted by the standard's 20 % "
+    "+/- max_shift_cycles of one crank cycle and to the sensor's plausible delay max_delay (a five-cycle "
+    "periodic window shifted by the standard's 20 % "
     "= one cycle matches itself), still normalised by 20 % of the window; the DTW of the magnitude score "
     "runs inside a Sakoe-Chiba band of dtw_band_cycles of a cycle (the reference implementation uses 10 % "
     "of the window: half a cycle here, which pairs an impact with its neighbour, at 10x the cost); "
@@ -244,7 +247,7 @@ def _img(path: Path) -> str:
 
 
 def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, scores: dict,
-          rankings: Mapping[str, Sequence[TheoryRanking]]) -> str:
+          rankings: Mapping[str, Sequence[TheoryRanking]], identification: str = "") -> str:
     e = html.escape
     out = [(f"<!doctype html><html><head><meta charset='utf-8'><title>{e(title)}</title><style>"
            "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
@@ -254,6 +257,7 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
            f"<h1>{e(title)}</h1>",
            (f"<p class='note'>generated {e(scores['generated'])}; filter: {e(scores['options']['filter'])}; "
            f"windows: {e(scores['options']['windows'])}</p>"),
+           identification,
            ("<h2>Summary</h2><table><tr><th>session</th><th>theory</th><th>windows</th><th>ISO R (mean ± sd)</th>"
            "<th>grade</th><th>peak |a| test (m/s²)</th><th>peak |a| theory (m/s²)</th>"
            + ("<th>best explained by</th>" if rankings else "")
@@ -296,18 +300,22 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
         if c.skipped:
             out.append("<p class='note'>skipped: " + "; ".join(f"cycle {s}: {e(r)}" for s, r in c.skipped)
                        + "</p>")
-    out.append("<h2>Method notes</h2><ul class='note'>" + "".join(f"<li>{e(d)}</li>" for d in DEPARTURES)
+    notes = DEPARTURES + (IDENTIFY_NOTES if identification else ())
+    out.append("<h2>Method notes</h2><ul class='note'>" + "".join(f"<li>{e(d)}</li>" for d in notes)
                + "</ul></body></html>")
     return "\n".join(out)
 
 
 def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, *,
                  title: str = "wearbench: measurement against theory",
-                 rankings: Mapping[str, Sequence[TheoryRanking]] | None = None) -> ComparisonReport:
+                 rankings: Mapping[str, Sequence[TheoryRanking]] | None = None,
+                 identified: Sequence[IdentifiedSession] = (), threshold: float = 0.9) -> ComparisonReport:
     """Write figures, ``scores.json`` and ``report.html`` for ``comparisons`` into ``out_dir``.
 
     rankings: optional ``rank_theories`` results by session label (best first), reported as the
-    theory (e.g. wear stage) that best explains each session.
+    theory (e.g. wear stage) that best explains each session. identified: sessions identified against
+    theory ensembles (posteriors, bands, model-reference scores), reported first; ``threshold`` is
+    the probability at which a state was named.
     """
     if not comparisons:
         raise ValueError("report: no comparisons to write")
@@ -328,16 +336,21 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
                                _side_by_side(comparisons, out / "sessions_comparison.png", with_theory=True)]
     if rankings:
         figures["ranking"] = [_ranking(rankings, out / "ranking.png")]
+    section, rows = "", []
+    if identified:
+        section, files, rows = identification_section(identified, out, _slug, _save, _img, threshold)
+        figures["identification"] = files
     options = comparisons[0].options.as_dict()
     scores = {"generated": datetime.now(UTC).isoformat(timespec="seconds"), "title": title,
               "options": options, "method_notes": list(DEPARTURES),
               "summary": _summary(comparisons, rankings or {}),
+              "identification": rows,
               "sessions": [c.as_dict() for c in comparisons],
               "rankings": {k: [{"label": r.label, "rating": r.rating, "rating_std": r.rating_std} for r in v]
                            for k, v in (rankings or {}).items()}}
     scores_path = out / "scores.json"
     scores_path.write_text(json.dumps(_finite(scores), indent=2, allow_nan=False))
     html_path = out / "report.html"
-    html_path.write_text(_html(comparisons, figures, title, scores, rankings or {}), encoding="utf-8")
+    html_path.write_text(_html(comparisons, figures, title, scores, rankings or {}, section), encoding="utf-8")
     files = [p for ps in figures.values() for p in ps]
     return ComparisonReport(list(comparisons), out, html_path, scores_path, files)

@@ -1,0 +1,59 @@
+"""`wearbench ensemble`: build (or refresh) the theory ensembles of a bench's candidate states.
+
+Identification builds ensembles on demand and caches them; this command builds them ahead of time
+(e.g. on a cluster, ``--scheduler``) and saves them to one file that ``identify --ensembles`` reads.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "ensemble", help="simulate the theory ensembles of candidate states and save them",
+        description="Simulate --realisations realisations of every candidate state (benches drawn within the "
+        "bench file's [tolerances], random start states), reduce each to cycle statistics and save them.")
+    p.add_argument("bench", metavar="BENCH.toml", help="bench file (or the name of a shipped bench)")
+    p.add_argument("--candidates", metavar="STATES.toml", help="[[state]] tables (default: the bench's own)")
+    p.add_argument("--speed", help="commanded motor speed, e.g. 2pi or 60rpm (default: the bench's)")
+    p.add_argument("--realisations", type=int, default=32, help="realisations per state (32)")
+    p.add_argument("--cycles", type=int, default=8, help="settled cycles per realisation (8)")
+    p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-ensembles.npz)")
+    p.add_argument("--ship", action="store_true",
+                   help="save where wearbench looks for a shipped bench's precomputed ensembles (maintainers)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="dask scheduler (default: a local cluster)")
+    p.add_argument("--workers", type=int, help="local workers (default: the machine's cores)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from wearbench.hardware.bench import load_bench, load_states, shipped_bench
+    from wearbench.hardware.units import parse_quantity
+    from wearbench.validation.ensemble import (
+        EnsembleSettings,
+        build_ensembles,
+        ensembles_key,
+        save_ensembles,
+        shipped_ensembles_path,
+    )
+
+    path = Path(args.bench)
+    bench = load_bench(path if path.suffix == ".toml" or path.exists() else shipped_bench(args.bench))
+    states = load_states(args.candidates, bench) if args.candidates else bench.states
+    if not states:
+        raise ValueError(f"{bench.name}: no [[state]] tables; give --candidates STATES.toml")
+    speed = parse_quantity(args.speed, "angular_speed") if args.speed else bench.speed
+    settings = EnsembleSettings(realisations=args.realisations, cycles=args.cycles)
+    # built fresh (no shipped file is consulted), so --ship really refreshes it
+    ensembles = build_ensembles(bench, states, speed=speed, settings=settings, scheduler=args.scheduler,
+                                workers=args.workers, shipped=False)
+    out = shipped_ensembles_path(bench) if args.ship else Path(args.out or f"{bench.name}-ensembles.npz")
+    save_ensembles(ensembles, out, key=ensembles_key(bench, states, speed, settings))
+    for name, e in ensembles.items():
+        failed = f", {len(e.failures)} failed" if e.failures else ""
+        print(f"{name}: {e.realisations} realisations x {e.features.shape[1]} cycles{failed}")
+    print(f"saved: {out}")
+    return 0

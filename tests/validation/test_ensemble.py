@@ -1,0 +1,63 @@
+"""Theory ensembles: content keys, the shipped precomputed ensembles, save/load, a small real build."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.validation.ensemble import (
+    EnsembleSettings,
+    build_ensembles,
+    ensembles_key,
+    load_ensembles,
+    physics_key,
+    save_ensembles,
+    shipped_ensembles_path,
+)
+
+BENCH = load_bench(shipped_bench("ninebar-testbed"))
+
+
+def test_physics_key_follows_physics_not_names_or_paths():
+    key = physics_key(BENCH)
+    assert physics_key(replace(BENCH, name="other", description="x", source="# moved")) == key
+    heavier = replace(BENCH, bodies=(replace(BENCH.bodies[0], mass=BENCH.bodies[0].mass * 1.01),) + BENCH.bodies[1:])
+    assert physics_key(heavier) != key
+    assert physics_key(BENCH.with_clearances({"A": 0.4e-3})) != key
+
+
+def test_settings_are_validated():
+    with pytest.raises(ValueError, match="at least 3 realisations"):
+        EnsembleSettings(realisations=2)
+    with pytest.raises(ValueError, match="filter"):
+        EnsembleSettings(curve_filter="cfc999")
+
+
+def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, monkeypatch):
+    monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "cache"))
+    settings = EnsembleSettings(realisations=3, cycles=2, settle=0.5, output_rate=10_000.0)
+    state = BENCH.states[0]
+    ens = build_ensembles(BENCH, [state], settings=settings, workers=0, progress=None)[state.name]
+    assert ens.features.shape == (3, 2, settings.features.size) and ens.curves.shape == (3, 2, 720)
+    assert not ens.failures and np.all(np.isfinite(ens.features))
+    assert len({tuple(np.round(f[0, :5], 6)) for f in ens.features}) == 3  # every realisation differs
+    lo, med, hi = ens.band()
+    assert np.all(lo <= med) and np.all(med <= hi) and np.ptp(med) > 10.0  # the kinematics is in the band
+    key = ensembles_key(BENCH, [state], BENCH.speed, settings)
+    path = save_ensembles({state.name: ens}, tmp_path / "e.npz", key=key)
+    back = load_ensembles(path, key=key)[state.name]
+    np.testing.assert_array_equal(back.features, ens.features)
+    np.testing.assert_allclose(back.curves, ens.curves, rtol=1e-6)
+    assert back.settings == settings and load_ensembles(path, key="stale") is None
+    # a rerun is served from the cache: the same arrays, no simulation
+    again = build_ensembles(BENCH, [state], settings=settings, workers=0, progress=None)[state.name]
+    np.testing.assert_array_equal(again.features, ens.features)
+
+
+def test_the_shipped_ensembles_are_current():
+    """The demo's precomputed ensembles must match the code: regenerate them when this fails
+    (`wearbench ensemble hardware/benches/ninebar-testbed.toml --ship`)."""
+    path = shipped_ensembles_path(BENCH)
+    assert path.exists(), path
+    key = ensembles_key(BENCH, BENCH.states, BENCH.speed, EnsembleSettings())
+    assert load_ensembles(path, key=key) is not None, "stale: the model, bench or settings changed since"

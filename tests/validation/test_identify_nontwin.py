@@ -1,0 +1,61 @@
+"""Identification on sessions whose truth is not a candidate theory.
+
+Each session's emulator plays a bench drawn from the test bed's [tolerances] with a seed no
+ensemble uses (other masses, lengths, friction, speed, start state) through the test bed's sensor
+chain, recorded through the sim backend to MCAP. Small ensembles and 10-cycle sessions keep this
+to about a minute; ``benchmarks/identify.py`` runs the full-size version.
+"""
+
+from __future__ import annotations
+
+import pytest
+from wearbench.cli.demo import prepare_truth, record_state, slug
+from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.model.compute import Task, compute_client, run_tasks, task_key
+from wearbench.validation.assess import assess_sessions
+from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
+from wearbench.validation.identify import NONE, UNDECIDED
+
+pytestmark = pytest.mark.slow
+
+SETTINGS = EnsembleSettings(realisations=12, cycles=6)
+CYCLES = 10
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory):
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    states = bench.states
+    truths = [(s, 7000 + 10 * k + d) for k, s in enumerate(states) for d in range(2)]
+    out = tmp_path_factory.mktemp("nontwin")
+    with compute_client(workers=2):
+        ensembles = build_ensembles(bench, states, settings=SETTINGS, progress=None)
+        run_tasks([Task(prepare_truth, {"bench": bench, "state": s, "seed": seed, "revolutions": 14},
+                        task_key("test-truth", s.name, seed), s.name) for s, seed in truths], cache=False)
+    paths = []
+    for s, seed in truths:
+        paths.append(out / f"{slug(s.name)}_{seed}.mcap")
+        record_state(bench, s, seed, paths[-1], backend="sim", cycles=CYCLES, revolutions=14)
+    return bench, ensembles, truths, paths
+
+
+def test_seven_of_eight_non_twin_sessions_get_their_state_first(case):
+    _, ensembles, truths, paths = case
+    assessed = assess_sessions(paths, ensembles=ensembles)
+    tops = [max(a.identification.posterior, key=a.identification.posterior.get) for a in assessed]
+    right = sum(top == s.name for top, (s, _) in zip(tops, truths, strict=True))
+    assert right >= 7, list(zip([s.name for s, _ in truths], tops))
+    for a, (s, _) in zip(assessed, truths, strict=True):
+        r = a.identification
+        assert r.cycles >= CYCLES - 2 and abs(sum(r.posterior.values()) - 1) < 1e-9
+        assert r.verdict in (s.name, UNDECIDED), (s.name, r.verdict, r.posterior)  # never confidently wrong
+
+
+def test_a_state_that_is_not_a_candidate_is_not_named_with_high_probability(case):
+    _, ensembles, truths, paths = case
+    missing = "0.6 mm new"
+    others = {k: v for k, v in ensembles.items() if k != missing}
+    mine = [p for p, (s, _) in zip(paths, truths, strict=True) if s.name == missing]
+    for a in assess_sessions(mine, ensembles=others):
+        assert a.identification.verdict in (NONE, UNDECIDED), a.identification
+        assert not any(a.identification.consistent.values()), a.identification.p_value

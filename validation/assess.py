@@ -1,0 +1,143 @@
+"""Assess recorded sessions against theory ensembles: which state, how well, and the report.
+
+The workflow behind ``wearbench identify``, ``wearbench compare --candidates`` and the demo: load
+the sessions, build (or load) one ensemble per candidate state for each bench and commanded speed
+on the compute layer, identify each session (``identify.py``), compare its cycles with the band of
+the identified state (``bands.py``), score its five-cycle windows against that state's ensemble
+median, and write the report when asked. Imports the validation modules; the model only through
+the ensembles.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from wearbench.hardware.bench import WearState, load_states
+from wearbench.validation.bands import BandComparison, compare_bands, ensemble_theory
+from wearbench.validation.compare import (
+    CompareOptions,
+    SessionComparison,
+    compare_session,
+    motor_speed,
+)
+from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
+from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_curves, cycle_features
+from wearbench.validation.filters import parse_filter
+from wearbench.validation.identify import (
+    Identification,
+    IdentifyOptions,
+    fit_states,
+    identify_features,
+)
+from wearbench.validation.measured import MeasuredSession, load_session
+
+__all__ = ["Assessment", "assess_sessions", "session_features"]
+
+
+@dataclass
+class Assessment:
+    """One session: its identification, its band against the identified (or top) state, and its
+    windows scored against that state's ensemble median."""
+
+    session: MeasuredSession
+    identification: Identification
+    bands: BandComparison
+    comparison: SessionComparison | None  # None when no five-cycle window could be scored
+
+
+def _arrays(session: MeasuredSession) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Acceleration times and samples with the encoder's crank angle interpolated to each sample."""
+    acc = session.acceleration
+    t = acc["time"].to_numpy(float)
+    enc = session.encoder
+    return t, np.interp(t, enc["time"].to_numpy(float), enc["angle"].to_numpy(float)), acc["acc"].to_numpy(float)
+
+
+def session_features(session: MeasuredSession, spec: FeatureSpec | None = None) -> CycleFeatures:
+    """Cycle features of a measured session; clipped samples counted at the accelerometer's range."""
+    range_ = None
+    if session.bench is not None:
+        try:
+            range_ = session.bench.sensor("accelerometer").range
+        except KeyError:
+            range_ = None
+    return cycle_features(*_arrays(session), spec or FeatureSpec(), range_=range_)
+
+
+def commanded_speed(session: MeasuredSession) -> float:
+    """The commanded motor speed (rad/s) of a session (its metadata), else the measured one."""
+    raw = session.metadata.get("session", {}).get("speed_rad_s")
+    return float(raw) if raw is not None else motor_speed(session)
+
+
+def _states(bench, candidates) -> tuple[WearState, ...]:
+    if candidates is None:
+        states = bench.states
+    elif isinstance(candidates, (str, Path)):
+        states = load_states(candidates, bench)
+    else:
+        states = tuple(candidates)
+    if not states:
+        raise ValueError(f"bench {bench.name!r} declares no [[state]] tables; give the candidate states "
+                         "(--candidates STATES.toml)")
+    return states
+
+
+def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
+                    candidates: str | Path | Sequence[WearState] | None = None,
+                    settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
+                    compare_options: CompareOptions | None = None,
+                    ensembles: Mapping[str, Ensemble] | None = None, scheduler: str | None = None,
+                    workers: int | None = None, progress: str | None = "theory ensembles") -> list[Assessment]:
+    """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
+
+    candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
+    recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
+    layer and cached; ``ensembles`` ({state: Ensemble}) uses those instead. Defaults: the default
+    ensemble settings, identification options and comparison options.
+    """
+    settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
+    compare_options = compare_options or CompareOptions()
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    groups: dict[tuple, list[int]] = {}
+    for i, s in enumerate(loaded):
+        if s.bench is None and ensembles is None:
+            raise ValueError(f"session {s.label}: no bench file recorded in it; candidate states need one")
+        groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
+    out: list[Assessment | None] = [None] * len(loaded)
+    for idx in groups.values():
+        first = loaded[idx[0]]
+        ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
+                                           speed=commanded_speed(first), settings=settings, scheduler=scheduler,
+                                           workers=workers, progress=progress)
+        models = fit_states(ens, options)
+        st = next(iter(ens.values())).settings
+        for i in idx:
+            s = loaded[i]
+            ident = identify_features(session_features(s, st.features), models, label=s.label)
+            state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
+            curves, peaks = cycle_curves(*_arrays(s), grid=st.grid,
+                                         filter_spec=parse_filter(st.curve_filter, remove_bias=False))
+            bands = compare_bands(curves, peaks, ens[state], window=compare_options.windows.cycles)
+            comparison = None
+            if len(s.cycles) >= compare_options.windows.cycles:
+                comparison = compare_session(s, ensemble_theory(ens[state], s.bench or first.bench),
+                                             options=compare_options)
+            out[i] = Assessment(s, ident, bands, comparison)
+    return out
+
+
+def write_assessment_report(assessments: Sequence[Assessment], out_dir: str | Path, *, threshold: float = 0.9,
+                            title: str = "wearbench: which state explains each session"):
+    """``report.html``, ``scores.json`` and figures for assessed sessions (``validation.report``)."""
+    from wearbench.validation.identify_report import IdentifiedSession
+    from wearbench.validation.report import write_report
+
+    scored = [a for a in assessments if a.comparison is not None]
+    if not scored:
+        raise ValueError("report: no session has a scorable five-cycle window")
+    return write_report([a.comparison for a in scored], out_dir, title=title, threshold=threshold,
+                        identified=[IdentifiedSession(a.identification, a.bands) for a in assessments])

@@ -1,0 +1,130 @@
+"""The identification part of the report: posterior table, band figures, model-reference scores.
+
+``report.write_report`` calls :func:`identification_section` when sessions were identified against
+theory ensembles. Matplotlib figures through ``report``'s helpers' conventions (object API, no
+pyplot). Imports validation.identify and validation.bands for types.
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from wearbench.validation.bands import BandComparison
+from wearbench.validation.identify import Identification
+
+__all__ = ["IdentifiedSession", "identification_section"]
+
+NOTES = (
+    ("Theory is an ensemble: each candidate state is simulated many times, each realisation a bench "
+    "drawn within the bench file's [tolerances] (masses, inertias, lengths, ground points, friction, "
+    "restitution, contact exponent, motor speed and ripple) from a random start, settled. Impacts are "
+    "chaotic, so a session is compared with the statistics of the ensemble's cycles, never with one "
+    "simulated trajectory."),
+    ("Posterior: Gaussian likelihood of the session's mean cycle features (low-passed 50 Hz curve and "
+    "100-1000 Hz impact energy in 10 deg crank-angle bins) under each state's hierarchical ensemble "
+    "statistics, tempered by a factor calibrated on held-out realisations; uniform prior. A state is "
+    "named only at p >= the threshold, else 'undecided'; 'none of the candidates' when no state passes "
+    "the consistency test (p-value of the session's distance against held-out realisations)."),
+    ("Model reference for window scores: every five-cycle window of every realisation scored against "
+    "the ensemble median, the same way as the measured windows (crank-angle domain, CFC 180, shift "
+    "search held to the sensor's plausible delay). 'As good as the model' = the measured median rating "
+    "reaches the reference's 5th percentile."),
+)
+
+
+@dataclass
+class IdentifiedSession:
+    """One session's identification and its bands against the top (or named) state."""
+
+    identification: Identification
+    bands: BandComparison
+
+
+def _band_figure(item: IdentifiedSession, path: Path, save: Callable[[Figure, Path], Path]) -> Path:
+    b = item.bands
+    fig = Figure(figsize=(10, 4.2))
+    ax = fig.subplots()
+    ax.fill_between(b.angle_deg, b.lo, b.hi, color="tab:red", alpha=0.2, lw=0, label=f"{b.state}: 5-95 %")
+    ax.plot(b.angle_deg, b.median, color="tab:red", lw=1.0, label=f"{b.state}: median")
+    for k, curve in enumerate(b.measured):
+        ax.plot(b.angle_deg, curve, color="black", lw=0.4, alpha=0.35, label="measured cycles" if k == 0 else None)
+    ax.plot(b.angle_deg, b.lo, color="tab:red", lw=0.5)
+    ax.plot(b.angle_deg, b.hi, color="tab:red", lw=0.5)
+    twin = ax.twinx()
+    per_bin = b.outside.reshape(36, -1).mean(axis=1) if b.outside.size % 36 == 0 else b.outside
+    edges = np.linspace(0, 360, per_bin.size + 1)
+    twin.stairs(100 * per_bin, edges, color="tab:blue", lw=1.0)
+    twin.set_ylabel("measured samples outside the band, per 10 deg (%)", color="tab:blue")
+    twin.set_ylim(0, 100)
+    ax.set_xlim(0, 360)
+    ax.set_xlabel("crank angle (deg)")
+    ax.set_ylabel("slider acceleration, CFC 180 (m/s$^2$)")
+    ax.set_title(f"{item.identification.session}: measured cycles in the band of {b.state}", fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    return save(fig, path)
+
+
+def _posterior_figure(items: Sequence[IdentifiedSession], path: Path, save) -> Path:
+    states = list(items[0].identification.posterior)
+    fig = Figure(figsize=(2.5 + 1.6 * len(states), 1.2 + 0.55 * len(items)))
+    ax = fig.subplots()
+    grid = np.array([[it.identification.posterior[s] for s in states] for it in items])
+    ax.imshow(grid, cmap="viridis", vmin=0, vmax=1, aspect="auto")
+    for i in range(grid.shape[0]):
+        for j in range(grid.shape[1]):
+            ax.text(j, i, f"{grid[i, j]:.2f}", ha="center", va="center", fontsize=8,
+                    color="black" if grid[i, j] > 0.6 else "white")
+    ax.set_xticks(range(len(states)), states, rotation=20, ha="right", fontsize=8)
+    ax.set_yticks(range(len(items)), [it.identification.session for it in items], fontsize=8)
+    ax.set_title("posterior probability of each candidate state", fontsize=9)
+    return save(fig, path)
+
+
+def identification_section(items: Sequence[IdentifiedSession], out: Path, slug: Callable[[str], str],
+                           save: Callable[[Figure, Path], Path], img: Callable[[Path], str],
+                           threshold: float) -> tuple[str, list[Path], list[dict]]:
+    """HTML of the section, its figure files, and its JSON rows (one per session)."""
+    e = html.escape
+    states = list(items[0].identification.posterior)
+    files = [_posterior_figure(items, out / "posteriors.png", save)]
+    parts = [f"<h2>Which state explains each session (named at p &ge; {threshold:g})</h2><table><tr>"
+             "<th>session</th><th>cycles</th>" + "".join(f"<th>p({e(s)})</th>" for s in states)
+             + "<th>verdict</th><th>explained by</th><th>cycles to decide</th>"
+             "<th>cycles inside band</th><th>notes</th></tr>"]
+    rows = []
+    for it in items:
+        r = it.identification
+        needed = "-" if r.cycles_needed is None else str(r.cycles_needed)
+        top = max(r.posterior, key=r.posterior.get)
+        parts.append(f"<tr><td>{e(r.session)}</td><td>{r.cycles}</td>"
+                     + "".join(f"<td>{r.posterior[s]:.3f}</td>" for s in states)
+                     + f"<td>{e(r.verdict)}</td><td>{e(', '.join(s for s in states if r.explains[s]) or 'none')}</td>"
+                     f"<td>{needed}</td><td>{100 * r.inside[top]:.0f} % ({e(top)})</td>"
+                     f"<td>{e('; '.join(r.notes + [f'leaves the band of {top}: ' + ', '.join(r.leaves[top])] if r.leaves[top] else r.notes))}</td></tr>")
+        rows.append({**r.as_dict(), "bands": it.bands.summary()})
+    parts.append("</table>")
+    parts.append(img(files[0]))
+    parts.append("<h2>Measured windows against the ensemble (ISO/TS 18571, model reference)</h2><table><tr>"
+                 "<th>session</th><th>state</th><th>windows</th><th>ISO R measured (median)</th>"
+                 "<th>ISO R model p5 / p50 / p95</th><th>percentile</th><th>as good as the model</th>"
+                 "<th>cycles outside band (mean over angle)</th><th>peak |a| CFC 180 measured / theory p50 (m/s²)</th></tr>")
+    for it in items:
+        s = it.bands.summary()
+        p5, p50, p95 = s["iso_rating_model_p5_p50_p95"]
+        meas = s["iso_rating_measured_median"]
+        parts.append(f"<tr><td>{e(it.identification.session)}</td><td>{e(s['state'])}</td><td>{s['windows']}</td>"
+                     f"<td>{'-' if meas is None else f'{meas:.3f}'}</td><td>{p5:.3f} / {p50:.3f} / {p95:.3f}</td>"
+                     f"<td>{s['rating_percentile']:.0f}</td><td>{'yes' if s['as_good_as_model'] else 'no'}</td>"
+                     f"<td>{100 * s['fraction_outside_band']:.0f} %</td>"
+                     f"<td>{s['peak_acc_measured_median']:.0f} / {s['peak_acc_theory_p5_p50_p95'][1]:.0f}</td></tr>")
+    parts.append("</table>")
+    for it in items:
+        f = _band_figure(it, out / f"band_{slug(it.identification.session)}.png", save)
+        files.append(f)
+        parts.append(img(f))
+    return "\n".join(parts), files, rows
