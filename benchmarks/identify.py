@@ -21,6 +21,7 @@ import argparse
 import os
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -119,6 +120,39 @@ def main() -> None:
         m = (p >= lo) & (p < hi)
         if m.any():
             print(f"  [{lo:.2f}, {min(hi, 1):.2f})  {m.sum():5d}  {p[m].mean():.3f}  {ok[m].mean():.3f}")
+
+    print(f"\nwhich statistics (top-1 at {args.cycles} cycles; chosen: both blocks):")
+    bins = settings.features.bins
+    for label, cols in (("low-passed curve + impact energy", slice(None)), ("low-passed curve only", slice(0, bins)),
+                        ("impact energy only", slice(bins, None))):
+        sub_models = fit_states(ensembles, options, columns=cols)
+        tops = [max((r := identify_features(f, sub_models)).posterior, key=r.posterior.get) == t
+                for f, t in zip(feats, truth_names, strict=True)]
+        print(f"  {label:34s} {np.mean(tops):.2f}")
+
+    print(f"\nhow many realisations (top-1 and Brier at {args.cycles} cycles; default 32):")
+    for m in sorted({8, 16, 24, args.realisations}):
+        if m > args.realisations:
+            continue
+        sub_models = fit_states({k: replace(e, features=e.features[:m]) for k, e in ensembles.items()}, options)
+        rs = [(identify_features(f, sub_models), t) for f, t in zip(feats, truth_names, strict=True)]
+        brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for r, t in rs])
+        print(f"  M = {m:3d}  top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
+              f"  Brier {brier:.3f}  temperature {sub_models.temperature:.2f}")
+
+    # a distribution-free alternative: the energy distance between the session's cycles and each
+    # ensemble's cycles (features standardised by the pooled ensemble spread); smallest wins
+    pooled = np.concatenate([e.features.reshape(-1, e.features.shape[-1]) for e in ensembles.values()])
+    scale = pooled.std(axis=0)
+
+    def energy_distance(x: np.ndarray, y: np.ndarray) -> float:
+        x, y = x / scale, y / scale
+        d = lambda a, b: np.linalg.norm(a[:, None, :] - b[None, :, :], axis=-1).mean()
+        return 2 * d(x, y) - d(x, x) - d(y, y)
+
+    tops = [min(names, key=lambda s: energy_distance(f.values, ensembles[s].features.reshape(-1, f.values.shape[1])))
+            == t for f, t in zip(feats, truth_names, strict=True)]
+    print(f"  {'energy distance (no model of the spread)':34s} {np.mean(tops):.2f}")
 
     print("\nheld-out candidate (the true state removed from the candidates), full sessions:")
     for s in names:

@@ -64,6 +64,7 @@ class StateModels:
     lo: Mapping[str, np.ndarray]  # state -> per-feature 5th percentile over cycles
     hi: Mapping[str, np.ndarray]
     options: IdentifyOptions
+    columns: slice = field(default_factory=lambda: slice(None))  # the features used
 
 
 @dataclass
@@ -97,22 +98,26 @@ def _posterior(ll: np.ndarray, temperature: float) -> np.ndarray:
     return np.exp(z - special.logsumexp(z))
 
 
-def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions()) -> StateModels:
-    """Fit each state's statistics and calibrate the temperature and the consistency test."""
+def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions(), *,
+               columns: slice = slice(None)) -> StateModels:
+    """Fit each state's statistics and calibrate the temperature and the consistency test.
+
+    columns: which features to use (all by default; a block for comparing statistics)."""
     if len(ensembles) < 1:
         raise ValueError("identify: no candidate ensembles")
     names = tuple(ensembles)
     bins = next(iter(ensembles.values())).settings.features.bins
-    floor = _floor(bins, options)
-    fitted = {s: StateStatistics.fit(e.features, floor) for s, e in ensembles.items()}
+    floor = _floor(bins, options)[columns]
+    features = {s: e.features[:, :, columns] for s, e in ensembles.items()}
+    fitted = {s: StateStatistics.fit(f, floor) for s, f in features.items()}
     # held-out realisations: their distance to their own state (refit without them), and their
     # log likelihood under every state, for the null distribution and the temperature
     lls, truth, null = [], [], {}
-    for si, (s, e) in enumerate(ensembles.items()):
+    for si, (s, f) in enumerate(features.items()):
         d2 = []
-        for r in range(e.realisations):
-            loo = StateStatistics.fit(np.delete(e.features, r, axis=0), floor)
-            xbar, n = e.features[r].mean(axis=0), e.features.shape[1]
+        for r in range(f.shape[0]):
+            loo = StateStatistics.fit(np.delete(f, r, axis=0), floor)
+            xbar, n = f[r].mean(axis=0), f.shape[1]
             d2.append(loo.distance2(xbar, n))
             lls.append([loo.log_likelihood(xbar, n) if t == s else fitted[t].log_likelihood(xbar, n) for t in names])
             truth.append(si)
@@ -130,14 +135,14 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         best = optimize.minimize_scalar(log_loss, bounds=(0.0, np.log(1e4)), method="bounded")
         temperature = float(np.exp(best.x))
     limit, lo, hi = {}, {}, {}
-    for s, e in ensembles.items():
-        flat = e.features.reshape(-1, e.features.shape[-1])
+    for s, f in features.items():
+        flat = f.reshape(-1, f.shape[-1])
         cov1 = fitted[s].covariance(1)
         inv = np.linalg.inv(cov1)
         d = flat - fitted[s].mean
         limit[s] = float(np.percentile(np.einsum("ij,jk,ik->i", d, inv, d), 95))
         lo[s], hi[s] = np.percentile(flat, 5, axis=0), np.percentile(flat, 95, axis=0)
-    return StateModels(names, fitted, temperature, null, limit, lo, hi, options)
+    return StateModels(names, fitted, temperature, null, limit, lo, hi, options, columns)
 
 
 def _ranges(flags: np.ndarray, bins: int) -> list[str]:
@@ -159,7 +164,7 @@ def _ranges(flags: np.ndarray, bins: int) -> list[str]:
 def identify_features(features: CycleFeatures, models: StateModels, *, label: str = "session") -> Identification:
     """Posterior, verdict, consistency and bands for a session's cycle ``features``."""
     opts = models.options
-    x = features.values
+    x = features.values[:, models.columns]
     n = features.cycles
     if n < 1:
         raise ValueError(f"identify {label}: the session holds no complete crank cycle")
@@ -196,7 +201,8 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         d2 = np.einsum("ij,jk,ik->i", d, np.linalg.inv(st.covariance(1)), d)
         inside[s] = float(np.mean(d2 <= models.cycle_limit[s]))
         out = (x < models.lo[s]) | (x > models.hi[s])
-        often = out.mean(axis=0) > 1 / 3
+        often = np.zeros(features.spec.size, dtype=bool)
+        often[models.columns] = out.mean(axis=0) > 1 / 3
         leaves[s] = ([f"curve {r}" for r in _ranges(often[:bins], bins)]
                      + [f"impacts {r}" for r in _ranges(often[bins:], bins)])
     notes = []
