@@ -37,7 +37,7 @@ import numpy as np
 from wearbench.hardware.bench import Bench
 from wearbench.hardware.emulators.config import Truth
 
-__all__ = ["FADE", "SignalTable", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
+__all__ = ["FADE", "SignalTable", "bench_content", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
            "table_key"]
 
 TWO_PI = 2 * np.pi
@@ -110,6 +110,13 @@ def _content(x: Any) -> Any:
     if isinstance(x, np.ndarray):
         return {"array": hashlib.sha256(np.ascontiguousarray(x).tobytes()).hexdigest(), "shape": list(x.shape)}
     raise TypeError(f"table_key: cannot key a {type(x).__name__}")
+
+
+def bench_content(bench: Bench) -> str:
+    """SHA-256 of everything in ``bench`` that the model's acceleration depends on (or its draws:
+    the tolerances); not its name, text, emulator table or host-side settings."""
+    content = {"bench": _content(bench), "tolerances": _content(dataclasses.asdict(bench.tolerances))}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
 
 
 def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolutions: int, settle: float,
