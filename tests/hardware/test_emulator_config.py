@@ -62,3 +62,22 @@ def test_config_builder_names_a_state_and_round_trips(testbed):
     assert EmulatorConfig.from_table(twin.to_table(), bench=testbed) == twin
     nominal = emulator_config(testbed, None, 2)
     assert nominal.truth.clearances == {} and nominal.truth.seed == 2
+
+
+@pytest.mark.parametrize("argv, seed, stage", [
+    ([], 1, "0.3 mm new"),                                    # the bench file's truth
+    (["--twin"], None, "0.3 mm new"),
+    (["--seed", "5", "--state", "0.3 mm second wear"], 5, "0.3 mm second wear"),
+    (["--state", "0.6 mm new"], 1, "0.6 mm new"),
+])
+def test_emulate_command_sets_the_truth(monkeypatch, argv, seed, stage):
+    import wearbench.hardware.emulators.serial_server as server
+    from wearbench.cli import main
+    from wearbench.hardware.bench import shipped_bench
+
+    served = []
+    monkeypatch.setattr(server, "serve", lambda bench, config, **kw: served.append(config) or 0)
+    assert main(["emulate", str(shipped_bench("ninebar-testbed")), "--serial", *argv]) == 0
+    truth = served[0].truth
+    assert truth.seed == seed and truth.wear_stage == stage
+    assert bool(truth.wear) == ("wear" in stage)
