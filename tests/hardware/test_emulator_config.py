@@ -54,6 +54,7 @@ def test_config_builder_names_a_state_and_round_trips(testbed):
     assert dict(cfg.truth.clearances) == dict(state.clearances) and dict(cfg.truth.wear) == dict(state.surfaces)
     assert cfg.motor.ripple == 0 and cfg.revolutions == 25  # the draw has its own ripple
     assert cfg.accelerometer.noise == pytest.approx(0.2)
+    assert cfg.seed == 7 and emulator_config(testbed, "0.3 mm first wear", 7, noise_seed=3).seed == 3
     assert cfg.accelerometer.aa_filter == EmulatorConfig.from_bench(testbed).accelerometer.aa_filter  # kept
     assert EmulatorConfig.from_table(cfg.to_table(), bench=testbed) == cfg
     twin = emulator_config(testbed, state, None, table={"motor": {"ripple": 0.002}, "truth": {"accel_delay": "1 ms"}})
