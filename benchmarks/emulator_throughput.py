@@ -1,7 +1,9 @@
 """Can the bench emulators keep up with a 20 kHz accelerometer? Prints one table.
 
-Rows: BenchDevice alone (model signal, every imperfection on) under a manual clock, as device
-seconds per wall second; the serial emulator process over a pty and the CAN emulator on the
+Rows: BenchDevice alone under a manual clock, as device seconds per wall second: the twin (one
+model revolution looped, every imperfection on, point sampled) and the shipped test bed's non-twin
+truth (a drawn bench's 40-revolution run through the stud-mounted IEPE resonance and the 8th-order
+anti-alias filter at 4x oversampling); the serial emulator process over a pty and the CAN emulator on the
 virtual bus, each streaming 20 kHz + 1 kHz in real time for DURATION s to a host that counts
 blocks and sequence gaps, with the emulator's CPU share (of one core).
 
@@ -18,7 +20,7 @@ import time
 import can
 from wearbench.hardware.bench import load_bench, shipped_bench
 from wearbench.hardware.emulators.can_server import CanEmulator
-from wearbench.hardware.emulators.config import EmulatorConfig
+from wearbench.hardware.emulators.config import EmulatorConfig, emulator_config
 from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, ManualClock
 from wearbench.hardware.emulators.serial_server import start_serial_emulator
 from wearbench.hardware.protocol import can_frames as cf
@@ -38,8 +40,9 @@ def cpu_of(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def device_alone(bench, seconds: float = 60.0) -> tuple[str, str, str, str]:
-    cfg = EmulatorConfig.from_table(TABLE, bench=bench)
+def device_alone(bench, table=TABLE, label="BenchDevice, twin (manual clock)", seconds: float = 60.0
+                 ) -> tuple[str, str, str, str]:
+    cfg = EmulatorConfig.from_table(table, bench=bench)
     clock = ManualClock()
     d = BenchDevice(bench, cfg, clock)
     d.configure_accelerometer(490.0, RATE)
@@ -52,13 +55,14 @@ def device_alone(bench, seconds: float = 60.0) -> tuple[str, str, str, str]:
         clock.advance(0.01)
         n += sum(len(b.samples) for b in d.read() if isinstance(b, AccelBlock))
     wall = time.perf_counter() - t0
-    return ("BenchDevice (manual clock)", f"{n / seconds:.0f}", f"{seconds / wall:.0f}x real time", "-")
+    return (label, f"{n / seconds:.0f}", f"{seconds / wall:.0f}x real time", "-")
 
 
-def serial_stream(bench, duration: float) -> tuple[str, str, str, str]:
+def serial_stream(bench, duration: float, table=TABLE, label="serial emulator (pty, own process)"
+                  ) -> tuple[str, str, str, str]:
     import serial
 
-    proc, port = start_serial_emulator(bench, TABLE)
+    proc, port = start_serial_emulator(bench, table)
     try:
         host = serial.Serial(port, timeout=0.05)
         parser = FrameParser()
@@ -75,7 +79,7 @@ def serial_stream(bench, duration: float) -> tuple[str, str, str, str]:
         proc.wait()
     n = len(seqs) * 200
     gaps = (seqs[-1] + 1 - len(seqs)) if seqs else 0
-    return ("serial emulator (pty, own process)", f"{n / duration:.0f}", f"{gaps} blocks missing",
+    return (label, f"{n / duration:.0f}", f"{gaps} blocks missing",
             f"{100 * cpu:.0f} %")
 
 
@@ -105,7 +109,10 @@ def can_stream(bench, duration: float) -> tuple[str, str, str, str]:
 def main() -> None:
     duration = float(sys.argv[1]) if len(sys.argv) > 1 else 10.0
     bench = load_bench(shipped_bench("ninebar-testbed"))
-    rows = [device_alone(bench), serial_stream(bench, duration), can_stream(bench, duration)]
+    nontwin = emulator_config(bench, "0.3 mm new", 1).to_table()
+    rows = [device_alone(bench), device_alone(bench, nontwin, "BenchDevice, non-twin + sensor chain (manual clock)"),
+            serial_stream(bench, duration), can_stream(bench, duration),
+            serial_stream(bench, duration, nontwin, "serial emulator, non-twin + sensor chain")]
     head = ("emulator", "accel samples/s", "keeping up", "CPU of one core")
     widths = [max(len(r[i]) for r in [head, *rows]) for i in range(4)]
     for r in [head, tuple("-" * w for w in widths), *rows]:

@@ -1,7 +1,8 @@
 """`wearbench emulate BENCH.toml --serial`: run the bench emulator on a pseudo-terminal.
 
 Prints the port path on the first line and serves until Ctrl-C/SIGTERM. The ``[emulator]`` table of
-the bench file configures imperfections, truth and faults; ``--config FILE.json`` replaces it.
+the bench file configures imperfections, truth and faults; ``--config FILE.json`` replaces it;
+``--state``, ``--seed`` and ``--twin`` set its truth (``emulator_config``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="serve the serial protocol on a new pseudo-terminal and print its path")
     p.add_argument("--config", type=Path, help="JSON file replacing the bench's [emulator] table")
     p.add_argument("--sent-log", type=Path, help="append every byte sent to the host to this file")
+    p.add_argument("--state", help="the true state: a [[state]] name of the bench (default: the table's truth)")
+    truth = p.add_mutually_exclusive_group()
+    truth.add_argument("--seed", type=int, help="a truth drawn from the bench's [tolerances] with this seed "
+                       "(not the model's twin: long run, cycle-to-cycle variation)")
+    truth.add_argument("--twin", action="store_true", help="play the nominal model's own revolution looped "
+                       "(every cycle identical), for comparison")
     p.set_defaults(func=run)
 
 
@@ -39,6 +46,13 @@ def run(args: argparse.Namespace) -> int:
         config = EmulatorConfig.from_table(table, bench=bench, source=args.config)
     else:
         config = EmulatorConfig.from_bench(bench)
+    if args.state is not None or args.seed is not None or args.twin:
+        from wearbench.hardware.emulators.config import emulator_config
+
+        t = config.truth
+        state = args.state if args.state is not None else (t.state() if t.clearances or t.wear else None)
+        seed = None if args.twin else (args.seed if args.seed is not None else t.seed)
+        config = emulator_config(bench, state, seed, table=config.to_table())
 
     def announce(path: str) -> None:
         print(path, flush=True)

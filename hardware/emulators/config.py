@@ -348,7 +348,7 @@ def _faults(r: _Reader, d: dict) -> Faults:
 
 def emulator_config(bench: Bench, state: WearState | str | None = None, seed: int | None = None, *,
                     accelerometer: Mapping[str, Any] | None = None, table: Mapping[str, Any] | None = None,
-                    **emulator: Any) -> EmulatorConfig:
+                    noise_seed: int | None = None, **emulator: Any) -> EmulatorConfig:
     """The emulator config of ``bench`` whose truth is ``state`` drawn with ``seed``.
 
     Starts from ``table`` (default the bench's ``[emulator]`` table) and sets ``[emulator.truth]``:
@@ -358,6 +358,8 @@ def emulator_config(bench: Bench, state: WearState | str | None = None, seed: in
     The truth's ``accel_delay`` is kept. ``accelerometer`` updates keys of
     ``[emulator.accelerometer]`` (raw values with units, e.g. ``{"resonance": "25 kHz"}``);
     ``emulator`` sets top-level keys (``revolutions``, ``settle``, ``signal``, ``cache``, ...).
+    ``noise_seed`` is the top-level ``[emulator] seed`` (the device's noise and fault draws);
+    default: ``seed`` for a drawn truth (each truth its own noise), else the table's.
     Hand ``config.to_table()`` to the serial/CAN emulators or the sim backend's ``config`` option.
     """
     raw: dict[str, Any] = {k: (dict(v) if isinstance(v, Mapping) else v)
@@ -374,9 +376,12 @@ def emulator_config(bench: Bench, state: WearState | str | None = None, seed: in
         truth["twin"] = True
     else:
         truth["seed"] = int(seed)
+        raw["seed"] = int(seed)
         raw["motor"] = {k: v for k, v in raw.get("motor", {}).items() if k != "ripple"}
     raw["truth"] = truth
     if accelerometer:
         raw["accelerometer"] = {**raw.get("accelerometer", {}), **accelerometer}
     raw.update(emulator)
+    if noise_seed is not None:
+        raw["seed"] = int(noise_seed)
     return EmulatorConfig.from_table(raw, bench=bench)

@@ -212,10 +212,16 @@ def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None 
     the first model signal table, which may be computed at start-up.
     """
     if bench.path is not None:
-        on_file = {j.name: j.clearance for j in load_bench(bench.path).clearance_joints}
+        from wearbench.hardware.emulators.signal import bench_content
+
+        file_bench = load_bench(bench.path)
+        on_file = {j.name: j.clearance for j in file_bench.clearance_joints}
         if on_file != {j.name: j.clearance for j in bench.clearance_joints}:
             raise ValueError(f"{bench.path}: the bench was changed in memory (clearances); the emulator process "
                              "reads the file, so give the device its clearances with [emulator.truth] instead")
+        if bench_content(file_bench) != bench_content(bench):
+            raise ValueError(f"{bench.path}: the bench was changed in memory (masses, geometry, contact or "
+                             "tolerances); the emulator process reads the file: save the bench to a file first")
     tmp = Path(tempfile.mkdtemp(prefix="wearbench-emu-"))
     bench_path = bench.path if bench.path is not None else tmp / f"{bench.name}.toml"
     if bench.path is None:

@@ -4,16 +4,15 @@ Two kinds of model table, both from :func:`wearbench.model.realisation.simulate_
 device's TRUE state (clearances and worn surfaces of ``[emulator.truth]``):
 
 - twin (truth without a seed, :func:`model_table`): the nominal bench started centred, ``settle``
-  revolutions dropped and the next whole one kept and looped, so every cycle is the same (the twin
-  of the model the emulator always played, kept for comparison);
+  revolutions dropped and the next one kept and looped, so every cycle is the same: the theory's
+  own revolution, as the emulator always played it (kept for comparison);
 - run (truth with a seed, :func:`run_table`): the bench drawn from its ``[tolerances]`` with that
   seed (masses, lengths, contact, speed error and ripple, start state), ``revolutions`` whole
   revolutions after ``settle``, played by unwrapped motor angle, so consecutive cycles differ as
   the chaotic impacts of a real bench do. Device angle 0 (power-up) is the first whole revolution
   of the run. A session longer than the run wraps to its start; the last quarter revolution before
   the wrap is a raised-cosine crossfade from the run's end into the samples that precede its start,
-  so the played signal stays continuous and a cycle boundary keeps its crank angle (a twin's loop
-  closes the same way: an orbit that is not exactly periodic would otherwise jump at the seam).
+  so the played signal stays continuous and a cycle boundary keeps its crank angle.
 
 Tables are resampled on a uniform grid of motor angle (the device only interpolates at 20 kHz) and
 cached on disk in ``$WEARBENCH_CACHE`` (default ``~/.cache/wearbench``)/``emulator``, keyed on the
@@ -37,7 +36,7 @@ import numpy as np
 from wearbench.hardware.bench import Bench
 from wearbench.hardware.emulators.config import Truth
 
-__all__ = ["FADE", "SignalTable", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
+__all__ = ["FADE", "SignalTable", "bench_content", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
            "table_key"]
 
 TWO_PI = 2 * np.pi
@@ -112,6 +111,13 @@ def _content(x: Any) -> Any:
     raise TypeError(f"table_key: cannot key a {type(x).__name__}")
 
 
+def bench_content(bench: Bench) -> str:
+    """SHA-256 of everything in ``bench`` that the model's acceleration depends on (or its draws:
+    the tolerances); not its name, text, emulator table or host-side settings."""
+    content = {"bench": _content(bench), "tolerances": _content(dataclasses.asdict(bench.tolerances))}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+
+
 def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolutions: int, settle: float,
               rate: float) -> str:
     """SHA-256 over everything a model table depends on: the bench as drawn for the truth's seed
@@ -151,10 +157,31 @@ def _store(path: Path, table: SignalTable, cache: bool) -> SignalTable:
 
 def model_table(bench: Bench, truth: Truth, speed: float, *, settle: float = 2.0, rate: float = 20000.0,
                 cache: bool = True) -> SignalTable:
-    """Twin: the nominal model in the true state at motor ``speed`` (rad/s), the first whole
-    revolution after ``settle`` looped (with the crossfade of the module docstring at the seam, where
-    an orbit that is not exactly periodic would otherwise jump). ``rate`` (Hz): time resolution."""
-    return _loop_table(bench, dataclasses.replace(truth, seed=None), speed, 1, settle, rate, cache)
+    """Twin: the nominal model in the true state at motor ``speed`` (rad/s), the revolution after
+    ``settle`` looped: the theory's own revolution, sample for sample (where the orbit is not exactly
+    periodic, the loop's seam jumps, as a twin always did). ``rate`` (Hz): time resolution."""
+    if speed == 0:
+        raise ValueError("model_table: speed 0 has no steady revolution")
+    twin = dataclasses.replace(truth, seed=None)
+    key = table_key(bench, twin, speed, kind="twin", revolutions=1, settle=settle, rate=rate)
+    path = cache_dir() / f"{bench.name}-twin-{key[:20]}.npz"
+    if (hit := _cached(path, cache)) is not None:
+        return hit
+    from wearbench.model.realisation import simulate_state
+
+    run = simulate_state(bench, twin.state(), None, revolutions=1.0, settle=settle, speed=speed, output_rate=rate)
+    if not np.all(np.isfinite(run.acc)):
+        raise RuntimeError(f"{bench.name}: model slider acceleration is not finite at speed {speed} rad/s")
+    rel = np.abs(run.motor_angle - run.motor_angle[0])
+    if run.t.size < 16 or rel[-1] < TWO_PI * (1 - 2 / run.t.size):
+        raise RuntimeError(f"{bench.name}: model returned too short a revolution for a table ({run.t.size} samples)")
+    one = rel < TWO_PI - 0.5 * TWO_PI / run.t.size  # one revolution; its end (its start again) left out
+    angle = np.mod(run.motor_angle[one], TWO_PI)
+    order = np.argsort(angle)
+    n = int(np.clip(rate * TWO_PI / abs(speed), 512, 200000))
+    values = np.interp(np.arange(n) * (TWO_PI / n), angle[order], run.acc[one][order], period=TWO_PI)
+    source = f"model twin ({run.summary['description']}) at {speed:g} rad/s, one revolution looped"
+    return _store(path, SignalTable(float(speed), values, source), cache)
 
 
 def run_table(bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40, settle: float = 2.0,
@@ -164,17 +191,12 @@ def run_table(bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40
     ``settle``, by motor angle, with the crossfade of the module docstring at the wrap."""
     if truth.seed is None:
         raise ValueError("run_table: the truth has no seed (a twin plays model_table)")
-    return _loop_table(bench, truth, speed, revolutions, settle, rate, cache)
-
-
-def _loop_table(bench: Bench, truth: Truth, speed: float, revolutions: int, settle: float, rate: float,
-                cache: bool) -> SignalTable:
     if speed == 0:
         raise ValueError("model table: speed 0 has no steady revolution")
     n_rev = int(revolutions)
     if n_rev < 1 or n_rev != revolutions:
         raise ValueError(f"model table: revolutions = {revolutions}: expected a whole number >= 1")
-    kind = "twin" if truth.seed is None else f"seed{truth.seed}"
+    kind = f"seed{truth.seed}"
     key = table_key(bench, truth, speed, kind=kind, revolutions=n_rev, settle=settle, rate=rate)
     path = cache_dir() / f"{bench.name}-{kind}-{key[:20]}.npz"
     if (hit := _cached(path, cache)) is not None:
@@ -204,11 +226,8 @@ def _loop_table(bench: Bench, truth: Truth, speed: float, revolutions: int, sett
     w = 0.5 - 0.5 * np.cos(np.pi * (p[fade] - (period - FADE)) / FADE)
     values[fade] = (1 - w) * values[fade] + w * np.interp(start + p[fade] - period, progress, run.acc)
     real = run.realisation
-    if truth.seed is None:
-        source = f"model twin ({run.summary['description']}) at {speed:g} rad/s, one revolution looped"
-    else:
-        source = (f"model run of {bench.name} drawn with seed {truth.seed} (speed x{real.speed_scale:.5f}, ripple "
-                  f"{real.ripple:.2e}) in state {truth.state().name!r}, {n_rev} revolutions at {speed:g} rad/s")
+    source = (f"model run of {bench.name} drawn with seed {truth.seed} (speed x{real.speed_scale:.5f}, ripple "
+              f"{real.ripple:.2e}) in state {truth.state().name!r}, {n_rev} revolutions at {speed:g} rad/s")
     return _store(path, SignalTable(float(speed), values, source, period, direction), cache)
 
 

@@ -128,7 +128,7 @@ def test_encoder_and_acceleration_belong_to_the_realisation_motion(testbed):
     cfg = emulator_config(testbed, STATE, 1, revolutions=REVS, accelerometer=clean)
     real = draw_realisation(testbed, 1)
     assert real.speed_scale != 1.0 and real.ripple > 0
-    d, acc, enc = stream(testbed, cfg, REVS - 0.3)
+    d, acc, enc = stream(testbed, cfg, REVS - 0.3, rate=10000.0)
     x = np.concatenate([b.samples for b in acc]).astype(float)
     tx = np.concatenate([b.times for b in acc])
     counts = np.concatenate([b.counts for b in enc]).astype(float)
@@ -151,13 +151,13 @@ def test_encoder_and_acceleration_belong_to_the_realisation_motion(testbed):
     start = TWO_PI * math.ceil((run.motor_angle[0] + FADE) / TWO_PI)  # device angle 0 in the run
     k = REVS - 2  # a late revolution: a speed mismatch of 0.1 % would move it by over a degree
     dev = (motor >= TWO_PI * k) & (motor < TWO_PI * (k + 1))
-    assert dev.sum() > 0.9 * 20000 * TWO_PI / testbed.speed
+    assert dev.sum() > 0.9 * 10000 * TWO_PI / testbed.speed
     sim = (run.motor_angle >= start + TWO_PI * k) & (run.motor_angle < start + TWO_PI * (k + 1))
     i_dev = np.flatnonzero(dev)[np.argmax(np.abs(x[dev]))]
     i_sim = np.flatnonzero(sim)[np.argmax(np.abs(run.acc[sim]))]
     crank_dev = driver.phase + driver.ratio * motor[i_dev]
     assert np.mod(crank_dev - run.crank[i_sim] + math.pi, TWO_PI) - math.pi == pytest.approx(0, abs=math.radians(0.3))
-    assert x[i_dev] == pytest.approx(run.acc[i_sim], rel=0.05)
+    assert x[i_dev] == pytest.approx(run.acc[i_sim], rel=0.15)  # 10 kHz point samples of a ~0.2 ms impact
 
 
 def test_device_with_a_seed_reproduces_its_stream_and_differs_by_seed(testbed, tables):

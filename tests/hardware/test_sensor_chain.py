@@ -124,3 +124,21 @@ def test_white_signal_through_the_anti_alias_filter(testbed, make_config):
     # aliased power at f: |H(f)|^2 + |H(fs - f)|^2 (+ higher folds), both about |H(fs/2)|^2 here
     designed = 2 * butterworth_gain(0.485 * FS, 0.3 * FS, 8, 4 * FS) ** 2
     assert 10 * math.log10(near_nyquist / passband) == pytest.approx(10 * math.log10(designed), abs=2.0)
+
+
+def test_drift_noise_and_bias_behind_the_anti_alias_filter(testbed, make_config):
+    """With the filter on (4x oversampled), the sample clock still drifts by its ppm and the DAQ's
+    noise and bias, added after the filter, keep their size."""
+    cfg = make_config(accelerometer={"aa_filter": "butterworth", "drift": "250 ppm", "noise": "0.5 m/s^2",
+                                     "bias": "1.5 m/s^2"}, accel_block=10)
+    clock = ManualClock()
+    d = BenchDevice(testbed, cfg, clock)
+    d.configure_accelerometer(490.0, FS)
+    d.start_stream()
+    x = []
+    for _ in range(40):
+        clock.advance(1.0)
+        x += [b.samples for b in d.read() if isinstance(b, AccelBlock)]
+    x = np.concatenate(x).astype(float)
+    assert x.size / 40.0 / FS - 1 == pytest.approx(250e-6, abs=3e-5)  # one 10-sample block: 2.5e-5
+    assert x.mean() == pytest.approx(1.5, abs=0.01) and x.std() == pytest.approx(0.5, rel=0.02)

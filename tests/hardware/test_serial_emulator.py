@@ -179,3 +179,38 @@ def test_wire_samples_equal_the_device_samples_bit_for_bit(testbed, acceleromete
 def test_a_bench_changed_in_memory_is_refused(testbed):
     with pytest.raises(ValueError, match=r"emulator\.truth"):
         start_serial_emulator(testbed.with_clearances({"A": 0.5e-3}), {"signal": "none"})
+
+
+def test_a_bench_whose_masses_changed_in_memory_is_refused(testbed):
+    import dataclasses
+
+    heavy = dataclasses.replace(testbed, bodies=tuple(dataclasses.replace(b, mass=2 * b.mass) for b in testbed.bodies))
+    with pytest.raises(ValueError, match="changed in memory"):
+        start_serial_emulator(heavy, {"signal": "none"})
+
+
+@pytest.mark.slow
+def test_a_drawn_truth_reaches_the_host_over_the_pty(testbed, tmp_path, monkeypatch):
+    """The emulator process plays the non-twin truth: the host sees the drawn motor's true speed
+    (commanded x speed_scale, 0.2 % off for seed 1) and the model's impacts, not a test pattern."""
+    from wearbench.hardware.emulators.config import emulator_config
+    from wearbench.model.realisation import draw_realisation
+
+    monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "cache"))
+    cfg = emulator_config(testbed, "0.6 mm new", 1, revolutions=2)
+    proc, port = start_serial_emulator(testbed, cfg)
+    try:
+        host = Host(port)
+        start_streaming(host, speed=6.2832)
+        host.pump(1.0)
+        host.wait_ack(host.send(m.GetStatus()))
+        status = host.of(m.Status)[-1]
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    scale = draw_realisation(testbed, 1).speed_scale
+    assert abs(scale - 1) > 1e-3
+    # true speed (with a ripple of ~1e-3 at most): the drawn one, not the commanded
+    assert status.speed == pytest.approx(6.2832 * scale, rel=5e-4)
+    x = np.concatenate([a.samples for a in host.of(m.AccelData)])
+    assert np.abs(x).max() > 5 * np.sqrt(np.mean(x**2))  # impacts stand out of the mechanism's motion
