@@ -115,7 +115,7 @@ def friction_force(fn: float, vt: float, cf: float, v0: float, vm: float) -> flo
     return -cf * friction_factor(vt, v0, vm) * fn * (1.0 if vt > 0.0 else -1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pchip_node_slope(d0: float, d1: float) -> float:
     """PCHIP slope (per region) at a node from its left and right differences (Fritsch-Butland
     harmonic mean for equal spacing; zero at a local extremum, so no overshoot)."""
@@ -136,16 +136,18 @@ def depth_eval(depths: np.ndarray, n: int, phi: float) -> tuple[float, float, fl
     shape-preserving (no negative depths, no new extrema at the edge of a pit, which a C2 spline
     would add). The second derivative is piecewise linear (used by the contact search only).
     """
-    x = (phi / (2.0 * math.pi)) * n - 0.5
-    x = x - n * math.floor(x / n)
-    i = math.floor(x)
+    x = phi * (n / (2.0 * math.pi)) - 0.5
+    x = x - n * math.floor(x / n)  # in [0, n]
+    i = int(x)
     f = x - i
-    i0 = i % n
-    i1 = (i + 1) % n
+    i0 = i if i < n else i - n  # cheap periodic neighbours (no signed modulo: the hot path)
+    im = i0 - 1 if i0 > 0 else n - 1
+    i1 = i0 + 1 if i0 + 1 < n else 0
+    i2 = i1 + 1 if i1 + 1 < n else 0
     y0 = depths[i0]
     y1 = depths[i1]
-    ym = depths[(i - 1) % n]
-    y2 = depths[(i + 2) % n]
+    ym = depths[im]
+    y2 = depths[i2]
     d = y1 - y0
     m0 = _pchip_node_slope(y0 - ym, d)
     m1 = _pchip_node_slope(d, y2 - y1)

@@ -235,7 +235,22 @@ def _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi):
 
 
 @njit(cache=True)
-def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear):
+def _node_min(depths, n, x0, x1):
+    """Smallest node value of ``depths`` over the PCHIP intervals covering [x0, x1] (region units,
+    centres at integers after the -0.5 shift): PCHIP never leaves the range of its two nodes, so
+    this bounds the depth from below on the whole range."""
+    i0 = math.floor(x0)
+    i1 = math.floor(x1) + 1
+    i = i0 % n
+    lo = depths[i]
+    for _ in range(i1 - i0):
+        i = i + 1 if i + 1 < n else 0
+        lo = min(lo, depths[i])
+    return lo
+
+
+@njit(cache=True)
+def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
     """Contact direction of a worn journal in a worn bearing: where the two surfaces overlap most.
 
     The journal (radius R2 - h_j, journal frame) reaches, in global direction psi from the bearing
@@ -245,25 +260,80 @@ def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear):
     circular (or worn) journal rests on the rims of a pit narrower than its relative curvature
     allows instead of sinking to its bottom, and by the envelope theorem grad_e d = u(psi*): the
     normal is the radial direction of the contact point, continuous while the maximum is unique.
-    Search: only directions with |e| cos(psi - alpha) > max(f(alpha), R1 - R2) can win (depths >= 0),
-    scanned at half the finer region width, then Newton on f'(psi) = 0 in the best cell (PCHIP is
-    cubic there). Returns (psi*, f(psi*), h_b, h_j, h_b', h_j') at the contact direction.
+    Search: climb from alpha (or from ``hint``, the last contact direction, if the overlap is larger
+    there; a starting point only, the result does not depend on it) to a local maximum; then branch and bound outward from
+    alpha over blocks of bearing intervals, while |e| cos(psi - alpha) can still beat the best
+    overlap and the clearance: a block, then an interval, is looked at, and sampled, only if
+    its upper bound |e| max cos - min node depths (PCHIP stays within its nodes) beats the best
+    (at its middle);
+    then Newton on f'(psi) = 0 around the best point.
+    Returns (psi*, f(psi*), h_b, h_j, h_b', h_j') at the contact direction.
     """
-    f0, _, _, hb0, hj0, sb0, sj0 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, alpha)
-    best, fbest = alpha, f0
-    floor = max(f0, clear)
-    if emag <= floor:
+    f0, d1, d2, hb0, hj0, sb0, sj0 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, alpha)
+    if emag <= max(f0, clear):
         return alpha, f0, hb0, hj0, sb0, sj0
-    width = math.acos(floor / emag)
-    step = math.pi / max(nb, nj)
-    m = int(width / step) + 1
-    for s in range(1, m + 1):
-        for sign in (-1.0, 1.0):
-            psi = alpha + sign * s * step
-            f = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[0]
+    cell = 2.0 * math.pi / nb
+    # 1. climb to the local maximum next to alpha (a good first bound prunes most of the scan)
+    best, fbest = alpha, f0
+    dh = (hint - alpha + math.pi) % (2.0 * math.pi) - math.pi
+    if abs(dh) < 0.5 * math.pi:  # the last contact direction is usually next to this one
+        fh, h1, h2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, alpha + dh)[:3]
+        if fh > f0:
+            best, fbest, d1, d2 = alpha + dh, fh, h1, h2
+    walk = 0.5 * cell  # grows while f keeps rising where it is convex
+    for it in range(30):
+        if it >= 6 and fbest < clear:  # out of contact the scan prunes against the clearance anyway
+            break
+        if d2 < 0.0:
+            stp = max(-cell, min(cell, -d1 / d2))
+        else:
+            stp = walk if d1 > 0.0 else -walk
+            walk = min(2.0 * walk, 16.0 * cell)
+        f, e1, e2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, best + stp)[:3]
+        for _ in range(3):
             if f > fbest:
-                best, fbest = psi, f
-    lo, hi = best - step, best + step
+                break
+            stp *= 0.25
+            f, e1, e2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, best + stp)[:3]
+        if f <= fbest:
+            break
+        best, fbest, d1, d2 = best + stp, f, e1, e2
+        if abs(stp) < 1e-4 * cell:
+            break
+    # 2. branch and bound over blocks of bearing intervals, outward from alpha
+    rj = nj / (2.0 * math.pi)
+    ia = math.floor((alpha - thi) / cell - 0.5)
+    blk = 8
+    for sign in (-1, 1):
+        first = ia if sign > 0 else ia - blk
+        while True:
+            lo_g = (first + 0.5) * cell + thi  # global angle of the block's first node
+            hi_g = lo_g + blk * cell
+            dmin = 0.0 if lo_g <= alpha <= hi_g else min(abs(lo_g - alpha), abs(hi_g - alpha))
+            if dmin >= 0.5 * math.pi:
+                break
+            reach = emag * math.cos(dmin)
+            floor = max(fbest, clear)
+            if reach <= floor:
+                break
+            if reach - _node_min(sb, nb, first, first + blk) - _node_min(
+                    sj, nj, (lo_g - thj) * rj - 0.5, (hi_g - thj) * rj - 0.5) > floor:
+                for i in range(first, first + blk):
+                    lo_b = (i + 0.5) * cell + thi
+                    hi_b = lo_b + cell
+                    d = 0.0 if lo_b <= alpha <= hi_b else min(abs(lo_b - alpha), abs(hi_b - alpha))
+                    bound = emag * math.cos(d) - min(sb[i % nb], sb[(i + 1) % nb]) - _node_min(
+                        sj, nj, (lo_b - thj) * rj - 0.5, (hi_b - thj) * rj - 0.5)
+                    if bound > max(fbest, clear):
+                        psi = lo_b + 0.5 * cell
+                        f = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[0]
+                        if f > fbest:
+                            best, fbest = psi, f
+            first += sign * blk
+    if fbest < clear - 1e-6:  # no contact by a wide margin: its exact place does not matter
+        f, _, _, hb, hj, db, dj = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, best)
+        return best, f, hb, hj, db, dj
+    lo, hi = best - cell, best + cell
     psi = best
     for _ in range(8):  # safeguarded Newton on f' = 0
         f, d1, d2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[:3]
@@ -321,7 +391,8 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         pen = emag - clear
         if p[CLR_WORN] > 0.0 and emag > 0.0:
             psi, overlap, hb, hj, slope_b, slope_j = worn_contact(
-                surf[k, 0], surf_n[k, 0], surf[k, 1], surf_n[k, 1], emag, alpha, thi, thj, clear)
+                surf[k, 0], surf_n[k, 0], surf[k, 1], surf_n[k, 1], emag, alpha, thi, thj, clear,
+                cout[k, CO_ALPHA])
             pen = overlap - clear
             nx, ny = math.cos(psi), math.sin(psi)
         tx, ty = -ny, nx

@@ -24,7 +24,7 @@ import numpy as np
 if TYPE_CHECKING:
     from wearbench.hardware.bench import Bench
 
-__all__ = ["JointSurfaces", "SurfaceError", "depth_at", "region_of", "surfaces_from_bench"]
+__all__ = ["JointSurfaces", "SurfaceError", "depth_at", "reachable_depth", "region_of", "surfaces_from_bench"]
 
 _FORMAT = "wearbench.surfaces/1"
 
@@ -174,6 +174,37 @@ def depth_at(depths: np.ndarray, phi: float | np.ndarray) -> float | np.ndarray:
     f2, f3 = f * f, f * f * f
     out = (2 * f3 - 3 * f2 + 1) * y0 + (f3 - 2 * f2 + f) * m0 + (-2 * f3 + 3 * f2) * y1 + (f3 - f2) * m1
     return float(out) if np.ndim(out) == 0 else out
+
+
+def reachable_depth(depths: np.ndarray, clearance: float, oversample: int = 4) -> float:
+    """Deepest point (m) of a worn surface that a circular counter-body can reach.
+
+    A circular counter-body with radial clearance ``clearance`` (m) (R1 - R2 of the joint), pushed
+    from the centre in direction a, first touches the worn surface (radius + depth h(phi), PCHIP
+    profile) at the eccentricity |e|(a) = min_phi (clearance + h(phi)) / cos(phi - a) (small-clearance
+    geometry, as in the contact kernel); it reaches |e|(a) - clearance into the wear. Returns the
+    maximum over a. Equals the max depth for pits wider than the counter-body's relative curvature
+    allows, and less for narrower ones. Evaluated on ``oversample`` points per region.
+    """
+    depths = np.asarray(depths, dtype=float)
+    peak = float(depths.max()) if depths.size else 0.0
+    if peak <= 0:
+        return 0.0
+    if not clearance > 0:
+        raise ValueError(f"reachable depth: clearance = {clearance} m: expected > 0")
+    m = depths.size * oversample
+    phi = 2 * np.pi * (np.arange(m) + 0.5) / m
+    h = depth_at(depths, phi)
+    width = math.acos(min(1.0, clearance / (clearance + peak)))  # farther off, cos drops more than h can
+    k = int(width * m / (2 * np.pi)) + 1
+    offsets = np.arange(-k, k + 1)
+    cosd = np.cos(offsets * 2 * np.pi / m)
+    best = 0.0
+    for lo in range(0, m, 512):  # blocks of directions a (bounded memory)
+        a = np.arange(lo, min(m, lo + 512))
+        reach = np.min((clearance + h[(a[:, None] + offsets[None, :]) % m]) / cosd[None, :], axis=1)
+        best = max(best, float(reach.max()) - clearance)
+    return best
 
 
 def surfaces_from_bench(bench: Bench) -> dict[str, JointSurfaces]:
