@@ -68,6 +68,28 @@ def add_plan_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", default="default", help="integrator (see 'wearbench simulate --help')")
 
 
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "wear", help="wear clearance joints in stages (Archard), write surfaces, summary and plots",
+        description="Run the mechanism continuously, recording contacts; after every revolution spread its "
+        "Archard wear (V = K_n F dS) over the contact arc by pressure and apply it for as many cycles as keep "
+        "the depth added per update under --update-depth, until each stage (default 200,000 cycles) is worn. "
+        "Starts from the surfaces the bench file names, else unworn.")
+    allow_negative_quantities(p)
+    p.add_argument("bench", metavar="BENCH.toml")
+    p.add_argument("--clearance", help="radial clearance: '0.6mm' for every joint or 'A=0.6mm,B=0.3mm'")
+    p.add_argument("--speed", help="motor speed, e.g. -5pi (rad/s), 150rpm (default: the bench's)")
+    p.add_argument("--stages", type=int, default=2, help="number of wear stages (default 2)")
+    add_plan_arguments(p)
+    p.add_argument("--convergence", default=None, metavar="K1,K2,...",
+                   help="also wear the same total cycles with the update depth divided by K1, K2, ... and report "
+                   "max depth, reachable depth and worn volume per refinement (e.g. 1,2,4); runs on 2 processes")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=run)
+
+
 def plan_from_args(args: argparse.Namespace, bench: Bench, stages: int):
     from wearbench.model.wear_stages import StagePlan
 

@@ -9,9 +9,9 @@ How the surfaces evolve (after the wear-in-joints studies: Mukras et al., *Wear*
 continuously; every ``update_revolutions`` simulated revolutions (one by default) the wear they
 produced (Archard, spread over the contact arc by the elastic-foundation pressure) is taken as the
 wear rate per cycle and applied for as many cycles as keep the depth added to any surface within
-``update_depth / refinement``; the cap shrinks (x 1/2, down to 1/4) when the sliding-weighted mean
-contact pressure changed by more than ``pressure_change`` since the previous update and grows back
-otherwise. The next revolution continues from the last state on the new surfaces (no settling per
+``update_depth / refinement`` (and at most 1/(``min_updates`` x ``refinement``) of a stage); the cap
+shrinks (x 1/2, down to 1/4) when the sliding-weighted mean contact pressure changed by more than
+``pressure_change`` since the previous update and grows back otherwise. The next revolution continues from the last state on the new surfaces (no settling per
 update: only the first ``settle`` revolutions are not counted). Stages are checkpoints in that one
 run; the cost is the number of simulated revolutions, set by how deep the joints wear, not by the
 number of stages or cycles.
@@ -55,7 +55,9 @@ class StagePlan:
     most ``update_depth / refinement`` (m) added depth, each simulated for ``update_revolutions``
     whole motor revolutions; ``settle`` revolutions before the first update are not counted.
     ``pressure_change``: relative change of the mean contact pressure between updates above which
-    the depth cap halves. ``max_updates``: guard against a run that cannot progress.
+    the depth cap halves. ``min_updates``: at least this many updates per stage (times
+    ``refinement``), so shallow wear is still averaged over several revolutions.
+    ``max_updates``: guard against a run that cannot progress.
     ``sliding``/``footprint``: see :class:`WearLaw`.
     """
 
@@ -66,6 +68,7 @@ class StagePlan:
     update_revolutions: int = 1
     settle: int = 1
     pressure_change: float = 0.25
+    min_updates: int = 8
     max_updates: int = 20_000
     method: str = "default"
     sliding: str = "rotation"
@@ -86,6 +89,8 @@ class StagePlan:
             raise ValueError(f"revolutions per update = {self.update_revolutions}: expected a whole number >= 1")
         if int(self.settle) != self.settle or self.settle < 0:
             raise ValueError(f"settle revolutions = {self.settle}: expected a whole number >= 0")
+        if self.min_updates < 1:
+            raise ValueError(f"min updates = {self.min_updates}: expected at least 1 per stage")
         if not self.pressure_change > 0:
             raise ValueError(f"pressure change = {self.pressure_change}: expected > 0")
         if self.coefficient is not None and not self.coefficient >= 0:
@@ -256,7 +261,11 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
                 gain = max(_MIN_GAIN, gain / 2) if change > plan.pressure_change else min(1.0, gain * 1.5)
             last_p = pressure
             peak_rate = max(max(r.max_depth) for r in rate.values())
-            cycles = left if peak_rate <= 0 else min(left, gain * plan.depth_cap / peak_rate)
+            cycles = min(left, plan.stage_cycles / (plan.min_updates * plan.refinement))
+            if peak_rate > 0:
+                cycles = min(cycles, gain * plan.depth_cap / peak_rate)
+            if left - cycles < 1e-6 * plan.stage_cycles:  # no sliver of a last update
+                cycles = left
             for j in clear:
                 after = current[j] + rate[j].scaled(cycles)
                 after.cycles = current[j].cycles + cycles

@@ -123,3 +123,19 @@ def test_shipped_worn_surfaces_load():
         # wear only accumulates: the second state is at least as deep everywhere
         assert (second.bearing >= first.bearing).all() and (second.journal >= first.journal).all()
         assert first.meta["joint"] == j and first.meta["bench"] == "ninebar-testbed"
+
+
+def test_reachable_depth_of_a_pit_the_counter_body_fits_and_of_a_spike():
+    """A pit cut by the counter-body itself (h = e cos(phi) - c around phi = 0, e = c + D) is reached
+    to its full depth D; a one-region spike of the same depth hardly at all (its walls are far
+    steeper than the relative curvature of a circle in a circle)."""
+    from wearbench.model.surfaces import reachable_depth
+
+    c, depth, n = 0.6e-3, 50e-6, 2000
+    phi = 2 * np.pi * (np.arange(n) + 0.5) / n
+    fitted = np.maximum((c + depth) * np.cos(phi - 1.0) - c, 0.0)
+    assert reachable_depth(fitted, c) == pytest.approx(fitted.max(), rel=2e-3)
+    spike = np.zeros(n)
+    spike[700] = depth
+    assert reachable_depth(spike, c) < 0.01 * depth
+    assert reachable_depth(np.zeros(n), c) == 0.0
