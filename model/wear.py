@@ -2,8 +2,9 @@
 
 Holds the Hertz line-contact half-width, the contact pressure, the sliding distance per step and
 the accumulation of a contact record (one row per accepted integrator step) into wear depths per
-angular region of the bearing and the journal. Imports numpy and pandas and the surfaces contract
-only; it must not import the multibody model (the stage loop in ``wear_stages`` wires them).
+angular region of the bearing and the journal. Imports numpy, pandas, numba, the surfaces contract
+and the depth law of ``contact``; it must not import the multibody model (the stage loop in
+``wear_stages`` wires them).
 
 Where the wear goes (``footprint``): ``"pressure"`` (default) spreads each step's Archard volume
 over the contact arc in proportion to the local overlap of the two worn surfaces, the
