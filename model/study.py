@@ -80,7 +80,8 @@ class StudyConfig:
     @classmethod
     def quick(cls, plan: StagePlan) -> StudyConfig:
         """A cut-down study for tests: one surface update per stage, 1-revolution dynamics runs."""
-        return cls(plan=replace(plan, update_depth=1.0, settle=0), dyn_revolutions=1.0, output_rate=5_000.0)
+        return cls(plan=replace(plan, update_depth=1.0, min_updates=1, settle=0), dyn_revolutions=1.0,
+                   output_rate=5_000.0)
 
 
 def run_case(bench, case: Case, config: StudyConfig) -> CaseResult:
