@@ -1,12 +1,13 @@
-"""Time one wear stage on the nine-bar at 0.6 mm, -5 pi rad/s (issue 4; target <= 60 s).
+"""Cost of one surface update (issue 13; target: deeply worn <= 2x new): one simulated revolution
+on the current surfaces, continued from the last state, plus spreading its wear over the contact
+arcs, on the nine-bar at 0.6 mm, -5 pi rad/s.
 
-Runs the paper's stage (100 counted cycles x 2000) and cheaper variants (fewer counted cycles after
-a settling revolution, scaled to the same 200,000 cycles), and prints per variant the wall time,
-integrator steps and the stage's max depth per joint with its error against the 100-cycle stage.
+Times ``--steps`` update steps on new surfaces and on deeply worn ones (by default the state after
+400,000 cycles, worn first by this script at refinement 1 and reported; or ``--worn DIR`` holding
+``A.npz`` and ``B.npz``), after one settling revolution each, and prints per state CPU time,
+integrator steps, rejected steps, right-hand-side evaluations and the ratio worn / new.
 
-    .venv/bin/python benchmarks/wear_stage.py [--variants 100,20+1,10+1,5+1]
-
-A variant "N+S" counts N cycles after S settling revolutions.
+    .venv/bin/python benchmarks/wear_stage.py [--worn DIR] [--steps 3]
 """
 
 from __future__ import annotations
@@ -14,41 +15,69 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from pathlib import Path
 
-import numpy as np
 from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.model import build_scene, simulate
+from wearbench.model.surfaces import JointSurfaces
+from wearbench.model.wear import WearLaw, accumulate_wear
 from wearbench.model.wear_stages import StagePlan, run_stages
+
+SPEED = -5 * math.pi
+
+
+def _update_cost(bench, clear, surfaces, steps: int) -> dict:
+    """CPU seconds and integrator counts per update step (mean of ``steps``)."""
+    geometry = bench.with_clearances(clear)
+    laws = {j: WearLaw.from_bench(geometry, j) for j in clear}
+    scene = build_scene(bench, clearances=clear, surfaces=surfaces)
+    state = simulate(scene, revolutions=1, speed=SPEED, output_rate=500.0).final  # settle
+    totals = {"cpu_s": 0.0, "steps": 0, "rejected": 0, "nfev": 0}
+    for _ in range(steps):
+        q, v = state
+        turns = [round((q[3 * i + 2] - scene.q0[3 * i + 2]) / (2 * math.pi)) for i in range(len(q) // 3)]
+        q = q.copy()
+        for i, t in enumerate(turns):
+            q[3 * i + 2] -= 2 * math.pi * t
+        cpu0 = time.process_time()
+        res = simulate(scene, revolutions=1, speed=SPEED, output_rate=500.0, record_contacts=True, initial=(q, v))
+        for j in clear:
+            accumulate_wear(res.contacts[j], laws[j], 1000, surfaces=surfaces.get(j))
+        totals["cpu_s"] += time.process_time() - cpu0
+        totals["steps"] += res.summary["steps"]
+        totals["rejected"] += res.summary["rejected_steps"]
+        totals["nfev"] += res.summary["function_evaluations"]
+        state = res.final
+    return {k: v / steps for k, v in totals.items()}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variants", default="100,20+1,10+1,5+1")
-    ap.add_argument("--method", default="default")
+    ap.add_argument("--worn", default=None, help="directory with A.npz and B.npz (default: wear 400,000 cycles)")
+    ap.add_argument("--steps", type=int, default=3)
     args = ap.parse_args()
     bench = load_bench(shipped_bench("ninebar"))
     clear = {j.name: 0.6e-3 for j in bench.clearance_joints}
-    rows = []
-    for v in args.variants.split(","):
-        n, _, s = v.partition("+")
-        plan = StagePlan.from_bench(bench, stages=1, sim_cycles=float(n), settle=float(s or 0), method=args.method)
-        t0 = time.perf_counter()
-        run = run_stages(bench, plan, clearances=clear, speed=-5 * math.pi)
-        wall = time.perf_counter() - t0
-        st = run.stages[0]
-        rows.append((v, wall, st.sim_summary.get("steps"), {j: s.bearing for j, s in st.surfaces.items()}))
-    ref = rows[0][3]
-    print(f"nine-bar, 0.6 mm, -5 pi rad/s, one stage = {plan.stage_cycles:.0f} cycles, method {args.method}")
-    print(f"{'variant':>8} {'wall s':>8} {'steps':>9} " + " ".join(
-        f"{'max ' + j + ' um':>10} {'err ' + j:>7} {'rms ' + j:>7}" for j in ref))
-    for v, wall, steps, depth in rows:
-        cells = []
-        for j, d in depth.items():
-            r = ref[j]
-            cells.append(f"{d.max() * 1e6:10.3f} {abs(d.max() / r.max() - 1):7.1%} "
-                         f"{np.sqrt(np.mean((d - r) ** 2)) / r.max():7.1%}")
-        print(f"{v:>8} {wall:8.1f} {steps!s:>9} " + " ".join(cells))
-    print("target: one stage of 100 cycles <= 60 s; err = |max depth / reference - 1|, "
-          "rms = RMS depth difference / reference max (reference: first row)")
+    if args.worn:
+        worn = {j: JointSurfaces.load(Path(args.worn) / f"{j}.npz") for j in clear}
+    else:
+        cpu0, wall0 = time.process_time(), time.perf_counter()
+        run = run_stages(bench, StagePlan.from_bench(bench, stages=2), clearances=clear, speed=SPEED)
+        worn = run.final
+        print(f"worn 400,000 cycles first: {run.revolutions:g} revolutions, "
+              f"{sum(s.updates for s in run.stages)} updates, CPU {time.process_time() - cpu0:.0f} s, "
+              f"wall {time.perf_counter() - wall0:.0f} s")
+    depth = " ".join(f"{j} {s.max_depth[0] * 1e6:.0f}/{s.max_depth[1] * 1e6:.0f}" for j, s in worn.items())
+    rows = [("new", _update_cost(bench, clear, {}, args.steps)),
+            (f"worn ({depth} um)", _update_cost(bench, clear, worn, args.steps))]
+    print(f"nine-bar, 0.6 mm, -5 pi rad/s: one update step = 1 revolution + wear spreading "
+          f"(mean of {args.steps}; CPU time of this process, the machine is shared)")
+    print(f"{'surfaces':<28} {'CPU s':>7} {'steps':>7} {'rejected':>9} {'RHS evals':>10} {'x new':>6}")
+    base = rows[0][1]["cpu_s"]
+    for label, r in rows:
+        print(f"{label:<28} {r['cpu_s']:7.2f} {r['steps']:7.0f} {r['rejected']:9.0f} {r['nfev']:10.0f} "
+              f"{r['cpu_s'] / base:6.1f}")
+    print("target: worn / new <= 2 (bearing/journal max depths in um)")
 
 
 if __name__ == "__main__":

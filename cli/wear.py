@@ -10,8 +10,6 @@ import sys
 from wearbench.hardware.bench import Bench, load_bench
 from wearbench.hardware.units import QuantityError, parse_quantity
 
-DEFAULT_SIM_CYCLES = 100.0  # see model/wear_stages.py and the benchmark: the paper's 100 cycles
-
 
 def parse_clearances(text: str | None, bench: Bench) -> dict[str, float] | None:
     """``"0.6mm"`` (every clearance joint) or ``"A=0.6mm,B=0.3mm"`` -> {joint: m}; None keeps the bench's."""
@@ -50,18 +48,19 @@ def allow_negative_quantities(p: argparse.ArgumentParser) -> None:
 
 
 def add_plan_arguments(p: argparse.ArgumentParser) -> None:
-    """Options shared by `wear` and `study` that shape a wear stage."""
+    """Options shared by `wear` and `study` that shape how the surfaces wear."""
     p.add_argument("--stage-cycles", type=float, default=None,
                    help="crank cycles per stage (default: bench cycles_per_stage x stage_scale = 200000)")
-    p.add_argument("--sim-cycles", type=float, default=None,
-                   help=f"counted simulated cycles per stage, scaled up to the stage (default {DEFAULT_SIM_CYCLES:g}, "
-                   "the paper's 100)")
-    p.add_argument("--settle", type=float, default=0.0,
-                   help="revolutions simulated before counting wear (start transient), default 0")
+    p.add_argument("--update-depth", default=None,
+                   help="most depth one surface update adds to any surface, e.g. 4um (default 4 um; "
+                   "updates also shrink when the contact pressure changes)")
+    p.add_argument("--settle", type=int, default=None,
+                   help="revolutions simulated before the first update, not counted (default 1)")
     p.add_argument("--sliding", choices=("rotation", "tangential"), default="rotation",
                    help="sliding distance per step: R1 x relative rotation (paper, default) or |v_t| dt")
-    p.add_argument("--footprint", choices=("hertz", "region"), default="hertz",
-                   help="spread depth over the Hertz contact width (default, volume-exact) or one region (paper)")
+    p.add_argument("--footprint", choices=("pressure", "hertz", "region"), default="pressure",
+                   help="spread wear over the contact arc by elastic-foundation pressure (default), evenly over "
+                   "the Hertz width, or into one region (paper)")
     p.add_argument("--split", type=float, default=None,
                    help="share of each depth increment on the bearing (default: bench [wear] split)")
     p.add_argument("--wear-coefficient", default=None,
@@ -72,9 +71,10 @@ def add_plan_arguments(p: argparse.ArgumentParser) -> None:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "wear", help="wear clearance joints in stages (Archard), write surfaces, summary and plots",
-        description="Simulate crank cycles recording contacts, accumulate Archard wear (h = K_n P dS) in "
-        "1000 regions of each bearing and journal, scale to a stage (default 100 cycles x 2000), rebuild "
-        "the surfaces and repeat. Starts from the surfaces the bench file names, else unworn.")
+        description="Run the mechanism continuously, recording contacts; after every revolution spread its "
+        "Archard wear (V = K_n F dS) over the contact arc by pressure and apply it for as many cycles as keep "
+        "the depth added per update under --update-depth, until each stage (default 200,000 cycles) is worn. "
+        "Starts from the surfaces the bench file names, else unworn.")
     allow_negative_quantities(p)
     p.add_argument("bench", metavar="BENCH.toml")
     p.add_argument("--clearance", help="radial clearance: '0.6mm' for every joint or 'A=0.6mm,B=0.3mm'")
@@ -82,8 +82,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--stages", type=int, default=2, help="number of wear stages (default 2)")
     add_plan_arguments(p)
     p.add_argument("--convergence", default=None, metavar="K1,K2,...",
-                   help="also wear the same total cycles in K1, K2, ... stages and report how the result "
-                   "converges (e.g. 1,2,5,10); runs on 2 processes")
+                   help="also wear the same total cycles with the update depth divided by K1, K2, ... and report "
+                   "max depth, reachable depth and worn volume per refinement (e.g. 1,2,4); runs on 2 processes")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -94,9 +94,18 @@ def plan_from_args(args: argparse.Namespace, bench: Bench, stages: int):
     from wearbench.model.wear_stages import StagePlan
 
     return StagePlan.from_bench(bench, stages=stages, stage_cycles=args.stage_cycles,
-                                sim_cycles=args.sim_cycles or DEFAULT_SIM_CYCLES, settle=args.settle,
+                                update_depth=_length("--update-depth", args.update_depth), settle=args.settle,
                                 method=args.method, sliding=args.sliding, footprint=args.footprint,
                                 split=args.split, coefficient=_coefficient(args.wear_coefficient))
+
+
+def _length(option: str, text: str | None) -> float | None:
+    if text is None:
+        return None
+    try:
+        return parse_quantity(text, "length")
+    except QuantityError as exc:
+        raise ValueError(f"{option} {text!r}: {exc}") from None
 
 
 def _coefficient(text: str | None) -> float | None:
@@ -111,7 +120,7 @@ def _coefficient(text: str | None) -> float | None:
 def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import progress
     from wearbench.model.surfaces import surfaces_from_bench
-    from wearbench.model.wear_report import run_summary, write_run
+    from wearbench.model.wear_report import convergence_markdown, run_summary, write_run
     from wearbench.model.wear_stages import run_stages
 
     bench = load_bench(args.bench)
@@ -120,24 +129,29 @@ def run(args: argparse.Namespace) -> int:
     plan = plan_from_args(args, bench, args.stages)
     initial = surfaces_from_bench(bench) or None
     with progress() as bar:
-        task = bar.add_task(f"wear {bench.name}", total=plan.stages, info="")
+        task = bar.add_task(f"wear {bench.name}", total=plan.stages * plan.stage_cycles, info="")
 
-        def done(stage):
-            peak = {j: f"{s.max_depth[0] * 1e6:.3g}um" for j, s in stage.surfaces.items()}
-            bar.update(task, advance=1, info=f"{stage.label}: {peak} ({stage.wall_time:.0f} s)")
+        def update(cycles, surfaces):
+            peak = " ".join(f"{j} {max(s.max_depth) * 1e6:.3g}um" for j, s in surfaces.items())
+            bar.update(task, completed=cycles, info=f"{cycles:,.0f} cycles, max depth {peak}")
 
-        wear_run = run_stages(bench, plan, clearances=clearances, speed=speed, initial=initial, on_stage=done)
+        wear_run = run_stages(bench, plan, clearances=clearances, speed=speed, initial=initial, on_update=update)
     paths = write_run(wear_run, args.out, plots=not args.no_plots)
     summary = run_summary(wear_run)
     if args.convergence:
         from wearbench.model.study import staging_convergence
 
-        ks = sorted({int(k) for k in args.convergence.split(",")})
+        try:
+            ks = sorted({float(k) for k in args.convergence.split(",")})
+        except ValueError:
+            raise ValueError(f"--convergence {args.convergence!r}: expected refinement factors such as 1,2,4") from None
         total = plan.stage_cycles * plan.stages
-        summary["convergence"] = staging_convergence(bench, ks, total, plan, clearances=clearances, speed=speed,
-                                                     initial=initial, out=args.out,
-                                                     known={plan.stages: wear_run})
+        rows = staging_convergence(bench, ks, total, plan, clearances=clearances, speed=speed, initial=initial,
+                                   out=args.out, known={plan.refinement: wear_run})
+        summary["convergence"] = rows
         paths["summary"].write_text(json.dumps(summary, indent=2, default=float) + "\n")
+        if not args.json:
+            print(convergence_markdown(rows))
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=float)
         print()
@@ -146,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
             for j, js in st["joints"].items():
                 b, jr = js["bearing"], js["journal"]
                 print(f"{st['label']:>12}  {j}: bearing max {b['max_depth_m']:.3e} m at {b['max_at_deg']:.0f} deg "
-                      f"zones {b['zones_deg']}; journal max {jr['max_depth_m']:.3e} m")
+                      f"(reachable {b['reachable_depth_m']:.3e} m) zones {b['zones_deg']}; journal max "
+                      f"{jr['max_depth_m']:.3e} m (reachable {jr['reachable_depth_m']:.3e} m)")
         print(f"wrote {args.out}/ (surfaces/*.npz, depths.csv, summary.json{', figures' if not args.no_plots else ''})")
     return 0

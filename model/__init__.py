@@ -4,6 +4,10 @@ Public API (the shared contract): :func:`build_scene`, :func:`simulate`, :class:
 :class:`SimulationResult`, :class:`SimulationError`. Plots live in ``wearbench.model.plots``.
 """
 
+from wearbench.model.jit_cache import configure_numba_cache
+
+configure_numba_cache()  # before any kernel is compiled: the cache is keyed on the model's source
+
 from wearbench.model.integrators import METHODS, Method
 from wearbench.model.scene import Scene, Spring, Torque, build_scene
 from wearbench.model.simulate import SimulationError, SimulationResult, simulate

@@ -2,7 +2,7 @@
 
 Holds the contact stiffness (eq. 10 and the conformal form), the normal force laws
 (Lankarani-Nikravesh eq. 7-11, Flores et al. 2011, Hertz), the modified Coulomb friction
-(eq. 12-13) and the worn-surface depth interpolation. Equation numbers are the paper's
+(eq. 12-13) and the worn-surface depth interpolation (periodic PCHIP, C1). Equation numbers are the paper's
 ("Dynamic characteristics and test research of multibody system considering uneven wear
 clearances"). Every function is numba-compiled (``@njit``) so the integrator kernel calls the same
 code the tests call from Python. Imports numpy, numba and math only.
@@ -23,6 +23,7 @@ __all__ = [
     "STIFFNESS_FORMS",
     "contact_stiffness",
     "depth_at",
+    "depth_eval",
     "depth_slope",
     "friction_factor",
     "friction_force",
@@ -114,25 +115,59 @@ def friction_force(fn: float, vt: float, cf: float, v0: float, vm: float) -> flo
     return -cf * friction_factor(vt, v0, vm) * fn * (1.0 if vt > 0.0 else -1.0)
 
 
+@njit(cache=True, inline="always")
+def _pchip_node_slope(d0: float, d1: float) -> float:
+    """PCHIP slope (per region) at a node from its left and right differences (Fritsch-Butland
+    harmonic mean for equal spacing; zero at a local extremum, so no overshoot)."""
+    if d0 * d1 <= 0.0:
+        return 0.0
+    return 2.0 * d0 * d1 / (d0 + d1)
+
+
+@njit(cache=True)
+def depth_eval(depths: np.ndarray, n: int, phi: float) -> tuple[float, float, float]:
+    """Wear depth (m) at body-frame angle ``phi`` (rad) and its first and second derivatives
+    (m/rad, m/rad^2): periodic PCHIP through the centres of ``n`` equal regions (region i covers
+    [2 pi i/n, 2 pi (i+1)/n), its centre holds ``depths[i]``).
+
+    PCHIP (piecewise cubic Hermite with Fritsch-Carlson/Butland slopes; Fritsch & Carlson, SIAM J.
+    Numer. Anal. 17, 1980) is C1, so the depth, the contact normal and the penetration are
+    continuous; it is local (four values per interval, no coefficients to precompute) and
+    shape-preserving (no negative depths, no new extrema at the edge of a pit, which a C2 spline
+    would add). The second derivative is piecewise linear (used by the contact search only).
+    """
+    x = phi * (n / (2.0 * math.pi)) - 0.5
+    x = x - n * math.floor(x / n)  # in [0, n]
+    i = int(x)
+    f = x - i
+    i0 = i if i < n else i - n  # cheap periodic neighbours (no signed modulo: the hot path)
+    im = i0 - 1 if i0 > 0 else n - 1
+    i1 = i0 + 1 if i0 + 1 < n else 0
+    i2 = i1 + 1 if i1 + 1 < n else 0
+    y0 = depths[i0]
+    y1 = depths[i1]
+    ym = depths[im]
+    y2 = depths[i2]
+    d = y1 - y0
+    m0 = _pchip_node_slope(y0 - ym, d)
+    m1 = _pchip_node_slope(d, y2 - y1)
+    f2 = f * f
+    f3 = f2 * f
+    h = (2.0 * f3 - 3.0 * f2 + 1.0) * y0 + (f3 - 2.0 * f2 + f) * m0 + (-2.0 * f3 + 3.0 * f2) * y1 \
+        + (f3 - f2) * m1
+    dh = (6.0 * f2 - 6.0 * f) * (y0 - y1) + (3.0 * f2 - 4.0 * f + 1.0) * m0 + (3.0 * f2 - 2.0 * f) * m1
+    d2h = (12.0 * f - 6.0) * (y0 - y1) + (6.0 * f - 4.0) * m0 + (6.0 * f - 2.0) * m1
+    scale = n / (2.0 * math.pi)
+    return h, dh * scale, d2h * scale * scale
+
+
 @njit(cache=True)
 def depth_at(depths: np.ndarray, n: int, phi: float) -> float:
-    """Wear depth (m) at body-frame angle ``phi`` (rad): periodic linear interpolation between the
-    centres of ``n`` equal regions (region i covers [2 pi i/n, 2 pi (i+1)/n))."""
-    x = (phi / (2.0 * math.pi)) * n - 0.5
-    x = x - n * math.floor(x / n)
-    i = math.floor(x)
-    f = x - i
-    i0 = i % n
-    i1 = (i + 1) % n
-    return depths[i0] * (1.0 - f) + depths[i1] * f
+    """Wear depth (m) at body-frame angle ``phi`` (rad), periodic PCHIP (see :func:`depth_eval`)."""
+    return depth_eval(depths, n, phi)[0]
 
 
 @njit(cache=True)
 def depth_slope(depths: np.ndarray, n: int, phi: float) -> float:
-    """d(depth)/d(phi) (m/rad) of :func:`depth_at` (the slope of the segment holding ``phi``)."""
-    x = (phi / (2.0 * math.pi)) * n - 0.5
-    x = x - n * math.floor(x / n)
-    i = math.floor(x)
-    i0 = i % n
-    i1 = (i + 1) % n
-    return (depths[i1] - depths[i0]) * n / (2.0 * math.pi)
+    """d(depth)/d(phi) (m/rad) of :func:`depth_at`, continuous in ``phi``."""
+    return depth_eval(depths, n, phi)[1]

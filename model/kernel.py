@@ -38,8 +38,7 @@ import math
 import numpy as np
 from numba import njit
 from wearbench.model.contact import (
-    depth_at,
-    depth_slope,
+    depth_eval,
     friction_force,
     impact_speed,
     normal_force,
@@ -224,12 +223,145 @@ def _vel(q, v, b, px, py):
 
 
 @njit(cache=True)
+def _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi):
+    """Radial overlap f(psi) = |e| cos(psi - alpha) - h_b(psi - th_b) - h_j(psi - th_j) (m) of the
+    journal over the worn bearing in global direction ``psi``, with df/dpsi and d2f/dpsi2 and the
+    two depths and slopes there (see :func:`worn_contact`)."""
+    hb, db, d2b = depth_eval(sb, nb, psi - thi)
+    hj, dj, d2j = depth_eval(sj, nj, psi - thj)
+    c = math.cos(psi - alpha)
+    s = math.sin(psi - alpha)
+    return emag * c - hb - hj, -emag * s - db - dj, -emag * c - d2b - d2j, hb, hj, db, dj
+
+
+@njit(cache=True)
+def _node_min(depths, n, x0, x1):
+    """Smallest node value of ``depths`` over the PCHIP intervals covering [x0, x1] (region units,
+    centres at integers after the -0.5 shift): PCHIP never leaves the range of its two nodes, so
+    this bounds the depth from below on the whole range."""
+    i0 = math.floor(x0)
+    i1 = math.floor(x1) + 1
+    i = i0 % n
+    lo = depths[i]
+    for _ in range(i1 - i0):
+        i = i + 1 if i + 1 < n else 0
+        lo = min(lo, depths[i])
+    return lo
+
+
+@njit(cache=True)
+def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
+    """Contact direction of a worn journal in a worn bearing: where the two surfaces overlap most.
+
+    The journal (radius R2 - h_j, journal frame) reaches, in global direction psi from the bearing
+    centre, |e| cos(psi - alpha) + R2 - h_j; the bearing wall is at R1 + h_b. The penetration is the
+    largest overlap d = max_psi f(psi) - (R1 - R2), f as in :func:`_overlap` (the tangential offset
+    of the journal centre adds (|e| sin)^2 / 2 R2 < 2e-8 m at 0.6 mm / 15 mm and is left out). So a
+    circular (or worn) journal rests on the rims of a pit narrower than its relative curvature
+    allows instead of sinking to its bottom, and by the envelope theorem grad_e d = u(psi*): the
+    normal is the radial direction of the contact point, continuous while the maximum is unique.
+    Search: climb from alpha (or from ``hint``, the last contact direction, if the overlap is larger
+    there; a starting point only, the result does not depend on it) to a local maximum; then branch and bound outward from
+    alpha over blocks of bearing intervals, while |e| cos(psi - alpha) can still beat the best
+    overlap and the clearance: a block, then an interval, is looked at, and sampled, only if
+    its upper bound |e| max cos - min node depths (PCHIP stays within its nodes) beats the best
+    (at its middle);
+    then Newton on f'(psi) = 0 around the best point.
+    Returns (psi*, f(psi*), h_b, h_j, h_b', h_j') at the contact direction.
+    """
+    f0, d1, d2, hb0, hj0, sb0, sj0 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, alpha)
+    if emag <= max(f0, clear):
+        return alpha, f0, hb0, hj0, sb0, sj0
+    cell = 2.0 * math.pi / nb
+    # 1. climb to the local maximum next to alpha (a good first bound prunes most of the scan)
+    best, fbest = alpha, f0
+    dh = (hint - alpha + math.pi) % (2.0 * math.pi) - math.pi
+    if abs(dh) < 0.5 * math.pi:  # the last contact direction is usually next to this one
+        fh, h1, h2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, alpha + dh)[:3]
+        if fh > f0:
+            best, fbest, d1, d2 = alpha + dh, fh, h1, h2
+    walk = 0.5 * cell  # grows while f keeps rising where it is convex
+    for it in range(30):
+        if it >= 6 and fbest < clear:  # out of contact the scan prunes against the clearance anyway
+            break
+        if d2 < 0.0:
+            stp = max(-cell, min(cell, -d1 / d2))
+        else:
+            stp = walk if d1 > 0.0 else -walk
+            walk = min(2.0 * walk, 16.0 * cell)
+        f, e1, e2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, best + stp)[:3]
+        for _ in range(3):
+            if f > fbest:
+                break
+            stp *= 0.25
+            f, e1, e2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, best + stp)[:3]
+        if f <= fbest:
+            break
+        best, fbest, d1, d2 = best + stp, f, e1, e2
+        if abs(stp) < 1e-4 * cell:
+            break
+    # 2. branch and bound over blocks of bearing intervals, outward from alpha
+    rj = nj / (2.0 * math.pi)
+    ia = math.floor((alpha - thi) / cell - 0.5)
+    blk = 8
+    for sign in (-1, 1):
+        first = ia if sign > 0 else ia - blk
+        while True:
+            lo_g = (first + 0.5) * cell + thi  # global angle of the block's first node
+            hi_g = lo_g + blk * cell
+            dmin = 0.0 if lo_g <= alpha <= hi_g else min(abs(lo_g - alpha), abs(hi_g - alpha))
+            if dmin >= 0.5 * math.pi:
+                break
+            reach = emag * math.cos(dmin)
+            floor = max(fbest, clear)
+            if reach <= floor:
+                break
+            if reach - _node_min(sb, nb, first, first + blk) - _node_min(
+                    sj, nj, (lo_g - thj) * rj - 0.5, (hi_g - thj) * rj - 0.5) > floor:
+                for i in range(first, first + blk):
+                    lo_b = (i + 0.5) * cell + thi
+                    hi_b = lo_b + cell
+                    d = 0.0 if lo_b <= alpha <= hi_b else min(abs(lo_b - alpha), abs(hi_b - alpha))
+                    bound = emag * math.cos(d) - min(sb[i % nb], sb[(i + 1) % nb]) - _node_min(
+                        sj, nj, (lo_b - thj) * rj - 0.5, (hi_b - thj) * rj - 0.5)
+                    if bound > max(fbest, clear):
+                        psi = lo_b + 0.5 * cell
+                        f = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[0]
+                        if f > fbest:
+                            best, fbest = psi, f
+            first += sign * blk
+    if fbest < clear - 1e-6:  # no contact by a wide margin: its exact place does not matter
+        f, _, _, hb, hj, db, dj = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, best)
+        return best, f, hb, hj, db, dj
+    lo, hi = best - cell, best + cell
+    psi = best
+    for _ in range(8):  # safeguarded Newton on f' = 0
+        f, d1, d2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[:3]
+        if d1 > 0.0:
+            lo = psi
+        else:
+            hi = psi
+        nxt = psi - d1 / d2 if d2 < 0.0 else 0.5 * (lo + hi)
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - psi) < 1e-13:
+            break
+        psi = nxt
+    f, _, _, hb, hj, db, dj = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)
+    if f < fbest:  # Newton left the best sample's value behind (flat cell): keep the sample
+        psi = best
+        f, _, _, hb, hj, db, dj = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)
+    return psi, f, hb, hj, db, dj
+
+
+@njit(cache=True)
 def clearance_forces(q, v, P, inc, v0i, g, cout):
     """Add the clearance contact forces to g; fill cout (nc, NCO).
 
-    Geometry (paper eq. 1-6, worn surfaces per the JointSurfaces contract): e = journal centre -
-    bearing centre, alpha = direction of e, local clearance c(alpha) = R1 - R2 + h_b(alpha - theta_b)
-    + h_j(alpha - theta_j), penetration d = |e| - c, contact normal along grad(d) with respect to e.
+    Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
+    surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
+    d and the normal at the direction where the surfaces overlap most (:func:`worn_contact`); the
+    flag ``CLR_WORN`` keeps new surfaces on the even-clearance code path (bit-identical results).
     ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while
     the flag is off the current normal speed stands in for the impact speed (contact onset).
     """
@@ -255,19 +387,14 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         nx, ny = ux, uy
         slope_b = 0.0
         slope_j = 0.0
-        if p[CLR_WORN] > 0.0:
-            nb_, nj_ = surf_n[k, 0], surf_n[k, 1]
-            hb = depth_at(surf[k, 0], nb_, alpha - thi)
-            hj = depth_at(surf[k, 1], nj_, alpha - thj)
-            slope_b = depth_slope(surf[k, 0], nb_, alpha - thi)
-            slope_j = depth_slope(surf[k, 1], nj_, alpha - thj)
-            if emag > 0.0 and slope_b + slope_j != 0.0:
-                # grad_e d = u - c'(alpha) t / |e|
-                cp = (slope_b + slope_j) / emag
-                gx, gy = ux + cp * uy, uy - cp * ux
-                gm = math.sqrt(gx * gx + gy * gy)
-                nx, ny = gx / gm, gy / gm
-        pen = emag - clear - hb - hj
+        psi = alpha
+        pen = emag - clear
+        if p[CLR_WORN] > 0.0 and emag > 0.0:
+            psi, overlap, hb, hj, slope_b, slope_j = worn_contact(
+                surf[k, 0], surf_n[k, 0], surf[k, 1], surf_n[k, 1], emag, alpha, thi, thj, clear,
+                cout[k, CO_ALPHA])
+            pen = overlap - clear
+            nx, ny = math.cos(psi), math.sin(psi)
         tx, ty = -ny, nx
         # contact points on each body and their material velocities
         qix, qiy = pix + (p[CLR_R1] + hb) * nx, piy + (p[CLR_R1] + hb) * ny
@@ -278,11 +405,11 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         cix, ciy = _vel(q, v, bi, pix, piy)
         cjx, cjy = _vel(q, v, bj, pjx, pjy)
         dex, dey = cjx - cix, cjy - ciy
-        if emag > 0.0:
-            alpha_dot = (ux * dey - uy * dex) / emag
+        if p[CLR_WORN] > 0.0:
+            # envelope theorem: d pen/dt = e' . n + h_b'(psi*) w_b + h_j'(psi*) w_j at fixed psi*
+            vn = nx * dex + ny * dey + slope_b * wi + slope_j * wj
         else:
-            alpha_dot = 0.0
-        vn = ux * dex + uy * dey - slope_b * (alpha_dot - wi) - slope_j * (alpha_dot - wj)
+            vn = ux * dex + uy * dey
         vt = (vjx - vix) * tx + (vjy - viy) * ty
         fn = 0.0
         ft = 0.0
@@ -303,9 +430,9 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         c[CO_VN] = vn
         c[CO_VT] = vt
         c[CO_OMEGA] = wj - wi
-        c[CO_PHIB] = (alpha - thi) % (2.0 * math.pi)
-        c[CO_PHIJ] = (alpha - thj) % (2.0 * math.pi)
-        c[CO_ALPHA] = alpha
+        c[CO_PHIB] = (psi - thi) % (2.0 * math.pi)
+        c[CO_PHIJ] = (psi - thj) % (2.0 * math.pi)
+        c[CO_ALPHA] = psi
 
 
 @njit(cache=True)

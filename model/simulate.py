@@ -48,6 +48,7 @@ class SimulationResult:
     summary: dict
     contacts: dict[str, pd.DataFrame] | None = None
     scene: Scene | None = field(default=None, repr=False)
+    final: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)  # (q, v) at t_end
 
     def poincare(self, columns: tuple[str, str] = ("slider_pos", "slider_vel"), driver: str | None = None
                  ) -> pd.DataFrame:
@@ -318,7 +319,8 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         contacts = {j: pd.DataFrame(used[:, c, :], columns=list(CONTACT_COLUMNS))
                     for c, j in enumerate(scene.clearance_joints)}
     table = _table(scene, times, out_y, out_a, out_c, out_lam)
-    return SimulationResult(table, _summary(scene, meth.name, stats, table, wall0, speed), contacts, scene)
+    return SimulationResult(table, _summary(scene, meth.name, stats, table, wall0, speed), contacts, scene,
+                            (y[:n].copy(), y[n:].copy()))
 
 
 def _summary(scene: Scene, method: str, stats: np.ndarray, table: pd.DataFrame, wall0: float,

@@ -4,7 +4,7 @@
   and after second wear.
 - Clearance study (5.2): 0.1 / 0.3 / 0.45 mm at -6 pi rad/s, one wear stage; dynamics before and
   after wear; the table shaped like the paper's Table 3 (max contact force per joint).
-- Staging convergence: the same total cycles worn in K = 1, 2, 5, 10 stages.
+- Wear convergence: the same total cycles worn with the surface-update depth cap refined k = 1, 2, 4, ...
 
 Cases run in a process pool (2 workers: this machine has 2 cores). Imports the model contract,
 the wear modules and matplotlib (through ``wear_report``/``study_plots``); no CLI code.
@@ -79,8 +79,8 @@ class StudyConfig:
 
     @classmethod
     def quick(cls, plan: StagePlan) -> StudyConfig:
-        """A cut-down study for tests: 2 counted cycles per stage, 1-revolution dynamics runs."""
-        return cls(plan=replace(plan, sim_cycles=min(plan.sim_cycles, 2.0), settle=0.0), dyn_revolutions=1.0,
+        """A cut-down study for tests: one surface update per stage, 1-revolution dynamics runs."""
+        return cls(plan=replace(plan, update_depth=1.0, min_updates=1, settle=0), dyn_revolutions=1.0,
                    output_rate=5_000.0)
 
 
@@ -112,26 +112,25 @@ def _wear_only(bench, plan: StagePlan, clearances, speed, initial) -> WearRun:
     return run_stages(bench, plan, clearances=clearances, speed=speed, initial=initial)
 
 
-def staging_convergence(bench, ks: list[int], total_cycles: float, plan: StagePlan, *, clearances=None,
+def staging_convergence(bench, ks: list[float], total_cycles: float, plan: StagePlan, *, clearances=None,
                         speed=None, initial=None, out: str | Path | None = None, workers: int = 2,
-                        known: dict[int, WearRun] | None = None) -> list[dict]:
-    """Wear ``total_cycles`` in K stages for each K in ``ks`` (stage = total/K cycles, each stage
-    simulated for ``plan.sim_cycles``); compare final depths against the finest staging.
+                        known: dict[float, WearRun] | None = None) -> list[dict]:
+    """Wear the same ``total_cycles`` (in ``plan.stages`` stages) at each refinement k in ``ks``
+    (depth cap per surface update ``plan.update_depth / k``); compare max depth, reachable depth and
+    worn volume between refinements (:func:`~wearbench.model.wear_stages.convergence`).
 
-    ``known``: runs already made with this plan, by K (not run again).
-    Returns the rows of :func:`~wearbench.model.wear_stages.convergence` plus wall time per K;
-    writes ``out/convergence.csv`` if ``out`` is given.
+    ``known``: runs already made with this plan at refinement k (not run again).
+    Writes ``out/convergence.csv`` if ``out`` is given.
     """
-    runs: dict[int, WearRun] = {k: r for k, r in (known or {}).items() if k in ks}
-    plans = {k: replace(plan, stages=k, stage_cycles=total_cycles / k) for k in ks if k not in runs}
+    stage = total_cycles / plan.stages
+    runs: dict[float, WearRun] = {k: r for k, r in (known or {}).items() if k in ks}
+    plans = {k: replace(plan, stage_cycles=stage, refinement=float(k)) for k in ks if k not in runs}
     with _pool(max(1, min(workers, len(plans)))) as pool:
         futures = {k: pool.submit(_wear_only, bench, p, clearances, speed, initial)
                    for k, p in sorted(plans.items(), reverse=True)}  # longest first: balanced workers
         for k, f in futures.items():
             runs[k] = f.result()
     rows = convergence(runs)
-    for row in rows:
-        row["wall_time_s"] = round(sum(s.wall_time for s in runs[row["stages"]].stages), 2)
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
         pd.DataFrame(rows).to_csv(Path(out) / "convergence.csv", index=False)
@@ -244,7 +243,7 @@ def run_study(bench, out: str | Path, config: StudyConfig, *, on_case=None) -> d
                                    + trends_markdown(tr) + "\n")
     summary = {
         "bench": bench.name, "wall_time_s": round(time.perf_counter() - t0, 1),
-        "plan": {"stage_cycles": config.plan.stage_cycles, "sim_cycles": config.plan.sim_cycles,
+        "plan": {"stage_cycles": config.plan.stage_cycles, "update_depth_m": config.plan.depth_cap,
                  "settle": config.plan.settle, "dyn_revolutions": config.dyn_revolutions},
         "table3": {r: {f"{a} {b}": float(v) for (a, b), v in t3.loc[r].items()} for r in t3.index},
         "peaks": peaks.to_dict(orient="records"), "trends": tr,

@@ -7,7 +7,9 @@ interpolation the contact geometry uses. Imports only numpy (and, lazily, the be
 
 Worn geometry (contract): the bearing radius in direction phi (bearing frame) is
 ``R1 + bearing_depth(phi)``, the journal radius in direction phi (journal frame) is
-``R2 - journal_depth(phi)``, with depths linearly interpolated between region centres, periodically.
+``R2 - journal_depth(phi)``, with depths interpolated between region centres by a periodic PCHIP
+(piecewise cubic Hermite, C1 and shape-preserving: the contact normal and penetration are
+continuous, and no depth goes negative between two non-negative centres).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 if TYPE_CHECKING:
     from wearbench.hardware.bench import Bench
 
-__all__ = ["JointSurfaces", "SurfaceError", "depth_at", "region_of", "surfaces_from_bench"]
+__all__ = ["JointSurfaces", "SurfaceError", "depth_at", "reachable_depth", "region_of", "surfaces_from_bench"]
 
 _FORMAT = "wearbench.surfaces/1"
 
@@ -86,11 +88,11 @@ class JointSurfaces:
         return float(self.bearing.max()), float(self.journal.max())
 
     def bearing_depth(self, phi: float | np.ndarray) -> float | np.ndarray:
-        """Bearing depth (m) in direction ``phi`` (rad, bearing frame), periodic linear interpolation."""
+        """Bearing depth (m) in direction ``phi`` (rad, bearing frame), periodic PCHIP (C1)."""
         return depth_at(self.bearing, phi)
 
     def journal_depth(self, phi: float | np.ndarray) -> float | np.ndarray:
-        """Journal depth (m) in direction ``phi`` (rad, journal frame), periodic linear interpolation."""
+        """Journal depth (m) in direction ``phi`` (rad, journal frame), periodic PCHIP (C1)."""
         return depth_at(self.journal, phi)
 
     def scaled(self, factor: float, *, label: str | None = None) -> JointSurfaces:
@@ -147,17 +149,62 @@ def region_of(phi: float | np.ndarray, n: int) -> int | np.ndarray:
     return int(idx) if np.ndim(idx) == 0 else idx
 
 
-def depth_at(depths: np.ndarray, phi: float | np.ndarray) -> float | np.ndarray:
-    """Depth (m) at angle ``phi`` (rad): periodic linear interpolation between region centres.
+def _pchip_slopes(depths: np.ndarray) -> np.ndarray:
+    """Periodic PCHIP node slopes (m per region): harmonic mean of the neighbouring differences,
+    zero at a local extremum (Fritsch-Butland; the same rule as ``contact.depth_eval``)."""
+    d_right = np.roll(depths, -1) - depths
+    d_left = depths - np.roll(depths, 1)
+    prod = d_left * d_right
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m = np.where(prod > 0, 2.0 * prod / np.where(prod > 0, d_left + d_right, 1.0), 0.0)
+    return m
 
-    Region ``i`` of ``n`` has its centre at ``2 pi (i + 0.5)/n``.
-    """
+
+def depth_at(depths: np.ndarray, phi: float | np.ndarray) -> float | np.ndarray:
+    """Depth (m) at angle ``phi`` (rad): periodic PCHIP (C1, shape-preserving) through the region
+    centres, region ``i`` of ``n`` centred at ``2 pi (i + 0.5)/n``; the same curve the contact
+    kernel evaluates (``wearbench.model.contact.depth_eval``)."""
     n = depths.size
     x = np.mod(phi, 2 * np.pi) * (n / (2 * np.pi)) - 0.5
     i0 = np.floor(x).astype(int)
-    w = x - i0
-    out = (1 - w) * depths[i0 % n] + w * depths[(i0 + 1) % n]
+    f = x - i0
+    m = _pchip_slopes(depths)
+    y0, y1 = depths[i0 % n], depths[(i0 + 1) % n]
+    m0, m1 = m[i0 % n], m[(i0 + 1) % n]
+    f2, f3 = f * f, f * f * f
+    out = (2 * f3 - 3 * f2 + 1) * y0 + (f3 - 2 * f2 + f) * m0 + (-2 * f3 + 3 * f2) * y1 + (f3 - f2) * m1
     return float(out) if np.ndim(out) == 0 else out
+
+
+def reachable_depth(depths: np.ndarray, clearance: float, oversample: int = 4) -> float:
+    """Deepest point (m) of a worn surface that a circular counter-body can reach.
+
+    A circular counter-body with radial clearance ``clearance`` (m) (R1 - R2 of the joint), pushed
+    from the centre in direction a, first touches the worn surface (radius + depth h(phi), PCHIP
+    profile) at the eccentricity |e|(a) = min_phi (clearance + h(phi)) / cos(phi - a) (small-clearance
+    geometry, as in the contact kernel); it reaches |e|(a) - clearance into the wear. Returns the
+    maximum over a. Equals the max depth for pits wider than the counter-body's relative curvature
+    allows, and less for narrower ones. Evaluated on ``oversample`` points per region.
+    """
+    depths = np.asarray(depths, dtype=float)
+    peak = float(depths.max()) if depths.size else 0.0
+    if peak <= 0:
+        return 0.0
+    if not clearance > 0:
+        raise ValueError(f"reachable depth: clearance = {clearance} m: expected > 0")
+    m = depths.size * oversample
+    phi = 2 * np.pi * (np.arange(m) + 0.5) / m
+    h = depth_at(depths, phi)
+    width = math.acos(min(1.0, clearance / (clearance + peak)))  # farther off, cos drops more than h can
+    k = int(width * m / (2 * np.pi)) + 1
+    offsets = np.arange(-k, k + 1)
+    cosd = np.cos(offsets * 2 * np.pi / m)
+    best = 0.0
+    for lo in range(0, m, 512):  # blocks of directions a (bounded memory)
+        a = np.arange(lo, min(m, lo + 512))
+        reach = np.min((clearance + h[(a[:, None] + offsets[None, :]) % m]) / cosd[None, :], axis=1)
+        best = max(best, float(reach.max()) - clearance)
+    return best
 
 
 def surfaces_from_bench(bench: Bench) -> dict[str, JointSurfaces]:

@@ -2,8 +2,18 @@
 
 Holds the Hertz line-contact half-width, the contact pressure, the sliding distance per step and
 the accumulation of a contact record (one row per accepted integrator step) into wear depths per
-angular region of the bearing and the journal. Imports numpy and pandas and the surfaces contract
-only; it must not import the multibody model (the stage loop in ``wear_stages`` wires them).
+angular region of the bearing and the journal. Imports numpy, pandas, numba, the surfaces contract
+and the depth law of ``contact``; it must not import the multibody model (the stage loop in
+``wear_stages`` wires them).
+
+Where the wear goes (``footprint``): ``"pressure"`` (default) spreads each step's Archard volume
+over the contact arc in proportion to the local overlap of the two worn surfaces, the
+elastic-foundation (Winkler) pressure p = k_f x overlap that Mukras et al. use to distribute the
+load of a worn revolute joint (Mukras, Kim, Sawyer, Jackson, Bergquist, *Wear* 266 (2009) 822-831;
+*J. Tribol.* 132 (2010) 021603; after Podra & Andersson, *Wear* 224 (1999) 13-21). A journal
+bridging a pit loads both rims, so the rims wear and the pit widens instead of deepening to a
+spike. ``"hertz"`` spreads it evenly over the Hertz width, ``"region"`` puts it in one region (the
+paper's procedure).
 
 Units: SI throughout (m, N, Pa, s, rad). Equation numbers (eq. 15-21) are the paper's.
 """
@@ -15,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from numba import njit
+from wearbench.model.contact import depth_eval
 from wearbench.model.surfaces import JointSurfaces
 
 __all__ = [
@@ -31,7 +43,7 @@ __all__ = [
 ]
 
 SLIDING = ("rotation", "tangential")
-FOOTPRINTS = ("hertz", "region")
+FOOTPRINTS = ("pressure", "hertz", "region")
 
 
 def effective_modulus(e1: float, nu1: float, e2: float, nu2: float) -> float:
@@ -100,9 +112,12 @@ class WearLaw:
     modulus: E* (Pa, see :func:`effective_modulus`); split: share of each depth increment on the
     bearing (0.5: equal depths on both surfaces as in the paper; their sum is K_n P dS, so the worn
     volume of the pair is the Archard volume K_n F S); sliding: see :func:`sliding_distance`;
-    footprint: ``"hertz"`` spreads the depth evenly over the Hertz contact width 2b on each surface
-    (volume-exact), ``"region"`` puts it all in the single region in contact (the paper's
-    procedure; its worn volume is K_n F S times region width / 2b).
+    footprint: ``"pressure"`` spreads the Archard volume K_n F dS over the arc where the two worn
+    surfaces overlap, in proportion to the overlap (elastic foundation, see the module docstring;
+    volume-exact; needs the surfaces the record was simulated on), ``"hertz"`` spreads the depth
+    evenly over the Hertz contact width 2b on each surface (volume-exact), ``"region"`` puts it all
+    in the single region in contact (the paper's procedure; its worn volume is K_n F S times region
+    width / 2b).
     The Hertz width uses the unworn radii (wear depths are microns against a clearance of tenths of
     a millimetre).
     """
@@ -114,7 +129,7 @@ class WearLaw:
     modulus: float
     split: float = 0.5
     sliding: str = "rotation"
-    footprint: str = "hertz"
+    footprint: str = "pressure"
 
     def __post_init__(self) -> None:
         if not self.coefficient >= 0:
@@ -205,14 +220,80 @@ def _swept_deposit(n: int, start: np.ndarray, sweep: np.ndarray, half: np.ndarra
     return _deposit(n, np.mod(centre, n), half[rows], depth[rows] / m[rows])
 
 
+@njit(cache=True)
+def _bin(out, n, phi, depth):
+    """Add ``depth`` (m) at angle ``phi`` to the two nearest region centres (linear weights): the
+    sum over regions, hence the volume, is exact."""
+    x = (phi / (2.0 * np.pi)) * n - 0.5
+    x = x - n * np.floor(x / n)
+    i = int(np.floor(x))
+    f = x - i
+    out[i % n] += depth * (1.0 - f)
+    out[(i + 1) % n] += depth * f
+
+
+@njit(cache=True)
+def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, length, out_b, out_j):
+    """Spread the worn volumes ``vol_b``, ``vol_j`` (m^3 per row) over each row's overlap arc.
+
+    Each row is an accepted step with penetration ``pen`` (m) at the contact direction, ``phib``,
+    ``phij`` in each body's frame. The contact kernel puts it where the overlap
+    f(psi) = |e| cos(psi - alpha) - h_b - h_j is largest, so f'(psi*) = 0 and f(psi*) = pen + clear:
+    |e| cos(gamma) = pen + clear + h_b + h_j and |e| sin(gamma) = -(h_b' + h_j') give the eccentricity
+    and gamma = psi* - alpha. The overlap o(d) = f(psi* + d) - clear > 0 around psi* is the
+    elastic-foundation pressure shape; it is sampled every quarter region and binned on both surfaces.
+    """
+    nb, nj = sb.size, sj.size
+    step = 0.5 * np.pi / max(nb, nj)
+    smax = int(0.5 * np.pi / step)
+    wts = np.zeros(2 * smax + 1)
+    for r in range(pen.size):
+        hb, db, _ = depth_eval(sb, nb, phib[r])
+        hj, dj, _ = depth_eval(sj, nj, phij[r])
+        a = pen[r] + clear + hb + hj
+        b = -(db + dj)
+        emag = np.sqrt(a * a + b * b)
+        gamma = np.arctan2(b, a)
+        wts[smax] = max(pen[r], 0.0)
+        lo = smax
+        hi = smax
+        for sign in (-1, 1):
+            for s in range(1, smax + 1):
+                d = sign * s * step
+                o = (emag * np.cos(gamma + d) - depth_eval(sb, nb, phib[r] + d)[0]
+                     - depth_eval(sj, nj, phij[r] + d)[0] - clear)
+                if o <= 0.0:
+                    break
+                wts[smax + sign * s] = o
+                if sign < 0:
+                    lo = smax - s
+                else:
+                    hi = smax + s
+        total = 0.0
+        for s in range(lo, hi + 1):
+            total += wts[s]
+        if total <= 0.0:  # grazing contact: all of it at the contact direction
+            wts[smax] = 1.0
+            total = 1.0
+        db_ = vol_b[r] / (length * r1 * 2.0 * np.pi / nb) / total
+        dj_ = vol_j[r] / (length * r2 * 2.0 * np.pi / nj) / total
+        for s in range(lo, hi + 1):
+            d = (s - smax) * step
+            _bin(out_b, nb, phib[r] + d, db_ * wts[s])
+            _bin(out_j, nj, phij[r] + d, dj_ * wts[s])
+            wts[s] = 0.0
+
+
 def accumulate_wear(record: pd.DataFrame, law: WearLaw, regions: int = 1000, *,
-                    cycles: float = 0.0, label: str = "") -> JointSurfaces:
+                    cycles: float = 0.0, label: str = "", surfaces: JointSurfaces | None = None) -> JointSurfaces:
     """Wear depths (m) per region from one joint's contact record (paper eq. 18-21).
 
     ``record``: one row per accepted step, in time order, with columns ``dt`` (s), ``fn`` (N),
     ``omega_rel`` (rad/s, journal minus bearing), ``vt`` (m/s), ``phi_bearing``, ``phi_journal``
     (rad, contact direction in each body's frame at the end of the step). Rows with fn <= 0 wear
-    nothing. With the ``"hertz"`` footprint a step's wear is spread along the arc the contact
+    nothing. With the ``"pressure"`` footprint (the record needs a ``pen`` column) each step's Archard
+    volume goes over the arc where the surfaces the record was simulated on (``surfaces``, default
+    unworn with ``regions`` regions) overlap (see :func:`_overlap_deposit`). With ``"hertz"`` a step's wear is spread along the arc the contact
     direction swept since the previous row (see :func:`_swept_deposit`); ``"region"`` puts it in
     the region at the step's end, as the paper does. Returns the surfaces worn by that record alone
     (add them to the previous state), with ``cycles`` and ``label`` as given.
@@ -230,6 +311,19 @@ def accumulate_wear(record: pd.DataFrame, law: WearLaw, regions: int = 1000, *,
         raise ValueError(f"contact record row at t = {rec['t'].iloc[i] if 't' in rec else i}: "
                          f"non-finite fn = {fn[i]} or dt")
     h = law.depth_increments(fn, rec["dt"].to_numpy(float), rec["omega_rel"].to_numpy(float), vt)
+    if law.footprint == "pressure":
+        if "pen" not in rec:
+            raise ValueError("contact record lacks column 'pen' (needed by the pressure footprint)")
+        base = surfaces if surfaces is not None else JointSurfaces.unworn(regions)
+        ds = sliding_distance(rec["dt"].to_numpy(float), rec["omega_rel"].to_numpy(float), vt,
+                              law.bearing_radius, law.sliding)
+        vol = law.coefficient * fn * ds  # eq. 15 per step: V = K_n F dS (m^3)
+        out_b, out_j = np.zeros(base.bearing.size), np.zeros(base.journal.size)
+        _overlap_deposit(base.bearing, base.journal, law.bearing_radius - law.journal_radius,
+                         rec["pen"].to_numpy(float), rec["phi_bearing"].to_numpy(float),
+                         rec["phi_journal"].to_numpy(float), law.split * vol, (1 - law.split) * vol,
+                         law.bearing_radius, law.journal_radius, law.axial_length, out_b, out_j)
+        return JointSurfaces(np.maximum(out_b, 0.0), np.maximum(out_j, 0.0), cycles, label)
     scale = regions / (2 * np.pi)
     sides = []
     for col, share, radius in (("phi_bearing", law.split, law.bearing_radius),

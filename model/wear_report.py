@@ -18,7 +18,7 @@ import pandas as pd
 from wearbench.model.surfaces import JointSurfaces
 from wearbench.model.wear_stages import WearRun, joint_summary
 
-__all__ = ["load_states", "plot_depths", "plot_polar", "run_summary", "write_run"]
+__all__ = ["convergence_markdown", "load_states", "plot_depths", "plot_polar", "run_summary", "write_run"]
 
 
 def run_summary(run: WearRun) -> dict:
@@ -27,22 +27,41 @@ def run_summary(run: WearRun) -> dict:
     plan = run.plan
     out = {
         "bench": run.bench_name, "speed_rad_s": run.speed, "clearances_m": run.clearances,
-        "plan": {"stages": plan.stages, "stage_cycles": plan.stage_cycles, "sim_cycles": plan.sim_cycles,
-                 "settle_revolutions": plan.settle, "scale": plan.scale, "method": plan.method,
+        "plan": {"stages": plan.stages, "stage_cycles": plan.stage_cycles, "update_depth_m": plan.depth_cap,
+                 "update_revolutions": plan.update_revolutions, "settle_revolutions": plan.settle,
+                 "pressure_change": plan.pressure_change, "method": plan.method,
                  "sliding": plan.sliding, "footprint": plan.footprint, "split": plan.split},
+        "simulated_revolutions": run.revolutions,
         "stages": [],
     }
     for st in run.stages:
         sim = st.sim_summary
         out["stages"].append({
             "index": st.index, "label": st.label, "cycles": next(iter(st.surfaces.values())).cycles,
-            "wall_time_s": round(st.wall_time, 3),
+            "wall_time_s": round(st.wall_time, 3), "updates": st.updates, "revolutions": st.revolutions,
             "simulated_on": next(iter(st.start.values())).label,
             "sim": {k: sim.get(k) for k in ("method", "steps", "rejected_steps", "peak_fn", "wall_time_s")},
-            "joints": {j: {**joint_summary(s), "worn_volume_m3": st.volume[j],
+            "joints": {j: {**joint_summary(s, clearance=run.clearances[j]), "worn_volume_m3": st.volume[j],
                            "archard_volume_m3": st.archard_volume[j]} for j, s in st.surfaces.items()},
         })
     return out
+
+
+def convergence_markdown(rows: list[dict]) -> str:
+    """The refinement table of :func:`~wearbench.model.wear_stages.convergence` as Markdown: per
+    refinement and joint the max and reachable depths (um) of bearing and journal, the worn volume
+    (mm^3), updates, simulated revolutions, wall time, and the largest change against the coarser row."""
+    head = ("| refinement | cap (um) | joint | bearing max | bearing reach | journal max | journal reach | "
+            "volume (mm^3) | updates | revolutions | wall (s) | change vs coarser |")
+    lines = [head, "|" + "---|" * 12]
+    for r in rows:
+        changes = [r[k] for k in r if k.endswith("_change") and r[k] == r[k]]
+        ch = f"{max(changes):.1%}" if changes else "-"
+        lines.append(f"| {r['refinement']:g} | {r['depth_cap_m'] * 1e6:.3g} | {r['joint']} | "
+                     f"{r['bearing_max_m'] * 1e6:.1f} | {r['bearing_reachable_m'] * 1e6:.1f} | "
+                     f"{r['journal_max_m'] * 1e6:.1f} | {r['journal_reachable_m'] * 1e6:.1f} | "
+                     f"{r['volume_m3'] * 1e9:.4g} | {r['updates']} | {r['revolutions']:g} | {r['wall_time_s']:g} | {ch} |")
+    return "\n".join(lines)
 
 
 def _depth_table(run: WearRun) -> pd.DataFrame:

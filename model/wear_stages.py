@@ -1,13 +1,20 @@
-"""Wear stages (paper section 4.3): simulate some crank cycles, accumulate Archard wear, scale it to
-a stage, rebuild both surfaces, repeat. Also finer staging and its convergence, and summaries.
+"""Wear stages (paper section 4.3) worn by short surface updates inside one continuous simulation,
+their convergence under refinement at a fixed cycle count, and summaries.
 
 Wires :mod:`wearbench.model.wear` (pure laws) to ``build_scene``/``simulate``; imports the model's
 public contract only, never its internals, and no plotting or CLI code.
 
-Cost control: the paper accumulates 100 simulated cycles and multiplies by 2000. ``sim_cycles``
-may be set lower, after ``settle`` revolutions that are simulated but not counted (the start
-transient); the scale factor becomes stage cycles / ``sim_cycles`` so the stage still represents
-its stated number of cycles.
+How the surfaces evolve (after the wear-in-joints studies: Mukras et al., *Wear* 266 (2009) 822;
+*J. Tribol.* 132 (2010) 021603; Podra & Andersson, *Wear* 224 (1999) 13): the mechanism runs
+continuously; every ``update_revolutions`` simulated revolutions (one by default) the wear they
+produced (Archard, spread over the contact arc by the elastic-foundation pressure) is taken as the
+wear rate per cycle and applied for as many cycles as keep the depth added to any surface within
+``update_depth / refinement`` (and at most 1/(``min_updates`` x ``refinement``) of a stage); the cap
+shrinks (x 1/2, down to 1/4) when the sliding-weighted mean contact pressure changed by more than
+``pressure_change`` since the previous update and grows back otherwise. The next revolution continues from the last state on the new surfaces (no settling per
+update: only the first ``settle`` revolutions are not counted). Stages are checkpoints in that one
+run; the cost is the number of simulated revolutions, set by how deep the joints wear, not by the
+number of stages or cycles.
 """
 
 from __future__ import annotations
@@ -18,7 +25,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from wearbench.model.surfaces import JointSurfaces
+from wearbench.model.surfaces import JointSurfaces, reachable_depth
 from wearbench.model.wear import WearLaw, accumulate_wear, sliding_distance, worn_volume
 
 __all__ = [
@@ -34,6 +41,7 @@ __all__ = [
 
 _TABLE_RATE = 500.0  # Hz: output table of a wear simulation (peak slider acc there is indicative only)
 _ORDINALS = ("first", "second", "third", "fourth", "fifth", "sixth", "seventh", "eighth", "ninth", "tenth")
+_MIN_GAIN = 0.25  # smallest fraction of the depth cap the pressure-change control goes down to
 
 
 def stage_label(k: int) -> str:
@@ -43,18 +51,28 @@ def stage_label(k: int) -> str:
 
 @dataclass(frozen=True)
 class StagePlan:
-    """How to wear: ``stages`` stages of ``stage_cycles`` crank cycles each, every stage simulated
-    for ``settle`` uncounted + ``sim_cycles`` counted revolutions and scaled by
-    ``stage_cycles / sim_cycles``. ``sliding``/``footprint``: see :class:`WearLaw`.
+    """How to wear: ``stages`` stages of ``stage_cycles`` crank cycles each, in surface updates of at
+    most ``update_depth / refinement`` (m) added depth, each simulated for ``update_revolutions``
+    whole motor revolutions; ``settle`` revolutions before the first update are not counted.
+    ``pressure_change``: relative change of the mean contact pressure between updates above which
+    the depth cap halves. ``min_updates``: at least this many updates per stage (times
+    ``refinement``), so shallow wear is still averaged over several revolutions.
+    ``max_updates``: guard against a run that cannot progress.
+    ``sliding``/``footprint``: see :class:`WearLaw`.
     """
 
     stages: int = 2
     stage_cycles: float = 200_000.0
-    sim_cycles: float = 100.0
-    settle: float = 0.0
+    update_depth: float = 4e-6
+    refinement: float = 1.0
+    update_revolutions: int = 1
+    settle: int = 1
+    pressure_change: float = 0.25
+    min_updates: int = 8
+    max_updates: int = 20_000
     method: str = "default"
     sliding: str = "rotation"
-    footprint: str = "hertz"
+    footprint: str = "pressure"
     split: float | None = None  # None: the bench's [wear] split
     coefficient: float | None = None  # K_n (1/Pa); None: the bench's [wear] coefficient
 
@@ -63,40 +81,50 @@ class StagePlan:
             raise ValueError(f"stages = {self.stages}: expected at least 1")
         if not self.stage_cycles > 0:
             raise ValueError(f"stage cycles = {self.stage_cycles}: expected > 0")
-        if not self.sim_cycles > 0:
-            raise ValueError(f"simulated cycles = {self.sim_cycles}: expected > 0")
-        if self.settle < 0:
-            raise ValueError(f"settle revolutions = {self.settle}: expected >= 0")
+        if not self.update_depth > 0:
+            raise ValueError(f"update depth = {self.update_depth} m: expected > 0")
+        if not self.refinement > 0:
+            raise ValueError(f"refinement = {self.refinement}: expected > 0")
+        if int(self.update_revolutions) != self.update_revolutions or self.update_revolutions < 1:
+            raise ValueError(f"revolutions per update = {self.update_revolutions}: expected a whole number >= 1")
+        if int(self.settle) != self.settle or self.settle < 0:
+            raise ValueError(f"settle revolutions = {self.settle}: expected a whole number >= 0")
+        if self.min_updates < 1:
+            raise ValueError(f"min updates = {self.min_updates}: expected at least 1 per stage")
+        if not self.pressure_change > 0:
+            raise ValueError(f"pressure change = {self.pressure_change}: expected > 0")
         if self.coefficient is not None and not self.coefficient >= 0:
             raise ValueError(f"wear coefficient = {self.coefficient}: expected K_n >= 0 (1/Pa)")
 
     @classmethod
     def from_bench(cls, bench, **overrides) -> StagePlan:
-        """The bench's [wear] settings (cycles_per_stage x stage_scale per stage), then overrides."""
-        kw = {"stage_cycles": bench.wear.cycles_per_stage * bench.wear.stage_scale,
-                  "sim_cycles": float(bench.wear.cycles_per_stage)}
+        """The bench's [wear] stage (cycles_per_stage x stage_scale cycles), then overrides."""
+        kw = {"stage_cycles": bench.wear.cycles_per_stage * bench.wear.stage_scale}
         kw.update({k: v for k, v in overrides.items() if v is not None})
         return cls(**kw)
 
     @property
-    def scale(self) -> float:
-        return self.stage_cycles / self.sim_cycles
+    def depth_cap(self) -> float:
+        """Largest depth (m) one update adds to any surface."""
+        return self.update_depth / self.refinement
 
 
 @dataclass
 class Stage:
-    """One wear stage: the simulation on the surfaces it started from, and the surfaces after it."""
+    """One wear stage: the surfaces it started from, its wear and the surfaces after it."""
 
     index: int                              # 1-based
     label: str
-    start: dict[str, JointSurfaces]         # surfaces the stage was simulated on
-    increment: dict[str, JointSurfaces]     # wear of this stage (already scaled)
+    start: dict[str, JointSurfaces]         # surfaces at the start of the stage
+    increment: dict[str, JointSurfaces]     # wear of this stage
     surfaces: dict[str, JointSurfaces]      # start + increment, labelled
-    sim_summary: dict                       # the simulation's summary (on the start surfaces)
+    sim_summary: dict                       # summary of the stage's first simulated update (start surfaces)
     counted_time: float                     # s of simulated time whose contacts were counted
     volume: dict[str, float]                # worn volume of the increment per joint, m^3
-    archard_volume: dict[str, float]        # K_n sum(F dS) x scale per joint, m^3
+    archard_volume: dict[str, float]        # K_n sum(F dS) x cycles represented, per joint, m^3
     wall_time: float
+    updates: int = 0                        # surface updates in the stage
+    revolutions: float = 0.0                # motor revolutions simulated in the stage (with settling)
 
 
 @dataclass
@@ -120,24 +148,50 @@ class WearRun:
     def final(self) -> dict[str, JointSurfaces]:
         return self.stages[-1].surfaces if self.stages else self.initial
 
+    @property
+    def revolutions(self) -> float:
+        """Motor revolutions simulated for the whole run (its cost)."""
+        return float(sum(s.revolutions for s in self.stages))
+
 
 def _clearances(bench, clearances: Mapping[str, float | None] | None) -> dict[str, float]:
     worn = bench.with_clearances(clearances) if clearances else bench
     return {j.name: j.clearance.radial_clearance for j in worn.clearance_joints}
 
 
+def _continue_from(scene, final) -> tuple[np.ndarray, np.ndarray] | None:
+    """The state at the end of whole motor revolutions as a state at t = 0: every body angle moved
+    back by the whole turns it made (cranks at integer ratios return to their start phase)."""
+    if final is None:
+        return None
+    q, v = final[0].copy(), final[1].copy()
+    turns = np.round((q[2::3] - scene.q0[2::3]) / (2 * math.pi))
+    q[2::3] -= 2 * math.pi * turns
+    return q, v
+
+
+def _mean_pressure(rec, law: WearLaw) -> float:
+    """Sliding-weighted mean Hertz pressure (Pa) of a contact record: what drives the wear rate."""
+    fn = np.maximum(rec["fn"].to_numpy(float), 0.0)
+    ds = sliding_distance(rec["dt"].to_numpy(float), rec["omega_rel"].to_numpy(float), rec["vt"].to_numpy(float),
+                          law.bearing_radius, law.sliding)
+    w = float(np.sum(ds * (fn > 0)))
+    return float(np.sum(law.pressure(fn) * ds) / w) if w > 0 else 0.0
+
+
 def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str, float] | None = None,
                speed: float | None = None, initial: Mapping[str, JointSurfaces] | None = None,
-               on_stage: Callable[[Stage], None] | None = None) -> WearRun:
-    """Wear the clearance joints of ``bench`` stage by stage (paper section 4.3, Fig. 5).
+               on_stage: Callable[[Stage], None] | None = None,
+               on_update: Callable[[float, dict[str, JointSurfaces]], None] | None = None) -> WearRun:
+    """Wear the clearance joints of ``bench`` through ``plan.stages`` stages (paper section 4.3).
 
     clearances: {joint: m} overrides; speed: motor speed (rad/s, default the bench's);
     initial: surfaces to start from (default unworn, ``bench.wear.regions`` regions).
-    Each stage: build the scene on the current surfaces, simulate ``plan.settle + plan.sim_cycles``
-    motor revolutions recording contacts, accumulate wear over the counted part, multiply by
-    ``plan.scale``, add to both surfaces. Raises the model's ``SimulationError`` unchanged.
+    One continuous simulation, surfaces updated between revolutions as the module docstring says.
+    ``on_update(cycles worn so far, surfaces)`` is called after every update, ``on_stage`` after
+    every stage. Raises the model's ``SimulationError`` unchanged.
     """
-    from wearbench.model import build_scene, simulate
+    from wearbench.model import SimulationError, build_scene, simulate
 
     plan = plan or StagePlan.from_bench(bench)
     speed = bench.speed if speed is None else float(speed)
@@ -157,39 +211,88 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
             raise ValueError(f"joint {j}: bearing has {s.bearing.size} regions, journal {s.journal.size}")
     run = WearRun(bench.name, speed, clear, plan, dict(current))
     period = 2 * math.pi / abs(speed)
-    t_count = plan.settle * period
+    revs = float(plan.update_revolutions)
+    state = None
+    gain, last_p = 1.0, None
+    worn_before = {j: s.cycles for j, s in current.items()}
     for k in range(1, plan.stages + 1):
         t0 = time.perf_counter()
-        scene = build_scene(bench, clearances=clear, surfaces=current)
-        # coarse table (the wear needs only the per-step contact record): saves memory and time
-        result = simulate(scene, revolutions=plan.settle + plan.sim_cycles, speed=speed,
-                          method=plan.method, record_contacts=True, output_rate=_TABLE_RATE)
-        summary = dict(result.summary)
-        summary["peak_fn"] = {j: float(result.contacts[j]["fn"].max()) for j in clear}  # every step
         label = stage_label(k)
-        increment, after, volume, archard = {}, {}, {}, {}
+        start = dict(current)
+        left = plan.stage_cycles
+        archard = dict.fromkeys(clear, 0.0)
+        updates, simulated, counted, first_summary = 0, 0.0, 0.0, None
+        while left > 1e-9 * plan.stage_cycles:
+            if updates >= plan.max_updates:
+                raise SimulationError(f"wear stage {k}: {updates} surface updates and still {left:.6g} cycles "
+                                      f"to go (cap {plan.depth_cap:.3g} m per update)", t=counted,
+                                      quantity="wear update")
+            scene = build_scene(bench, clearances=clear, surfaces=current)
+            settle = plan.settle if state is None else 0
+            try:
+                result = simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method,
+                                  record_contacts=True, output_rate=_TABLE_RATE, initial=state)
+            except SimulationError as exc:
+                if state is None or exc.quantity != "initial state":
+                    raise
+                state, settle = None, plan.settle  # cannot continue (driver ratios): settle afresh
+                result = simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method,
+                                  record_contacts=True, output_rate=_TABLE_RATE)
+            state = _continue_from(scene, getattr(result, "final", None))
+            simulated += settle + revs
+            counted += revs * period
+            if first_summary is None:
+                first_summary = dict(result.summary)
+                first_summary["peak_fn"] = {j: float(result.contacts[j]["fn"].max()) for j in clear}
+            rate, volume_rate, pressure = {}, {}, {}
+            for j in clear:
+                rec = result.contacts[j]
+                rec = rec[rec["t"].to_numpy() >= settle * period - 1e-12]
+                law = laws[j]
+                inc = accumulate_wear(rec, law, current[j].bearing.size, surfaces=current[j])
+                rate[j] = inc.scaled(1.0 / revs)
+                fn = np.maximum(rec["fn"].to_numpy(), 0.0)
+                ds = sliding_distance(rec["dt"].to_numpy(), rec["omega_rel"].to_numpy(), rec["vt"].to_numpy(),
+                                      law.bearing_radius, plan.sliding)
+                volume_rate[j] = float(law.coefficient * np.sum(fn * ds)) / revs  # eq. 15 per cycle
+                pressure[j] = _mean_pressure(rec, law)
+            if last_p is not None:
+                change = max((abs(pressure[j] / last_p[j] - 1) for j in clear if last_p[j] > 0), default=0.0)
+                gain = max(_MIN_GAIN, gain / 2) if change > plan.pressure_change else min(1.0, gain * 1.5)
+            last_p = pressure
+            peak_rate = max(max(r.max_depth) for r in rate.values())
+            cycles = min(left, plan.stage_cycles / (plan.min_updates * plan.refinement))
+            if peak_rate > 0:
+                cycles = min(cycles, gain * plan.depth_cap / peak_rate)
+            if left - cycles < 1e-6 * plan.stage_cycles:  # no sliver of a last update
+                cycles = left
+            for j in clear:
+                after = current[j] + rate[j].scaled(cycles)
+                after.cycles = current[j].cycles + cycles
+                current[j] = after
+                archard[j] += volume_rate[j] * cycles
+            left -= cycles
+            updates += 1
+            if on_update is not None:
+                on_update(plan.stage_cycles * k - left, current)
+        increment, after, volume = {}, {}, {}
         for j in clear:
-            rec = result.contacts[j]
-            rec = rec[rec["t"].to_numpy() >= t_count - 1e-12]
             law = laws[j]
-            inc = accumulate_wear(rec, law, current[j].bearing.size, cycles=plan.sim_cycles)
-            inc = inc.scaled(plan.scale, label=label)
-            increment[j] = inc
-            after[j] = current[j] + inc
-            after[j].label = label
-            after[j].meta = {"joint": j, "bench": bench.name, "speed_rad_s": f"{speed:.6g}",
-                             "clearance_m": f"{clear[j]:.6g}", "sliding": plan.sliding,
-                             "footprint": plan.footprint, "split": f"{law.split:g}",
-                             "coefficient_per_pa": f"{law.coefficient:.6g}"}
-            volume[j] = worn_volume(inc, law)
-            fn = np.maximum(rec["fn"].to_numpy(), 0.0)
-            ds = sliding_distance(rec["dt"].to_numpy(), rec["omega_rel"].to_numpy(), rec["vt"].to_numpy(),
-                                  law.bearing_radius, plan.sliding)
-            archard[j] = float(law.coefficient * np.sum(fn * ds) * plan.scale)  # eq. 15: V = K_n F S
-        stage = Stage(k, label, current, increment, after, summary,
-                      float(plan.sim_cycles * period), volume, archard, time.perf_counter() - t0)
+            total = worn_before[j] + plan.stage_cycles * k
+            after[j] = JointSurfaces(current[j].bearing, current[j].journal, total, label,
+                                     {"joint": j, "bench": bench.name, "speed_rad_s": f"{speed:.6g}",
+                                      "clearance_m": f"{clear[j]:.6g}", "sliding": plan.sliding,
+                                      "footprint": plan.footprint, "split": f"{law.split:g}",
+                                      "coefficient_per_pa": f"{law.coefficient:.6g}",
+                                      "update_depth_m": f"{plan.depth_cap:.3g}"})
+            current[j] = after[j]
+            increment[j] = JointSurfaces(np.maximum(after[j].bearing - start[j].bearing, 0.0),
+                                         np.maximum(after[j].journal - start[j].journal, 0.0),
+                                         plan.stage_cycles, label)
+            volume[j] = worn_volume(increment[j], law)
+        stage = Stage(k, label, start, increment, after, first_summary or {}, counted, volume, archard,
+                      time.perf_counter() - t0, updates, simulated)
         run.stages.append(stage)
-        current = after
         if on_stage is not None:
             on_stage(stage)
     return run
@@ -219,8 +322,9 @@ def wear_zones(depth: np.ndarray, fraction: float = 0.1, min_gap_deg: float = 5.
     return [(round(float(a), 1), round(float(b), 1)) for a, b in keep]
 
 
-def joint_summary(s: JointSurfaces, fraction: float = 0.1) -> dict:
-    """Max depth (m), its angle (deg) and wear zones per surface of one joint's state."""
+def joint_summary(s: JointSurfaces, fraction: float = 0.1, *, clearance: float | None = None) -> dict:
+    """Max depth (m), its angle (deg) and wear zones per surface of one joint's state; with the
+    joint's radial ``clearance`` (m) also the depth a circular counter-body can reach."""
     out = {"label": s.label, "cycles": s.cycles}
     n = s.bearing.size
     for side in ("bearing", "journal"):
@@ -228,29 +332,41 @@ def joint_summary(s: JointSurfaces, fraction: float = 0.1) -> dict:
         i = int(np.argmax(d))
         out[side] = {"max_depth_m": float(d[i]), "max_at_deg": round((i + 0.5) * 360.0 / n, 2),
                      "zones_deg": wear_zones(d, fraction)}
+        if clearance is not None:
+            out[side]["reachable_depth_m"] = reachable_depth(d, clearance)
     return out
 
 
-def convergence(runs: Mapping[int, WearRun], joints: list[str] | None = None) -> list[dict]:
-    """Compare the final surfaces of runs with different numbers of stages for the same total cycles.
+def convergence(runs: Mapping[float, WearRun], joints: list[str] | None = None) -> list[dict]:
+    """Compare the final surfaces of runs refined by different factors over the same total cycles.
 
-    ``runs``: {number of stages: WearRun}. The run with the most stages is the reference. Per run
-    and joint: max depth of bearing and journal, and the RMS and max of the depth difference
-    against the reference relative to the reference's max depth.
+    ``runs``: {refinement: WearRun} (refinement r: depth cap per update divided by r). Per run and
+    joint: max depth and reachable depth (what a circular counter-body of the joint's clearance can
+    touch, :func:`~wearbench.model.surfaces.reachable_depth`) of bearing and journal, worn volume,
+    surface updates and simulated revolutions, and each quantity's change against the next coarser
+    run (``*_change``: |this / coarser - 1|; NaN for the coarsest).
     """
-    ref_k = max(runs)
-    ref = runs[ref_k].final
     rows = []
-    for k in sorted(runs):
-        fin = runs[k].final
+    prev: dict[str, dict] = {}
+    for r in sorted(runs):
+        run = runs[r]
+        fin = run.final
         for j in joints or sorted(fin):
-            row = {"stages": k, "stage_cycles": runs[k].plan.stage_cycles, "joint": j,
-                   "total_cycles": fin[j].cycles}
+            c = run.clearances[j]
+            s = fin[j]
+            row = {"refinement": r, "depth_cap_m": run.plan.depth_cap, "joint": j, "total_cycles": s.cycles,
+                   "updates": sum(st.updates for st in run.stages), "revolutions": run.revolutions,
+                   "wall_time_s": round(sum(st.wall_time for st in run.stages), 2)}
             for side in ("bearing", "journal"):
-                d, r = getattr(fin[j], side), getattr(ref[j], side)
-                peak = max(float(r.max()), 1e-300)
+                d = getattr(s, side)
                 row[f"{side}_max_m"] = float(d.max())
-                row[f"{side}_rms_diff_rel"] = float(np.sqrt(np.mean((d - r) ** 2)) / peak)
-                row[f"{side}_max_diff_rel"] = float(np.max(np.abs(d - r)) / peak)
+                row[f"{side}_reachable_m"] = reachable_depth(d, c)
+            row["volume_m3"] = float(sum(st.volume[j] for st in run.stages))
+            for key in ("bearing_max_m", "bearing_reachable_m", "journal_max_m", "journal_reachable_m",
+                        "volume_m3"):
+                old = prev.get(j, {}).get(key)
+                row[f"{key[:-2] if key.endswith('_m') else key[:-3]}_change"] = (
+                    abs(row[key] / old - 1) if old else float("nan"))
+            prev[j] = row
             rows.append(row)
     return rows

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.interpolate import PchipInterpolator
 from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.model.contact import depth_eval
 from wearbench.model.surfaces import (
     JointSurfaces,
     SurfaceError,
@@ -14,6 +16,24 @@ from wearbench.model.surfaces import (
     region_of,
     surfaces_from_bench,
 )
+
+
+def test_kernel_depth_is_the_contract_curve_and_c1():
+    """The kernel's depth and slope are the contract's PCHIP and its derivative, continuous across
+    every region centre (the normal and the penetration of a worn joint are continuous)."""
+    rng = np.random.default_rng(3)
+    d = np.zeros(200)
+    d[80:110] = rng.random(30) * 1e-4  # a rough pit
+    phi = np.linspace(0.0, 2 * np.pi, 3001)
+    got = np.array([depth_eval(d, d.size, p) for p in phi])
+    np.testing.assert_allclose(got[:, 0], depth_at(d, phi), rtol=1e-12, atol=1e-20)
+    eps = 1e-7
+    fd = (depth_at(d, phi + eps) - depth_at(d, phi - eps)) / (2 * eps)
+    np.testing.assert_allclose(got[:, 1], fd, rtol=1e-5, atol=1e-9)
+    centres = 2 * np.pi * (np.arange(d.size) + 0.5) / d.size
+    left = np.array([depth_eval(d, d.size, c - 1e-10)[1] for c in centres])
+    right = np.array([depth_eval(d, d.size, c + 1e-10)[1] for c in centres])
+    assert np.max(np.abs(left - right)) < 1e-6 * np.max(np.abs(got[:, 1]))
 
 
 def test_round_trip(tmp_path):
@@ -55,8 +75,12 @@ def test_region_centres_and_periodicity():
     centres = 2 * np.pi * (np.arange(4) + 0.5) / 4
     np.testing.assert_allclose(depth_at(d, centres), d)
     np.testing.assert_allclose(depth_at(d, centres + 2 * np.pi), d)
-    # half-way between the last and first centre (angle 0): mean of the two
-    assert depth_at(d, 0.0) == pytest.approx(1.0)
+    # across angle 0 (last to first centre): scipy's PCHIP through the periodically extended nodes
+    ext = np.concatenate([d[-2:], d, d[:2]])
+    x = 2 * np.pi * (np.arange(-2, 6) + 0.5) / 4
+    ref = PchipInterpolator(x, ext)
+    phi = np.linspace(-0.5, 0.5, 41)
+    np.testing.assert_allclose(depth_at(d, phi), ref(phi), rtol=1e-12, atol=1e-15)
     assert region_of(2 * np.pi - 1e-9, 4) == 3
     assert region_of(-1e-9, 4) == 3
 
@@ -99,3 +123,19 @@ def test_shipped_worn_surfaces_load():
         # wear only accumulates: the second state is at least as deep everywhere
         assert (second.bearing >= first.bearing).all() and (second.journal >= first.journal).all()
         assert first.meta["joint"] == j and first.meta["bench"] == "ninebar-testbed"
+
+
+def test_reachable_depth_of_a_pit_the_counter_body_fits_and_of_a_spike():
+    """A pit cut by the counter-body itself (h = e cos(phi) - c around phi = 0, e = c + D) is reached
+    to its full depth D; a one-region spike of the same depth hardly at all (its walls are far
+    steeper than the relative curvature of a circle in a circle)."""
+    from wearbench.model.surfaces import reachable_depth
+
+    c, depth, n = 0.6e-3, 50e-6, 2000
+    phi = 2 * np.pi * (np.arange(n) + 0.5) / n
+    fitted = np.maximum((c + depth) * np.cos(phi - 1.0) - c, 0.0)
+    assert reachable_depth(fitted, c) == pytest.approx(fitted.max(), rel=2e-3)
+    spike = np.zeros(n)
+    spike[700] = depth
+    assert reachable_depth(spike, c) < 0.01 * depth
+    assert reachable_depth(np.zeros(n), c) == 0.0
