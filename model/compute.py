@@ -327,7 +327,10 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
         if address is None:
             cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
                                    host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
-                                   silence_logs=logging.ERROR)
+                                   silence_logs=logging.ERROR,
+                                   # dashboard off; the scheduler's health/metrics endpoint on a free
+                                   # loopback port (its default 8787 clashes with other clusters)
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
             client = Client(cluster)
         else:
             try:
