@@ -186,9 +186,15 @@ def _call(fn: Callable[..., Any], kwargs: Mapping[str, Any]) -> Any:
         return _Raised(_one_line(exc), tb.format_exc())
 
 
-def _call_pickled(payload: bytes) -> Any:
+def _call_pickled(payload: bytes, model: str) -> Any:
     """:func:`_call` on ``(fn, kwargs)`` pickled by the client: a function a worker cannot import
-    becomes this task's failure instead of a stalled worker connection."""
+    becomes this task's failure instead of a stalled worker connection. ``model``: the client's
+    model source digest; a worker with other model code refuses (its result would be cached under
+    the client's key)."""
+    if model != model_source_digest():
+        return _Raised(f"worker {os.uname().nodename} runs other wearbench model code (digest "
+                       f"{model_source_digest()[:12]}, client {model[:12]}): install the same version on "
+                       "every worker", "")
     try:
         fn, kwargs = pickle.loads(payload)
     except Exception as exc:  # noqa: BLE001 - e.g. the task's module is not installed on this worker
@@ -443,12 +449,13 @@ def _run_on(client: Client, tasks: Sequence[Task], todo: list[int],
     from distributed import as_completed
 
     futures = {}
+    model = model_source_digest()
     for i in todo:
         t = tasks[i]
         payload = cloudpickle.dumps((t.fn, dict(t.kwargs)), protocol=pickle.HIGHEST_PROTOCOL)
         # a unique Dask key per submission: equal content keys in one batch still run as separate slots
-        f = client.submit(_call_pickled, payload, key=f"{t.label or 'task'}-{t.key[:16]}-{i}-{time.time_ns()}",
-                          pure=False, retries=RETRIES)
+        key = f"{t.label or 'task'}-{t.key[:16]}-{i}-{time.time_ns()}"
+        f = client.submit(_call_pickled, payload, model, key=key, pure=False, retries=RETRIES)
         futures[f] = i
     try:
         for f in as_completed(list(futures)):

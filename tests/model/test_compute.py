@@ -191,3 +191,11 @@ def test_ctrl_c_keeps_finished_results_and_the_rest_runs_later(client, tmp_path)
     assert out == [float(x) ** 2 for x in range(10, 16)]
     ran = [float(line.split()[0]) for line in log.read_text().splitlines()]
     assert ran.count(done_x) == 1  # the finished task came from the cache
+
+
+def test_a_worker_with_other_model_code_refuses(client, tmp_path, monkeypatch):
+    log = tmp_path / "log"
+    monkeypatch.setattr(compute, "model_source_digest", lambda: "f" * 64)  # the client's model differs
+    out = run_tasks(batch([7.0], log), cache=False)
+    assert isinstance(out[0], TaskFailure) and "runs other wearbench model code" in out[0].error
+    assert executions(log) == 0
