@@ -19,6 +19,7 @@ COMMANDS: dict[str, str] = {
     "simulate": "simulate",
     "wear": "wear",
     "study": "study",
+    "sweep": "sweep",
     "record": "record",
     "inspect": "inspect",
     "recover": "recover",

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.wear import add_plan_arguments, plan_from_args
 from wearbench.hardware.bench import load_bench
 
@@ -16,7 +17,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "study", help="the paper's wear and clearance studies: Table 3, peaks, figures 6-32",
         description="Wear study: 0.6 mm at -5 pi rad/s, two wear stages. Clearance study: 0.1 / 0.3 / "
         "0.45 mm at -6 pi rad/s before and after one wear stage. Writes table3.csv/.md (ours beside the "
-        "paper's), peaks.csv, trends, study.json, surfaces and figures. Cases run on 2 processes.")
+        "paper's), peaks.csv, trends, study.json, surfaces and figures. Cases run as parallel tasks (a local "
+        "cluster by default, or --scheduler); finished cases are cached, so a rerun is quick.")
     p.add_argument("bench", metavar="BENCH.toml")
     add_plan_arguments(p)
     p.add_argument("--dyn-revolutions", type=float, default=None,
@@ -24,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "point per revolution)")
     p.add_argument("--quick", action="store_true",
                    help="cut-down study for tests: 2 simulated cycles per stage, 1-revolution dynamics")
-    p.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    add_compute_arguments(p)
     p.add_argument("--out", default="study", help="output directory (default ./study)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
@@ -43,9 +45,7 @@ def run(args: argparse.Namespace) -> int:
     config = StudyConfig.quick(plan) if args.quick else StudyConfig(plan=plan)
     if args.dyn_revolutions:
         config = replace(config, dyn_revolutions=args.dyn_revolutions)
-    if args.workers < 1:
-        raise ValueError(f"--workers {args.workers}: expected at least 1")
-    config = replace(config, workers=args.workers)
+    config = replace(config, **compute_options(args))
     cases = 1 + len(config.clearance_cases)
     with progress() as bar:
         task = bar.add_task(f"study {bench.name}", total=cases, info="")

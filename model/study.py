@@ -6,8 +6,9 @@
   after wear; the table shaped like the paper's Table 3 (max contact force per joint).
 - Wear convergence: the same total cycles worn with the surface-update depth cap refined k = 1, 2, 4, ...
 
-Cases run in a process pool (2 workers: this machine has 2 cores). Imports the model contract,
-the wear modules and matplotlib (through ``wear_report``/``study_plots``); no CLI code.
+Cases run as tasks of :mod:`wearbench.model.compute` (a local cluster by default, results cached by
+content). Imports the model contract, the wear modules and matplotlib (through
+``wear_report``/``study_plots``); no CLI code.
 """
 
 from __future__ import annotations
@@ -15,13 +16,12 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import multiprocessing
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
+from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages
 
 __all__ = ["PAPER", "Case", "CaseResult", "StudyConfig", "run_case", "run_study", "staging_convergence",
@@ -71,7 +71,8 @@ class StudyConfig:
     plan: StagePlan = field(default_factory=StagePlan)
     dyn_revolutions: float = 10.0
     output_rate: float | None = None  # Hz; None: the model's default fine grid (peak slider acc)
-    workers: int = 2
+    workers: int | None = None  # local cluster size (None: the usable cores; 0: in-process)
+    scheduler: str | None = None  # a running cluster's address (see wearbench.model.compute)
     wear_case: Case = Case("wear 0.6 mm", 0.6e-3, -5 * math.pi, 2)
     clearance_cases: tuple[Case, ...] = (Case("0.1 mm", 0.1e-3, -6 * math.pi, 1),
                                          Case("0.3 mm", 0.3e-3, -6 * math.pi, 1),
@@ -103,9 +104,16 @@ def run_case(bench, case: Case, config: StudyConfig) -> CaseResult:
     return CaseResult(case, run, dynamics, summaries, time.perf_counter() - t0)
 
 
-def _pool(workers: int) -> ProcessPoolExecutor:
-    # spawn: the parent may hold threads (progress bars, numba); forking those is unsafe
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+def _bench_part(bench):
+    """The bench as content for a task key (where its file lies does not change a result)."""
+    return replace(bench, path=None)
+
+
+def _raise_failures(results: list, what: str) -> None:
+    failed = [r for r in results if isinstance(r, TaskFailure)]
+    if failed:
+        raise RuntimeError(f"{what}: {len(failed)} of {len(results)} tasks failed: "
+                           + "; ".join(str(f) for f in failed))
 
 
 def _wear_only(bench, plan: StagePlan, clearances, speed, initial) -> WearRun:
@@ -113,23 +121,28 @@ def _wear_only(bench, plan: StagePlan, clearances, speed, initial) -> WearRun:
 
 
 def staging_convergence(bench, ks: list[float], total_cycles: float, plan: StagePlan, *, clearances=None,
-                        speed=None, initial=None, out: str | Path | None = None, workers: int = 2,
-                        known: dict[float, WearRun] | None = None) -> list[dict]:
+                        speed=None, initial=None, out: str | Path | None = None, workers: int | None = None,
+                        scheduler: str | None = None, known: dict[float, WearRun] | None = None) -> list[dict]:
     """Wear the same ``total_cycles`` (in ``plan.stages`` stages) at each refinement k in ``ks``
     (depth cap per surface update ``plan.update_depth / k``); compare max depth, reachable depth and
     worn volume between refinements (:func:`~wearbench.model.wear_stages.convergence`).
 
-    ``known``: runs already made with this plan at refinement k (not run again).
+    ``known``: runs already made with this plan at refinement k (not run again). ``workers``/
+    ``scheduler``: see :func:`~wearbench.model.compute.run_tasks`.
     Writes ``out/convergence.csv`` if ``out`` is given.
     """
     stage = total_cycles / plan.stages
     runs: dict[float, WearRun] = {k: r for k, r in (known or {}).items() if k in ks}
     plans = {k: replace(plan, stage_cycles=stage, refinement=float(k)) for k in ks if k not in runs}
-    with _pool(max(1, min(workers, len(plans)))) as pool:
-        futures = {k: pool.submit(_wear_only, bench, p, clearances, speed, initial)
-                   for k, p in sorted(plans.items(), reverse=True)}  # longest first: balanced workers
-        for k, f in futures.items():
-            runs[k] = f.result()
+    order = sorted(plans, reverse=True)  # longest first: balanced workers
+    tasks = [Task(_wear_only, {"bench": bench, "plan": plans[k], "clearances": clearances, "speed": speed,
+                               "initial": initial},
+                  task_key("wear-stages", _bench_part(bench), plans[k], clearances, speed, initial), f"k={k:g}")
+             for k in order]
+    if tasks:
+        done = run_tasks(tasks, workers=workers, scheduler=scheduler, progress="wear convergence")
+        _raise_failures(done, "staging convergence")
+        runs.update(zip(order, done, strict=True))
     rows = convergence(runs)
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
@@ -217,13 +230,17 @@ def run_study(bench, out: str | Path, config: StudyConfig, *, on_case=None) -> d
     out.mkdir(parents=True, exist_ok=True)
     cases = [config.wear_case, *config.clearance_cases]
     t0 = time.perf_counter()
-    results: dict[str, CaseResult] = {}
-    with _pool(config.workers) as pool:
-        futures = {c.name: pool.submit(run_case, bench, c, config) for c in cases}
-        for name, f in futures.items():
-            results[name] = f.result()
-            if on_case is not None:
-                on_case(results[name])
+    tasks = [Task(run_case, {"bench": bench, "case": c, "config": config},
+                  task_key("study-case", _bench_part(bench), c, replace(config, workers=None, scheduler=None)),
+                  c.name) for c in cases]
+
+    def finished(i: int, r) -> None:
+        if on_case is not None and not isinstance(r, TaskFailure):
+            on_case(r)
+
+    done = run_tasks(tasks, workers=config.workers, scheduler=config.scheduler, on_result=finished)
+    _raise_failures(done, f"study of {bench.name}")
+    results: dict[str, CaseResult] = {c.name: r for c, r in zip(cases, done, strict=True)}
     wear = results[config.wear_case.name]
     clear = [results[c.name] for c in config.clearance_cases]
     write_run(wear.run, out / "wear")

@@ -172,3 +172,30 @@ def test_a_killed_worker_is_survived(client, tmp_path):
     assert not psutil.pid_exists(killed[0]) or psutil.Process(killed[0]).status() == psutil.STATUS_ZOMBIE
     client.wait_for_workers(2, timeout=30)  # the nanny restarted it
     assert executions(log) >= 8
+
+
+def test_ctrl_c_keeps_finished_results_and_the_rest_runs_later(client, tmp_path):
+    log = tmp_path / "log"
+    tasks = batch([float(x) for x in range(10, 16)], log, delay=0.3)
+    first = []
+
+    def interrupt(i, result):
+        first.append(i)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_tasks(tasks, on_result=interrupt)
+    assert len(first) == 1
+    done_x = tasks[first[0]].kwargs["x"]
+    out = run_tasks(tasks)
+    assert out == [float(x) ** 2 for x in range(10, 16)]
+    ran = [float(line.split()[0]) for line in log.read_text().splitlines()]
+    assert ran.count(done_x) == 1  # the finished task came from the cache
+
+
+def test_a_worker_with_other_model_code_refuses(client, tmp_path, monkeypatch):
+    log = tmp_path / "log"
+    monkeypatch.setattr(compute, "model_source_digest", lambda: "f" * 64)  # the client's model differs
+    out = run_tasks(batch([7.0], log), cache=False)
+    assert isinstance(out[0], TaskFailure) and "runs other wearbench model code" in out[0].error
+    assert executions(log) == 0

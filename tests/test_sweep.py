@@ -1,0 +1,104 @@
+"""`wearbench sweep`: axis parsing, a small sweep on a 2-worker LocalCluster equal to the same runs in
+this process, failures named with their parameters, the CLI's files."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from wearbench.cli import main
+from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.model.sweep import Axis, SweepSpec, parse_axis, run_point, run_sweep
+
+
+def test_parse_axis_ranges_and_lists_in_si():
+    a = parse_axis("clearance=0.1mm..0.6mm:6")
+    assert a.name == "clearance"
+    np.testing.assert_allclose(a.values, [1e-4, 2e-4, 3e-4, 4e-4, 5e-4, 6e-4], rtol=1e-12)
+    s = parse_axis("speed=-6pi..-4pi:5")
+    np.testing.assert_allclose(s.values, [-6 * math.pi, -5.5 * math.pi, -5 * math.pi, -4.5 * math.pi, -4 * math.pi])
+    assert parse_axis("speed=300rpm,-5pi").values == pytest.approx((10 * math.pi, -5 * math.pi))
+    assert parse_axis("clearance.B=0.2mm").values == pytest.approx((2e-4,))
+    for text, match in [("clearance", "expected NAME=FROM..TO:COUNT"), ("gap=1mm", "unknown parameter 'gap'"),
+                        ("clearance=0.1mm..0.6mm", "needs a count"), ("clearance=0.1mm..0.6mm:0", "count '0'"),
+                        ("clearance=0.1..0.6mm:3", "has no unit"), ("speed=1mm,2mm", "not a angular_speed unit"),
+                        ("clearance=1mm,1mm", "values repeat")]:
+        with pytest.raises(ValueError, match=match):
+            parse_axis(text)
+
+
+@given(lo=st.floats(0.01, 1.0), span=st.floats(0.01, 1.0), n=st.integers(2, 12))
+def test_a_range_has_its_count_and_both_ends(lo, span, n):
+    a = parse_axis(f"clearance={lo!r}mm..{lo + span!r}mm:{n}")
+    assert len(a.values) == n
+    assert a.values[0] == pytest.approx(lo * 1e-3) and a.values[-1] == pytest.approx((lo + span) * 1e-3)
+    assert np.all(np.diff(a.values) > 0)
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return load_bench(shipped_bench("slider-crank"))
+
+
+def _spec(*axes: Axis, **kw) -> SweepSpec:
+    return SweepSpec(axes=axes, revolutions=0.5, settle=0.25, output_rate=2_000.0, **kw)
+
+
+def test_sweep_on_two_workers_equals_the_same_runs_in_process(bench):
+    spec = _spec(Axis("clearance", (0.2e-3, 0.4e-3)), Axis("speed", (-400.0, -500.0)), realisations=2, seed=3)
+    res = run_sweep(bench, spec, workers=2, cache=False)
+    assert not res.failures
+    df = res.table
+    assert df["run"].nunique() == 8 and set(df["seed"]) == {3, 4}
+    # one row per run, state and statistic: 2 slider statistics + peak force at the one clearance joint
+    assert set(df["statistic"]) == {"peak_slider_acc", "rms_slider_acc", "peak_fn_S"}
+    assert len(df) == 8 * 3 and not df.duplicated(["run", "state", "statistic"]).any()
+    # the same run computed here, serially, without the cluster
+    row = df[(df["clearance_m"] == 0.4e-3) & (df["speed_rad_s"] == -500.0) & (df["seed"] == 4)]
+    direct = pd.DataFrame(run_point(bench, {"clearance": 0.4e-3, "speed": -500.0}, 4, spec))
+    np.testing.assert_allclose(row.sort_values("statistic")["value"].to_numpy(),
+                               direct.sort_values("statistic")["value"].to_numpy(), rtol=1e-12)
+    # realisations differ from each other (drawn within the bench's tolerances)
+    peaks = df[(df["statistic"] == "rms_slider_acc") & (df["clearance_m"] == 0.2e-3)
+               & (df["speed_rad_s"] == -400.0)]["value"]
+    assert peaks.nunique() == 2
+
+
+def test_a_failed_run_is_named_with_its_parameters_and_hides_nothing(bench):
+    bearing = bench.clearance_joints[0].clearance.bearing_radius
+    spec = _spec(Axis("clearance", (0.2e-3, 2 * bearing)))
+    res = run_sweep(bench, spec, workers=0)
+    assert set(res.table["clearance_m"]) == {0.2e-3}
+    (run, failure), = res.failures
+    assert run["clearance_m"] == 2 * bearing
+    assert f"clearance={2 * bearing * 1e3:.4g}mm" in failure.label
+    assert failure.params["values"] == {"clearance": 2 * bearing}
+    assert "clearance S" in failure.error and "bearing radius" in failure.error
+    assert res.failures_table()["clearance_m"].tolist() == [2 * bearing]
+
+
+def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    rc = main(["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance=0.2mm,20mm",
+               "--vary", "speed=-4000rpm", "--dyn-revolutions", "0.5", "--dyn-settle", "0.25",
+               "--output-rate", "2000", "--workers", "0", "--out", str(out)])
+    assert rc == 1  # one run failed; the rest is written
+    err = capsys.readouterr().err
+    assert "failed: clearance=20mm speed=-418.9rad/s" in err and "bearing radius" in err
+    df = pd.read_parquet(out / "sweep.parquet")
+    assert list(df.columns) == ["run", "clearance_m", "speed_rad_s", "realisation", "seed", "state", "statistic",
+                                "value", "unit"]
+    assert set(df["run"]) == {0}
+    assert pd.read_csv(out / "failures.csv")["clearance_m"].tolist() == [0.02]
+    summary = json.loads((out / "sweep.json").read_text())
+    assert summary["runs"] == 2 and summary["failed"] == 1
+    assert {p.name for p in (out / "plots").glob("*.png")} == {"peak_slider_acc.png", "rms_slider_acc.png",
+                                                               "peak_fn_S.png"}
+    assert main(["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance.Q=1mm", "--out",
+                 str(out)]) == 2
+    assert "no clearance joint 'Q'" in capsys.readouterr().err
