@@ -25,18 +25,21 @@ from wearbench.acquisition.drivers import (
     ACCELERATION,
     ENCODER,
     Block,
+    BusFrame,
     DeviceDisconnected,
     DeviceTimeout,
     Event,
     MotorState,
     Rig,
 )
-from wearbench.acquisition.layout import Command
+from wearbench.acquisition.layout import Command, CrankAngle, clip_level, count_clipped
 from wearbench.acquisition.session_file import BENCH_ATTACHMENT
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.hardware.bench import Bench
 
 __all__ = ["Progress", "Recorder", "SessionPlan", "SessionResult", "record_session"]
+
+_FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
 
 
 @dataclass
@@ -88,6 +91,7 @@ class SessionResult:
     repeated_blocks: dict[str, int]
     malformed: int
     events: int
+    clipped: int = 0  # acceleration samples at or beyond the range
     writer_cpu: float = 0.0  # s of CPU used by the writer thread
     reader_cpu: float = 0.0  # s of CPU used by the reader threads
 
@@ -154,6 +158,10 @@ class Recorder:
         self._overflow: list = []
         self._lost = 0  # items the writer could not encode
         self._signal: str | None = None  # SIGINT/SIGTERM seen by the handler
+        self._clip_level = math.inf  # |a| from which an acceleration sample is clipped
+        self._clipping = False  # the last acceleration block had clipped samples
+        self._clipped = 0
+        self._write_failures = 0
 
     # ---- stopping ---------------------------------------------------------------------------
 
@@ -202,7 +210,7 @@ class Recorder:
                             item.host_time = time.time()
                         if not recording:
                             continue
-                    elif item.device_time is None:
+                    elif isinstance(item, Event) and item.device_time is None:
                         item.device_time = self._device_now
                     if isinstance(item, Event) and item.kind == "malformed":
                         self._malformed += 1
@@ -221,11 +229,25 @@ class Recorder:
         finally:
             self._cpu[f"reader:{source.name}"] = time.thread_time()
 
+    def _clip_check(self, block: Block) -> None:
+        """Count the block's clipped samples; a warning event when clipping starts."""
+        block.clipped = count_clipped(block.samples, self._clip_level)
+        self._clipped += block.clipped
+        if block.clipped and not self._clipping:
+            self._events += 1
+            self.writer.write_event(Event(
+                "clipping", f"acceleration clipping: {block.clipped} of {len(block.samples)} samples of block "
+                f"{block.sequence} at or beyond the range (|a| >= {self._clip_level:.6g} m/s^2)",
+                device_time=block.device_time))
+        self._clipping = block.clipped > 0
+
     def _write(self, item: object) -> None:
         w = self.writer
         if isinstance(item, Block):
             note = self._checks[item.stream].check(item)
-            w.write_block(item, self._units.get(item.stream, ""))
+            if item.stream == ACCELERATION:
+                self._clip_check(item)
+            w.write_block(item)
             if note:
                 self._events += 1
                 w.write_event(Event("drop" if "missing" in note else "repeat", note,
@@ -237,9 +259,22 @@ class Recorder:
         elif isinstance(item, Event):
             self._events += 1
             w.write_event(item)
+        elif isinstance(item, BusFrame):
+            w.write_frame(item)
+
+    def _write_failed(self, exc: OSError) -> None:
+        """A write failed (its bytes wait in memory): the first failure stops the session with
+        ``disk full`` (ENOSPC) or ``writing the session failed`` and gives the ballast back."""
+        self._write_failures += 1
+        if self._write_failures > 1:
+            return
+        what = "disk full" if exc.errno == errno.ENOSPC else "writing the session failed"
+        self.stop(f"{what}: {exc}", "error")
+        freed = self.writer.release_ballast()
+        self._post(Event("error", f"{what}; {'released the ballast file and ' if freed else ''}"
+                         "finishing the file with what was recorded", device_time=self._device_now))
 
     def _writer_loop(self) -> None:
-        failures = 0
         try:
             while True:
                 try:
@@ -250,15 +285,8 @@ class Recorder:
                     continue
                 try:
                     self._write(item)
-                except OSError as exc:
-                    # the item is in the writer; the bytes that failed wait in memory for a retry
-                    failures += 1
-                    what = "disk full" if exc.errno == errno.ENOSPC else "writing the session failed"
-                    if failures == 1:
-                        self.stop(f"{what}: {exc}", "error")
-                        freed = self.writer.release_ballast()
-                        self._post(Event("error", f"{what}; {'released the ballast file and ' if freed else ''}"
-                                         "finishing the file with what was recorded", device_time=self._device_now))
+                except OSError as exc:  # the item is in the writer; the failed bytes wait in memory
+                    self._write_failed(exc)
                 except Exception as exc:  # noqa: BLE001 - one bad item must not end the writer
                     self._lost += 1
                     self.stop(f"writer failed: {type(exc).__name__}: {exc}", "error")
@@ -294,12 +322,18 @@ class Recorder:
             s0 = self._poll()
             cpr = float(calibration.get("encoder.counts_per_rev", 0) or 0)
             if cpr:
-                calibration["encoder.angle_offset"] = repr(s0.angle - s0.counts * 2 * math.pi / cpr)
+                offset = s0.angle - s0.counts * 2 * math.pi / cpr
+                calibration["encoder.angle_offset"] = repr(offset)
+                self.writer.crank = CrankAngle(cpr, offset)
         except Exception as exc:  # noqa: BLE001 - a drive that cannot answer shows up again in _run
             calibration["encoder.angle_offset"] = f"unknown ({exc})"
         for source in self.rig.sources:
             for info in source.describe():
                 self._units[info.name] = info.unit
+                if info.name == ACCELERATION:
+                    full_scale = float(info.extra.get("range", b.sensor("accelerometer").range))
+                    lsb = info.extra.get("lsb")
+                    self._clip_level = clip_level(full_scale, float(lsb) if lsb else None)
                 calibration[f"{info.name}.stream"] = (f"{info.unit} {info.dtype}{list(info.shape) or ''} "
                                                       f"at {info.sample_rate:g} Hz from {info.source or source.name}")
                 calibration.update({f"{info.name}.{k}": v for k, v in info.extra.items()})
@@ -438,18 +472,23 @@ class Recorder:
             for sig in (signal.SIGINT, signal.SIGTERM):  # the handler only notes the signal: it
                 old[sig] = signal.signal(sig, self._on_signal)  # must not take a lock the main thread holds
         try:
-            self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml", self.bench.source.encode())})
             prog = Progress()
+            try:
+                self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml",
+                                                                        self.bench.source.encode())})
+            except OSError as exc:  # a full disk already: nothing to record, the file still gets finished
+                self._write_failed(exc)
             readers = [threading.Thread(target=self._reader, args=(s,), name=f"reader-{s.name}", daemon=True)
                        for s in self.rig.sources]
             writer = threading.Thread(target=self._writer_loop, name="writer", daemon=True)
             writer.start()
             started = False
             try:
-                for t in readers:
-                    t.start()
-                started = True
-                self._run(prog)
+                if not self._stop.is_set():
+                    for t in readers:
+                        t.start()
+                    started = True
+                    self._run(prog)
             except KeyboardInterrupt:
                 self.stop("interrupted (KeyboardInterrupt)", "interrupt")
             except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
@@ -477,7 +516,7 @@ class Recorder:
             dropped_blocks={k: v.dropped for k, v in c.items()},
             dropped_samples={k: v.dropped_samples for k, v in c.items()},
             repeated_blocks={k: v.repeated for k, v in c.items()}, malformed=self._malformed,
-            events=self._events, writer_cpu=self._cpu.get("writer", 0.0),
+            events=self._events, clipped=self._clipped, writer_cpu=self._cpu.get("writer", 0.0),
             reader_cpu=sum(v for k, v in self._cpu.items() if k.startswith("reader")))
 
     def _finish(self, prog: Progress) -> SessionResult:
@@ -504,7 +543,7 @@ class Recorder:
             w.add_metadata("result", {
                 "reason": r.reason, "completed": str(r.completed), "cycles": repr(r.cycles),
                 "duration_s": repr(r.duration), "malformed_frames": str(r.malformed),
-                "lost_items": str(self._lost),
+                "lost_items": str(self._lost), "acceleration.clipped_samples": str(r.clipped),
                 **{f"{k}.{name}": str(v) for name, d in (("blocks", r.blocks), ("samples", r.samples),
                                                           ("dropped_blocks", r.dropped_blocks),
                                                           ("dropped_samples", r.dropped_samples),
@@ -512,14 +551,17 @@ class Recorder:
                    for k, v in d.items()}})
         except OSError:
             pass  # accepted, as above
-        for attempt in range(2):
+        for attempt in range(_FINISH_TRIES):  # space may come back (the ballast, another process)
             try:
                 w.finish()
                 return r
-            except OSError:
-                if attempt:
-                    raise  # the file is valid up to its last complete chunk: 'wearbench recover'
+            except OSError as exc:
                 w.release_ballast()
+                if attempt == _FINISH_TRIES - 1:
+                    raise OSError(exc.errno, f"{r.reason}; the session file could not be finished ({exc}); "
+                                  "it holds every chunk written: run 'wearbench recover' on it",
+                                  str(w.path) if w.path else None) from exc
+                time.sleep(0.2 * (attempt + 1))
         raise AssertionError("unreachable")
 
 

@@ -2,8 +2,9 @@
 
 :func:`recover` copies every complete record of the broken file (schemas, channels, metadata, the
 bench attachment, and every message of every complete chunk) into a new, finished MCAP, and adds
-an event and a ``recovery`` metadata record saying what was restored and where the original ended,
-and removes the ballast file the killed recorder had set aside.
+an event (in the layout of the file's events channel) and a ``recovery`` metadata record saying what
+was restored and where the original ended, and removes the ballast file the killed recorder had set
+aside. The new file has the session writer's chunking, compression, indexes and CRCs.
 Imports mcap and the session scan only.
 """
 
@@ -13,11 +14,12 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from mcap.writer import CompressionType, Writer
+from mcap.writer import IndexType, Writer
+from wearbench.acquisition import layout, layout1
 from wearbench.acquisition.drivers import Event
-from wearbench.acquisition.layout import TOPICS, encode_event, ns
+from wearbench.acquisition.layout import TOPICS, ns
 from wearbench.acquisition.session_file import scan_mcap
-from wearbench.acquisition.session_writer import PROFILE
+from wearbench.acquisition.session_writer import CHUNK_SIZE, COMPRESSION, PROFILE
 
 __all__ = ["RecoveryReport", "recover"]
 
@@ -41,7 +43,8 @@ def recover(broken: str | Path, out: str | Path) -> RecoveryReport:
     if not scan.channels and not scan.messages:
         raise ValueError(f"{broken}: nothing to recover ({scan.problem or 'no channels'})")
     with open(out, "wb") as fh:
-        w = Writer(fh, chunk_size=1 << 20, compression=CompressionType.ZSTD)
+        w = Writer(fh, chunk_size=CHUNK_SIZE, compression=COMPRESSION, index_types=IndexType.ALL,
+                   enable_crcs=True, enable_data_crcs=True)
         w.start(profile=PROFILE, library="wearbench recover")
         schema_ids = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in scan.schemas.items()}
         channel_ids = {cid: w.register_channel(c.topic, c.message_encoding, schema_ids.get(c.schema_id, 0),
@@ -62,7 +65,9 @@ def recover(broken: str | Path, out: str | Path) -> RecoveryReport:
         events = [cid for cid, c in scan.channels.items() if c.topic == TOPICS["events"]]
         if events:
             ev = Event("recovered", note, host_time=last / 1e9 if last else time.time())
-            w.add_message(channel_ids[events[0]], ns(ev.host_time), encode_event(ev), 0)
+            legacy = scan.channels[events[0]].message_encoding == layout1.ENCODING
+            data = layout1.encode_event(ev) if legacy else layout.encode_event(ev)
+            w.add_message(channel_ids[events[0]], ns(ev.host_time), data, 0)
         w.add_metadata("recovery", {"source": str(broken), "chunks": str(scan.chunks),
                                     "messages": str(len(scan.messages)), "was_finished": str(scan.finished),
                                     "problem": scan.problem or "", "recovered_at":

@@ -1,12 +1,18 @@
 """Writing one session to MCAP so that whatever happens, what was recorded stays readable.
 
-- Small zstd chunks, closed at least every ``flush_interval`` seconds and handed to the OS, so a
-  process killed outright loses at most that much (``wearbench recover`` restores the rest).
+- Chunks of at most ``CHUNK_SIZE`` bytes, ``COMPRESSION`` compressed, each followed by its message
+  indexes (every MCAP reader, including the indexed one viewers use, opens the file), and closed
+  at least every ``flush_interval`` seconds and handed to the OS, so a process killed outright loses
+  at most that much (``wearbench recover`` restores the rest). Chunk and data-section CRCs are on.
 - Metadata and the bench file go in first, so even a killed session says what it was.
+- Disk space: a session refuses to start with less than ``MIN_FREE_BYTES`` free; a ballast file of
+  an eighth of the free space (64 KiB to 4 MiB) is set aside at the start and given back when a
+  write fails, which leaves room to write what waited and to finish the file.
 - Writes go through :class:`DurableFile`, which never leaves half a record behind: a failed
   write (a full disk) is cut back to the last whole record and kept in memory until it can be
-  written, so the file can still be finished once space is back; a small ballast file set aside
-  at the start gives that space back.
+  written, so the file can still be finished once space is back.
+- A live view (``live``, see ``acquisition.live``) is offered every message after it went to the
+  file; it never blocks and never fails the writer.
 
 Imports mcap and the layout; no backend library.
 """
@@ -16,27 +22,47 @@ from __future__ import annotations
 import errno
 import io
 import os
+import shutil
 import time
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, Protocol
 
 from mcap.writer import CompressionType, IndexType, Writer
-from wearbench.acquisition.drivers import Block, Event, MotorState
+from wearbench.acquisition.drivers import Block, BusFrame, Event, MotorState
 from wearbench.acquisition.layout import (
+    ENCODING,
     SCHEMAS,
     TOPICS,
     Command,
+    CrankAngle,
     encode_block,
     encode_command,
     encode_event,
+    encode_frame,
     encode_state,
     ns,
 )
 
-__all__ = ["BALLAST_BYTES", "PROFILE", "DurableFile", "SessionWriter"]
+__all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
+           "SessionWriter", "ballast_bytes"]
 
 PROFILE = "wearbench-session"
-BALLAST_BYTES = 4 << 20
+CHUNK_SIZE = 1 << 20  # bytes before compression; at 20 kHz the flush interval closes chunks first
+COMPRESSION = CompressionType.ZSTD  # chosen by measurement: benchmarks/session_format.py
+MIN_FREE_BYTES = 1 << 20
+
+
+def ballast_bytes(free: int) -> int:
+    """The ballast set aside with ``free`` bytes free: an eighth of it, 64 KiB to 4 MiB."""
+    return int(min(4 << 20, max(64 << 10, free // 8)))
+
+
+class NotEnoughSpace(OSError):
+    """Less than ``MIN_FREE_BYTES`` free where the session would be written."""
+
+
+class LiveSink(Protocol):
+    def offer(self, key: str, data: bytes, log_time: int) -> None: ...
 
 
 class DurableFile:
@@ -115,40 +141,61 @@ class SessionWriter:
     """One MCAP session file: ``start``, then ``write_*``, then ``finish``.
 
     ``out`` is a path or an unbuffered binary file object (tests pass one that fails on purpose).
+    A path with less than ``MIN_FREE_BYTES`` free raises :class:`NotEnoughSpace` before anything is
+    written. ``crank`` (set after ``start``) derives the encoder messages' crank angle and cycle.
     """
 
-    def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int = 256 << 10,
-                 flush_interval: float = 0.5, ballast: bool = True):
+    def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int = CHUNK_SIZE,
+                 compression: CompressionType = COMPRESSION, flush_interval: float = 0.5,
+                 ballast: bool = True, live: LiveSink | None = None):
+        self._ballast = None
         if isinstance(out, (str, Path)):
             self.path: Path | None = Path(out)
+            free = shutil.disk_usage(self.path.resolve().parent).free
+            if free < MIN_FREE_BYTES:
+                raise NotEnoughSpace(
+                    errno.ENOSPC, f"{free / 2**20:.2f} MiB free; a session needs at least "
+                    f"{MIN_FREE_BYTES / 2**20:g} MiB to start (about 100 MB per hour at 20 kHz)",
+                    str(self.path.resolve().parent))
             raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
+            if ballast:
+                self._ballast = self.path.with_name(self.path.name + ".ballast")
+                self._set_aside(self._ballast, ballast_bytes(free))
         else:
             self.path, raw = None, out
         self._file = DurableFile(raw)
-        # no message indexes: small chunks make them worth little; chunk indexes remain
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD,
-                              index_types=IndexType.CHUNK | IndexType.ATTACHMENT | IndexType.METADATA)
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression,
+                              index_types=IndexType.ALL, enable_crcs=True, enable_data_crcs=True)
         self._channels: dict[str, int] = {}
         self._flush_interval = flush_interval
         self._last_flush = time.monotonic()
-        self._ballast = None
-        if ballast and self.path is not None:
-            self._ballast = self.path.with_name(self.path.name + ".ballast")
-            try:
-                with open(self._ballast, "wb") as fh:
-                    fh.truncate(BALLAST_BYTES)
-                    os.posix_fallocate(fh.fileno(), 0, BALLAST_BYTES)
-            except (OSError, AttributeError):
-                pass  # no room for ballast or no fallocate: the session still records
+        self.live = live
+        self.crank: CrankAngle | None = None
         self.finished = False
         self._mcap_finished = False
+
+    @staticmethod
+    def _set_aside(path: Path, size: int) -> None:
+        """Reserve ``size`` bytes in ``path`` (as much as fits; nothing if nothing does)."""
+        try:
+            with open(path, "wb") as fh:
+                try:
+                    os.posix_fallocate(fh.fileno(), 0, size)
+                except (OSError, AttributeError):  # no fallocate here: write the bytes
+                    zeros = bytes(64 << 10)
+                    for _ in range(0, size, len(zeros)):
+                        fh.write(zeros)
+        except OSError:
+            pass  # what was reserved stays reserved; the session still records
 
     def start(self, metadata: dict[str, dict[str, str]], attachments: dict[str, tuple[str, bytes]]) -> None:
         """Header, schemas, channels, metadata records and attachments ``{name: (media_type, data)}``."""
         self._writer.start(profile=PROFILE, library="wearbench")
+        ids: dict[str, int] = {}
         for key, (name, schema) in SCHEMAS.items():
-            sid = self._writer.register_schema(name=name, encoding="jsonschema", data=schema)
-            self._channels[key] = self._writer.register_channel(TOPICS[key], "json", sid)
+            if name not in ids:
+                ids[name] = self._writer.register_schema(name=name, encoding=ENCODING, data=schema)
+            self._channels[key] = self._writer.register_channel(TOPICS[key], ENCODING, ids[name])
         now = time.time_ns()
         for name, (media_type, data) in attachments.items():
             self._writer.add_attachment(create_time=now, log_time=now, name=name,
@@ -169,15 +216,18 @@ class SessionWriter:
 
     def _add(self, key: str, data: bytes, host_time: float, device_time: float | None,
              sequence: int = 0) -> None:
-        self._writer.add_message(self._channels[key], log_time=ns(host_time), data=data,
+        log_time = ns(host_time)
+        self._writer.add_message(self._channels[key], log_time=log_time, data=data,
                                  publish_time=ns(device_time if device_time is not None else 0.0),
                                  sequence=sequence & 0xFFFFFFFF)
+        if self.live is not None:
+            self.live.offer(key, data, log_time)
         if time.monotonic() - self._last_flush > self._flush_interval:
             self.flush()
         self._raise()
 
-    def write_block(self, block: Block, unit: str = "") -> None:
-        self._add(block.stream, encode_block(block, unit), block.host_time, block.device_time,
+    def write_block(self, block: Block) -> None:
+        self._add(block.stream, encode_block(block, self.crank), block.host_time, block.device_time,
                   block.sequence)
 
     def write_state(self, state: MotorState) -> None:
@@ -188,6 +238,9 @@ class SessionWriter:
 
     def write_event(self, event: Event) -> None:
         self._add("events", encode_event(event), event.host_time, event.device_time)
+
+    def write_frame(self, frame: BusFrame) -> None:
+        self._add("frames", encode_frame(frame), frame.host_time or frame.time, None)
 
     def flush(self) -> None:
         """Close the chunk in progress and hand everything to the OS."""

@@ -214,11 +214,11 @@ def test_writer_exception(bench, tmp_path):
     writer = SessionWriter(out)
     write_block, calls = writer.write_block, []
 
-    def failing(block, unit=""):
+    def failing(block):
         calls.append(block.sequence)
         if len(calls) == 40:
             raise ValueError("cannot encode")
-        write_block(block, unit)
+        write_block(block)
 
     writer.write_block = failing
     result = _run(rig, bench, plan, out, writer=writer)
