@@ -1,0 +1,39 @@
+"""Suite-wide: every session file a test writes is opened, at the end of the run, by the readers
+other tools use (``tests/interop/mcap_readers.py``): @mcap/core's indexed reader under node and
+the Python mcap readers with CRC validation. Unfinished files (killed or cut on purpose) are left
+to the tests that recover them; the recovered files are checked here too."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent / "interop"))
+import mcap_readers  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def node_readers() -> Path:
+    """The node folder with @mcap/core and the reader script; skips only when node is absent."""
+    try:
+        return mcap_readers.install()
+    except mcap_readers.NodeMissing as exc:
+        pytest.skip(str(exc))
+    except mcap_readers.NodeSetupError as exc:
+        pytest.fail(str(exc), pytrace=False)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def every_session_file_opens(tmp_path_factory):
+    yield
+    files = sorted(tmp_path_factory.getbasetemp().rglob("*.mcap"))
+    if not files:
+        return
+    try:
+        folder = mcap_readers.install()
+    except mcap_readers.NodeMissing:
+        folder = None  # Python readers only; test_readers.py says why node was skipped
+    problems = mcap_readers.check(files, folder)
+    assert not problems, "session files other readers cannot open:\n" + "\n".join(problems)
