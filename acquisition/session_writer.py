@@ -44,7 +44,7 @@ from wearbench.acquisition.layout import (
 )
 
 __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
-           "SessionWriter", "ballast_bytes"]
+           "SessionWriter", "ballast_bytes", "check_free_space"]
 
 PROFILE = "wearbench-session"
 # Chosen by measurement (benchmarks/session_format.py, 20 kHz): zstd 148 MB per hour against lz4's
@@ -62,6 +62,17 @@ def ballast_bytes(free: int) -> int:
 
 class NotEnoughSpace(OSError):
     """Less than ``MIN_FREE_BYTES`` free where the session would be written."""
+
+
+def check_free_space(path: str | Path) -> int:
+    """Bytes free where ``path`` would be written; raises :class:`NotEnoughSpace` below the minimum."""
+    folder = Path(path).resolve().parent
+    free = shutil.disk_usage(folder).free
+    if free < MIN_FREE_BYTES:
+        raise NotEnoughSpace(errno.ENOSPC, f"{free / 2**20:.2f} MiB free; a session needs at least "
+                             f"{MIN_FREE_BYTES / 2**20:g} MiB to start (about 150 MB per hour at 20 kHz)",
+                             str(folder))
+    return free
 
 
 class LiveSink(Protocol):
@@ -154,12 +165,7 @@ class SessionWriter:
         self._ballast = None
         if isinstance(out, (str, Path)):
             self.path: Path | None = Path(out)
-            free = shutil.disk_usage(self.path.resolve().parent).free
-            if free < MIN_FREE_BYTES:
-                raise NotEnoughSpace(
-                    errno.ENOSPC, f"{free / 2**20:.2f} MiB free; a session needs at least "
-                    f"{MIN_FREE_BYTES / 2**20:g} MiB to start (about 150 MB per hour at 20 kHz)",
-                    str(self.path.resolve().parent))
+            free = check_free_space(self.path)
             raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
             if ballast:
                 self._ballast = self.path.with_name(self.path.name + ".ballast")
