@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import queue
 import threading
+from typing import Self
 
 import foxglove
 from wearbench.acquisition.layout import ENCODING, SCHEMAS, TOPICS
@@ -45,7 +46,7 @@ class LiveView:
         try:
             self.server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
                                                 message_backlog_size=backlog)
-        except Exception as exc:  # the SDK raises its own error type for a port in use
+        except Exception as exc:  # noqa: BLE001 - the SDK raises its own error type for a port in use
             raise OSError(f"live view: cannot serve on {host}:{port}: {exc}") from None
         self.host, self.port = host, self.server.port
         self._channels = {
@@ -93,7 +94,7 @@ class LiveView:
             channel.close()
         self.server.stop()
 
-    def __enter__(self) -> LiveView:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:

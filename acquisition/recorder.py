@@ -133,14 +133,20 @@ def _failure_reason(exc: Exception, what: str) -> str:
 
 
 class Recorder:
-    """Runs one session on ``rig`` and writes it to ``out`` (a path or an unbuffered binary file)."""
+    """Runs one session on ``rig`` and writes it to ``out`` (a path or an unbuffered binary file).
+
+    ``queue_size`` (items between the readers and the writer; default: a quarter of the writer's
+    ballast at 1 KiB an item, 64 to 4096) bounds what waits in memory when the disk fills."""
 
     def __init__(self, rig: Rig, bench: Bench, plan: SessionPlan, out: str | Path | BinaryIO, *,
-                 on_progress: Callable[[Progress], None] | None = None, queue_size: int = 4096,
+                 on_progress: Callable[[Progress], None] | None = None, queue_size: int | None = None,
                  writer: SessionWriter | None = None):
         self.rig, self.bench, self.plan = rig, bench, plan
         self.writer = writer or SessionWriter(out)
         self.on_progress = on_progress
+        if queue_size is None:
+            reserve = getattr(self.writer, "reserve", 0)
+            queue_size = min(4096, max(64, reserve // 4 // 1024)) if reserve else 4096
         self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()  # the session should end
         self._halt = threading.Event()  # the readers should end (after the ramp-down)
@@ -400,9 +406,6 @@ class Recorder:
         p, rig = self.plan, self.rig
         acc = p.acceleration or self.bench.motor.max_acceleration
         prog.target = p.cycles if p.cycles is not None else p.duration
-        for source in rig.sources:
-            accel = self.bench.sensor("accelerometer")
-            source.configure(accel.range, accel.sample_rate)
         self._command("enable")
         for source in rig.sources:
             source.start()
@@ -473,6 +476,12 @@ class Recorder:
                 old[sig] = signal.signal(sig, self._on_signal)  # must not take a lock the main thread holds
         try:
             prog = Progress()
+            try:  # before the metadata, which records the streams as configured (range, LSB, rate)
+                accel = self.bench.sensor("accelerometer")
+                for source in self.rig.sources:
+                    source.configure(accel.range, accel.sample_rate)
+            except Exception as exc:  # noqa: BLE001 - the file still records what happened
+                self.stop(_failure_reason(exc, "configuring the stream"), "error")
             try:
                 self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml",
                                                                         self.bench.source.encode())})

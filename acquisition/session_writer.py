@@ -7,7 +7,9 @@
 - Metadata and the bench file go in first, so even a killed session says what it was.
 - Disk space: a session refuses to start with less than ``MIN_FREE_BYTES`` free; a ballast file of
   an eighth of the free space (64 KiB to 4 MiB) is set aside at the start and given back when a
-  write fails, which leaves room to write what waited and to finish the file.
+  write fails. It leaves room for what waits when the disk fills: the chunk in progress (chunks are
+  capped at half the ballast), the recorder's queue (capped at a quarter, see ``Recorder``), and
+  the summary and footer.
 - Writes go through :class:`DurableFile`, which never leaves half a record behind: a failed
   write (a full disk) is cut back to the last whole record and kept in memory until it can be
   written, so the file can still be finished once space is back.
@@ -48,9 +50,10 @@ __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFil
 
 PROFILE = "wearbench-session"
 # Chosen by measurement (benchmarks/session_format.py, 20 kHz): zstd 148 MB per hour against lz4's
-# 248 and none's 377, at the same write CPU (0.4 % of a core). The flush interval closes a chunk
-# every 0.5 s (about 48 kB before compression at 20 kHz), so CHUNK_SIZE only caps a burst.
-CHUNK_SIZE = 1 << 20
+# 248 and none's 377, at the same write CPU (0.4 % of a core); 256 KiB and 1 MiB chunks compress
+# alike. The flush interval closes a chunk every 0.5 s (about 48 kB before compression at 20 kHz),
+# so CHUNK_SIZE caps a burst (a writer catching up), and with it what a full disk leaves in memory.
+CHUNK_SIZE = 256 << 10
 COMPRESSION = CompressionType.ZSTD
 MIN_FREE_BYTES = 1 << 20
 
@@ -159,20 +162,23 @@ class SessionWriter:
     written. ``crank`` (set after ``start``) derives the encoder messages' crank angle and cycle.
     """
 
-    def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int = CHUNK_SIZE,
+    def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int | None = None,
                  compression: CompressionType = COMPRESSION, flush_interval: float = 0.5,
                  ballast: bool = True, live: LiveSink | None = None):
         self._ballast = None
+        self.reserve = 0  # bytes of ballast set aside
         if isinstance(out, (str, Path)):
             self.path: Path | None = Path(out)
             free = check_free_space(self.path)
             raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
             if ballast:
                 self._ballast = self.path.with_name(self.path.name + ".ballast")
-                self._set_aside(self._ballast, ballast_bytes(free))
+                self.reserve = self._set_aside(self._ballast, ballast_bytes(free))
         else:
             self.path, raw = None, out
         self._file = DurableFile(raw)
+        if chunk_size is None:  # a chunk that fails to write must fit in the ballast
+            chunk_size = min(CHUNK_SIZE, self.reserve // 2) if self.reserve else CHUNK_SIZE
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression,
                               index_types=IndexType.ALL, enable_crcs=True, enable_data_crcs=True)
         self._channels: dict[str, int] = {}
@@ -184,18 +190,21 @@ class SessionWriter:
         self._mcap_finished = False
 
     @staticmethod
-    def _set_aside(path: Path, size: int) -> None:
-        """Reserve ``size`` bytes in ``path`` (as much as fits; nothing if nothing does)."""
+    def _set_aside(path: Path, size: int) -> int:
+        """Reserve ``size`` bytes in ``path`` (as much as fits); returns the bytes reserved."""
         try:
             with open(path, "wb") as fh:
                 try:
                     os.posix_fallocate(fh.fileno(), 0, size)
                 except (OSError, AttributeError):  # no fallocate here: write the bytes
                     zeros = bytes(64 << 10)
-                    for _ in range(0, size, len(zeros)):
-                        fh.write(zeros)
+                    fh.writelines(zeros for _ in range(0, size, len(zeros)))
         except OSError:
             pass  # what was reserved stays reserved; the session still records
+        try:
+            return path.stat().st_blocks * 512
+        except OSError:
+            return 0
 
     def start(self, metadata: dict[str, dict[str, str]], attachments: dict[str, tuple[str, bytes]]) -> None:
         """Header, schemas, channels, metadata records and attachments ``{name: (media_type, data)}``."""

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent / "interop"))
-import mcap_readers  # noqa: E402
+import mcap_readers
 
 
 @pytest.fixture(scope="session")
