@@ -209,11 +209,9 @@ class SessionWriter:
     def start(self, metadata: dict[str, dict[str, str]], attachments: dict[str, tuple[str, bytes]]) -> None:
         """Header, schemas, channels, metadata records and attachments ``{name: (media_type, data)}``."""
         self._writer.start(profile=PROFILE, library="wearbench")
-        ids: dict[str, int] = {}
-        for key, (name, schema) in SCHEMAS.items():
-            if name not in ids:
-                ids[name] = self._writer.register_schema(name=name, encoding=ENCODING, data=schema)
-            self._channels[key] = self._writer.register_channel(TOPICS[key], ENCODING, ids[name])
+        for key in SCHEMAS:
+            if key != "frames":  # raw bus frames: registered with the first one (bus backends only)
+                self._register(key)
         now = time.time_ns()
         for name, (media_type, data) in attachments.items():
             self._writer.add_attachment(create_time=now, log_time=now, name=name,
@@ -221,6 +219,12 @@ class SessionWriter:
         for name, record in metadata.items():
             self.add_metadata(name, record)
         self.flush()
+
+    def _register(self, key: str) -> int:
+        name, schema = SCHEMAS[key]
+        sid = self._writer.register_schema(name=name, encoding=ENCODING, data=schema)
+        self._channels[key] = self._writer.register_channel(TOPICS[key], ENCODING, sid)
+        return self._channels[key]
 
     def add_metadata(self, name: str, record: dict[str, str]) -> None:
         self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
@@ -235,7 +239,8 @@ class SessionWriter:
     def _add(self, key: str, data: bytes, host_time: float, device_time: float | None,
              sequence: int = 0) -> None:
         log_time = ns(host_time)
-        self._writer.add_message(self._channels[key], log_time=log_time, data=data,
+        channel = self._channels.get(key) or self._register(key)
+        self._writer.add_message(channel, log_time=log_time, data=data,
                                  publish_time=ns(device_time if device_time is not None else 0.0),
                                  sequence=sequence & 0xFFFFFFFF)
         if self.live is not None:

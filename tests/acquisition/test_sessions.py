@@ -146,3 +146,34 @@ def test_speed_profile_sim_and_serial(bench):
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_clipped_samples_are_flagged(bench, tmp_path):
+    """A 10 g accelerometer on a signal that peaks beyond it: each acceleration message counts its
+    samples at or beyond the range (within one LSB), a warning is logged when clipping starts, and
+    read_session flags the samples."""
+    from wearbench.acquisition.layout import log_level
+    from wearbench.hardware.bench import parse_bench
+
+    small = parse_bench(bench.source.replace('range = "50 g"', 'range = "10 g"'), bench.path)
+    full_scale = small.sensor("accelerometer").range
+    rig = open_rig(small, "sim", {"speedup": math.inf, "config": HARMONIC})
+    out = tmp_path / "clipped.mcap"
+    try:
+        result = Recorder(rig, small, SessionPlan(speed=FAST, cycles=3), out).run()
+    finally:
+        rig.close()
+    assert result.completed, result.reason
+    blocks = recorded_blocks(out)[ACCELERATION]
+    level = full_scale * (1 - 1.0001 / 32768)  # one LSB (range/32768) below full scale
+    expected = {seq: int(np.sum(np.abs(b.samples.astype(np.float64)) >= level)) for seq, b in blocks.items()}
+    assert {seq: b.clipped for seq, b in blocks.items()} == expected
+    assert 0 < sum(expected.values()) == result.clipped < len(blocks) * 200
+    s = read_session(out)
+    assert int(s.acceleration.clipped.sum()) == result.clipped
+    assert s.metadata["result"]["acceleration.clipped_samples"] == str(result.clipped)
+    starts = sum(1 for a, b in zip([0, *[expected[k] for k in sorted(expected)]], [expected[k] for k in sorted(expected)])
+                 if b and not a)
+    warnings = s.events[s.events.kind == "clipping"]
+    assert len(warnings) == starts >= 1 and log_level("clipping").name == "Warning"
+    assert np.abs(s.acceleration.acc).max() <= full_scale
