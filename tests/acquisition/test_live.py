@@ -99,3 +99,20 @@ def test_parse_address():
     assert parse_address("8766") == ("127.0.0.1", 8766)
     with pytest.raises(ValueError, match="expected HOST:PORT"):
         parse_address("localhost:http")
+
+
+def test_record_cli_live(tmp_path):
+    import subprocess
+    import sys
+
+    config = tmp_path / "emulator.json"
+    config.write_text(json.dumps(HARMONIC))
+    out = tmp_path / "cli-live.mcap"
+    r = subprocess.run([sys.executable, "-m", "wearbench.cli", "record", "ninebar-testbed", "--backend", "sim",
+                        "--option", "speedup=inf", "--option", f"config={config}", "--speed", f"{FAST}rad/s",
+                        "--cycles", "3", "--out", str(out), "--live", "127.0.0.1:0"],
+                       capture_output=True, text=True, timeout=120, check=False)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("live view: ws://127.0.0.1:") and "completed" in r.stdout
+    published = int(r.stdout.split("live view: ")[2].split()[0])
+    assert published > 30  # every message went to the (viewerless) server too
