@@ -155,7 +155,6 @@ class Recorder:
         self._recording = threading.Event()
         self._writer_done = threading.Event()
         self._checks = {ACCELERATION: _SequenceCheck(), ENCODER: _SequenceCheck()}
-        self._units: dict[str, str] = {}
         self._malformed = 0
         self._events = 0
         self._cpu: dict[str, float] = {}
@@ -335,7 +334,6 @@ class Recorder:
             calibration["encoder.angle_offset"] = f"unknown ({exc})"
         for source in self.rig.sources:
             for info in source.describe():
-                self._units[info.name] = info.unit
                 if info.name == ACCELERATION:
                     full_scale = float(info.extra.get("range", b.sensor("accelerometer").range))
                     lsb = info.extra.get("lsb")

@@ -68,7 +68,7 @@ def test_live_view_streams_the_session(bench, tmp_path):
     sent = sent_from_device(rig.drive.device)
     out = tmp_path / "live.mcap"
     results = []
-    with LiveView(port=0, backlog=64) as live:
+    with LiveView(port=0, backlog=256) as live:
         writer = SessionWriter(out, live=live)
         recorder = Recorder(rig, bench, SessionPlan(speed=FAST, duration=2.0, settle=0.2), out, writer=writer)
         recording = threading.Thread(target=lambda: results.append(recorder.run()))
