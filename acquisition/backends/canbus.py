@@ -8,7 +8,8 @@ source hands to the recorder for the session's ``/can/frames`` channel, and :fun
 recorded frames back into a fresh decoder. The ``canopen`` backend reuses :class:`BenchFrames`,
 :class:`FrameLog` and :class:`CanSource` for the acceleration stream. Options (``[hardware.can]``): ``interface`` (default "virtual"),
 ``channel`` (default "wearbench"), ``bitrate``, ``data_bitrate``, ``fd`` (default true),
-``reply_timeout`` (s, default 1.0). Imports python-can and the CAN codec only.
+``reply_timeout`` (s, default 1.0), ``log_frames`` (default true: every frame received goes to the
+session's ``/can/frames``, about 130 MB per hour at 10 kHz). Imports python-can and the CAN codec only.
 """
 
 from __future__ import annotations
@@ -43,9 +44,10 @@ from wearbench.hardware.bench import Bench
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode
 
-__all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "FrameLog", "open_bus", "open_rig", "replay"]
+__all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "FrameLog", "frame_log", "open_bus", "open_rig",
+           "replay"]
 
-BUS_OPTIONS = {"interface", "channel", "bitrate", "data_bitrate", "fd", "reply_timeout"}
+BUS_OPTIONS = {"interface", "channel", "bitrate", "data_bitrate", "fd", "reply_timeout", "log_frames"}
 _MOTOR = {"ENABLE": 1, "DISABLE": 2, "SET_SPEED": 3, "STOP": 4, "CLEAR_FAULT": 5, "GET_STATUS": 6}
 _STREAM = {"STOP": 0, "START": 1, "CONFIGURE": 2}
 
@@ -181,6 +183,16 @@ class FrameLog(can.Listener):
         while self._frames:
             out.append(self._frames.popleft())
         return out
+
+
+def frame_log(options: Mapping[str, Any]) -> FrameLog | None:
+    """A :class:`FrameLog` unless the options say ``log_frames = false``."""
+    value = options.get("log_frames", True)
+    if isinstance(value, str):
+        value = {"true": True, "false": False}.get(value.lower(), value)
+    if not isinstance(value, bool):
+        raise ValueError(f"log_frames = {value!r}: expected true or false")  # noqa: TRY004 - a user error
+    return FrameLog() if value else None
 
 
 def replay(frames: Iterable[BusFrame], bench: Bench, calibration: Mapping[str, str]) -> list[Block | Event]:
@@ -349,8 +361,8 @@ def _check(bench: Bench, options: Mapping[str, Any], allowed: set[str], section:
 def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     reply_timeout = _check(bench, options, BUS_OPTIONS, "can")
     bus = open_bus(options)
-    frames, log = BenchFrames.for_bench(bench), FrameLog()
-    notifier = can.Notifier(bus, [frames, log], timeout=0.1)
+    frames, log = BenchFrames.for_bench(bench), frame_log(options)
+    notifier = can.Notifier(bus, [frames, *([log] if log else [])], timeout=0.1)
     closer = _Bus(bus, notifier)
     drive, source = CanDrive(bus, frames, reply_timeout), CanSource(bus, frames, bench, reply_timeout, log)
     drive.close = source.close = closer.close  # type: ignore[method-assign]

@@ -25,8 +25,8 @@ from wearbench.acquisition.backends.canbus import (
     BUS_OPTIONS,
     BenchFrames,
     CanSource,
-    FrameLog,
     _check,
+    frame_log,
     open_bus,
 )
 from wearbench.acquisition.drivers import (
@@ -181,8 +181,8 @@ def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     bus = open_bus(options)
     frames = BenchFrames.for_bench(bench)
     network = canopen.Network(bus)
-    log = FrameLog()
-    network.listeners += [frames, log]
+    log = frame_log(options)
+    network.listeners += [frames, *([log] if log else [])]
     network.NOTIFIER_CYCLE = 0.1
     network.connect()
     closed = {"done": False}

@@ -177,3 +177,12 @@ def test_clipped_samples_are_flagged(bench, tmp_path):
     warnings = s.events[s.events.kind == "clipping"]
     assert len(warnings) == starts >= 1 and log_level("clipping").name == "Warning"
     assert np.abs(s.acceleration.acc).max() <= full_scale
+
+
+def test_frame_log_option():
+    from wearbench.acquisition.backends.canbus import FrameLog, frame_log
+
+    assert isinstance(frame_log({}), FrameLog) and isinstance(frame_log({"log_frames": "true"}), FrameLog)
+    assert frame_log({"log_frames": False}) is None and frame_log({"log_frames": "false"}) is None
+    with pytest.raises(ValueError, match="log_frames = 'sometimes': expected true or false"):
+        frame_log({"log_frames": "sometimes"})
