@@ -234,29 +234,40 @@ class Recorder:
         finally:
             self._cpu[f"reader:{source.name}"] = time.thread_time()
 
-    def _clip_check(self, block: Block) -> None:
-        """Count the block's clipped samples; a warning event when clipping starts."""
+    def _clip_check(self, block: Block) -> Event | None:
+        """Count the block's clipped samples; the warning event when clipping starts."""
         block.clipped = count_clipped(block.samples, self._clip_level)
         self._clipped += block.clipped
-        if block.clipped and not self._clipping:
-            self._events += 1
-            self.writer.write_event(Event(
-                "clipping", f"acceleration clipping: {block.clipped} of {len(block.samples)} samples of block "
-                f"{block.sequence} at or beyond the range (|a| >= {self._clip_level:.6g} m/s^2)",
-                device_time=block.device_time))
-        self._clipping = block.clipped > 0
+        starts, self._clipping = block.clipped > 0 and not self._clipping, block.clipped > 0
+        if not starts:
+            return None
+        self._events += 1
+        return Event("clipping", f"acceleration clipping: {block.clipped} of {len(block.samples)} samples of "
+                     f"block {block.sequence} at or beyond the range (|a| >= {self._clip_level:.6g} m/s^2)",
+                     device_time=block.device_time)
 
     def _write(self, item: object) -> None:
+        """Hand ``item`` (and the events it causes) to the writer. The writer keeps what it was
+        handed even when the file write fails (OSError: the bytes wait in memory), so every part
+        is handed over before the first such error is raised."""
         w = self.writer
         if isinstance(item, Block):
             note = self._checks[item.stream].check(item)
-            if item.stream == ACCELERATION:
-                self._clip_check(item)
-            w.write_block(item)
+            events = [self._clip_check(item) if item.stream == ACCELERATION else None]
             if note:
                 self._events += 1
-                w.write_event(Event("drop" if "missing" in note else "repeat", note,
-                                    device_time=item.device_time))
+                events.append(Event("drop" if "missing" in note else "repeat", note, device_time=item.device_time))
+            error = None
+            for part in (item, *filter(None, events)):
+                try:
+                    if part is item:
+                        w.write_block(item)
+                    else:
+                        w.write_event(part)
+                except OSError as exc:
+                    error = error or exc
+            if error is not None:
+                raise error
         elif isinstance(item, MotorState):
             w.write_state(item)
         elif isinstance(item, Command):
