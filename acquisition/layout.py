@@ -17,7 +17,7 @@ Protobuf over JSON numeric arrays by measurement (``benchmarks/session_format.py
 148 against 161 MB per hour and 2.6x less write CPU; besides, float32 samples stay exact and a NaN
 sample stays a valid message (JSON has no NaN). Layout 1 (JSON, base64 samples) is read by
 ``layout1``. ``log_time`` is the host time of arrival (ns since the Unix epoch), ``publish_time`` the
-device time (ns on the device clock; 0: unknown). Imports numpy, protobuf, foxglove's schemas and
+device time (ns on the device clock; equal to ``log_time`` for a message that has none). Imports numpy, protobuf, foxglove's schemas and
 the driver dataclasses only.
 """
 
@@ -51,6 +51,7 @@ __all__ = [
     "encode_state",
     "log_level",
     "ns",
+    "publish_time",
 ]
 
 TOPICS = {ACCELERATION: "/acceleration", ENCODER: "/encoder", "state": "/motor/state",
@@ -235,11 +236,16 @@ def encode_event(e: Event) -> bytes:
                message=e.message, name=e.kind).encode()
 
 
-def decode_event(data: bytes, publish_time: int = 0) -> Event:
-    """The :class:`Event` of a ``foxglove.Log`` message; ``publish_time`` (ns) is its device time."""
+def publish_time(device_time: float | None, log_time: int) -> int:
+    """A message's MCAP ``publish_time``: its device time (ns), or ``log_time`` when it has none."""
+    return log_time if device_time is None else ns(device_time)
+
+
+def decode_event(data: bytes, publish: int, log_time: int) -> Event:
+    """The :class:`Event` of a ``foxglove.Log`` message and its record's publish and log times."""
     m = _CLASSES["events"].FromString(data)
     host = m.timestamp.seconds + m.timestamp.nanos * 1e-9
-    return Event(m.name, m.message, host_time=host, device_time=publish_time * 1e-9 if publish_time else None)
+    return Event(m.name, m.message, host_time=host, device_time=None if publish == log_time else publish * 1e-9)
 
 
 def encode_frame(f: BusFrame) -> bytes:

@@ -4,8 +4,8 @@ Layout 1 put every message in JSON (``jsonschema`` schemas, channel encoding ``j
 as base64 of little-endian float32 (acceleration, m/s^2) or int32 (encoder counts) inside the JSON,
 the index pulse as ``index_at`` positions, events as ``wearbench.Event`` {kind, message, times}.
 Nothing records it any more; sessions already recorded stay readable through these decoders, and
-``wearbench recover`` adds its note to such a file with :func:`encode_event`.
-Imports numpy and the driver dataclasses only.
+``wearbench recover`` rewrites them in the current layout. Imports numpy, the driver dataclasses
+and ``layout.Command``.
 """
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ import json
 
 import numpy as np
 from wearbench.acquisition.drivers import ACCELERATION, Block, Event, MotorState
+from wearbench.acquisition.layout import Command
 
-__all__ = ["ENCODING", "decode_block", "decode_event", "decode_state", "encode_event"]
+__all__ = ["ENCODING", "decode_block", "decode_command", "decode_event", "decode_state"]
 
 ENCODING = "json"  # the channel message encoding of every layout-1 channel
 
@@ -43,11 +44,12 @@ def decode_state(data: bytes) -> MotorState:
                       host_time=s["host_time"])
 
 
+def decode_command(data: bytes) -> Command:
+    c = json.loads(data)
+    return Command(c["command"], c.get("speed"), c.get("acceleration"), c.get("host_time", 0.0))
+
+
 def decode_event(data: bytes) -> Event:
     e = json.loads(data)
     return Event(e["kind"], e["message"], host_time=e["host_time"], device_time=e.get("device_time"))
 
-
-def encode_event(e: Event) -> bytes:
-    return json.dumps({"device_time": e.device_time, "host_time": e.host_time, "kind": e.kind,
-                       "message": e.message}, separators=(",", ":")).encode()

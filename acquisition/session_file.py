@@ -152,7 +152,7 @@ def states(scan: Scan) -> list[MotorState]:
 
 
 def events(scan: Scan) -> list[Event]:
-    return [layout1.decode_event(m.data) if codec is layout1 else layout.decode_event(m.data, m.publish_time)
+    return [layout1.decode_event(m.data) if codec is layout1 else layout.decode_event(m.data, m.publish_time, m.log_time)
             for m, codec in _messages(scan, "events")]
 
 

@@ -43,6 +43,7 @@ from wearbench.acquisition.layout import (
     encode_frame,
     encode_state,
     ns,
+    publish_time,
 )
 
 __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
@@ -241,7 +242,7 @@ class SessionWriter:
         log_time = ns(host_time)
         channel = self._channels.get(key) or self._register(key)
         self._writer.add_message(channel, log_time=log_time, data=data,
-                                 publish_time=ns(device_time if device_time is not None else 0.0),
+                                 publish_time=publish_time(device_time, log_time),
                                  sequence=sequence & 0xFFFFFFFF)
         if self.live is not None:
             self.live.offer(key, data, log_time)

@@ -1,6 +1,7 @@
 """Sessions recorded before the protobuf layout (``data/session_layout1.mcap``, see data/README.md)
 stay readable: read_session gives the samples the file holds (decoded here independently from its
-JSON), and `wearbench inspect`, `recover` and `compare` work on it."""
+JSON), and `wearbench inspect`, `recover` and `compare` work on it; `recover` rewrites it in the
+current layout with every sample as it was."""
 
 from __future__ import annotations
 
@@ -45,10 +46,21 @@ def test_inspect_and_recover_layout1(tmp_path, capsys):
     assert acc.split()[1:3] == ["13", "2600"]
     fixed = tmp_path / "recovered.mcap"
     r = recover(LAYOUT1, fixed)
-    assert r.was_finished and r.messages == 13 + 25 + len(_raw("/motor/state")) + 4 + len(_raw("/events"))
+    assert r.was_finished and r.upgraded
+    assert r.messages == 13 + 25 + len(_raw("/motor/state")) + 4 + len(_raw("/events"))
+    with open(fixed, "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert {c.message_encoding for c in summary.channels.values()} == {"protobuf"}
+    assert {s.name for s in summary.schemas.values()} >= {"wearbench.AccelerationBlock", "foxglove.Log"}
     old, new = read_session(LAYOUT1), read_session(fixed)
-    np.testing.assert_array_equal(new.acceleration.acc, old.acceleration.acc)
+    for frame in ("acceleration", "encoder", "motor"):
+        a, b = getattr(old, frame), getattr(new, frame)
+        assert list(a.columns) == list(b.columns)
+        for column in a.columns:
+            np.testing.assert_array_equal(b[column].to_numpy(), a[column].to_numpy(), err_msg=f"{frame}.{column}")
     assert list(new.events.kind) == [*old.events.kind, "recovered"]
+    np.testing.assert_allclose(new.events.time.iloc[:-1], old.events.time, atol=1e-9)
+    assert new.metadata["recovery"]["layout"] == "rewritten from layout 1 (JSON)"
 
 
 @pytest.mark.slow

@@ -88,7 +88,7 @@ def test_live_view_streams_the_session(bench, tmp_path):
     assert len(seen) >= len(file_blocks) // 2
     for b in seen:
         np.testing.assert_array_equal(b.samples, file_blocks[b.sequence].samples)
-    kinds = [decode_event(d).kind for d in got["/events"]]
+    kinds = [decode_event(d, 0, 0).kind for d in got["/events"]]
     assert "phase" in kinds
 
 
