@@ -5,6 +5,7 @@ recorded raw frames replay into the decoder as the same blocks."""
 from __future__ import annotations
 
 import math
+import re
 import time
 
 import numpy as np
@@ -155,7 +156,7 @@ def test_clipped_samples_are_flagged(bench, tmp_path):
     from wearbench.acquisition.layout import log_level
     from wearbench.hardware.bench import parse_bench
 
-    small = parse_bench(bench.source.replace('range = "50 g"', 'range = "10 g"'), bench.path)
+    small = parse_bench(re.sub(r'\nrange = "[^"]*"', '\nrange = "10 g"', bench.source), bench.path)
     full_scale = small.sensor("accelerometer").range
     rig = open_rig(small, "sim", {"speedup": math.inf, "config": HARMONIC})
     out = tmp_path / "clipped.mcap"
