@@ -24,6 +24,7 @@ __all__ = [
     "ENCODER",
     "AccelerationSource",
     "Block",
+    "BusFrame",
     "Clock",
     "DeviceDisconnected",
     "DeviceTimeout",
@@ -71,7 +72,8 @@ class Block:
 
     ``device_time`` (s, device clock) is the time of the first sample; sample ``i`` was taken at
     ``device_time + i / sample_rate``. ``host_time`` (s, Unix epoch) is when the host received it.
-    ``index`` holds the encoder index pulse per sample (encoder streams only).
+    ``index`` holds the encoder index pulse per sample (encoder streams only); ``clipped`` the
+    acceleration samples at or beyond the accelerometer's range (set by the recorder).
     """
 
     stream: str
@@ -81,6 +83,24 @@ class Block:
     samples: np.ndarray
     host_time: float = 0.0
     index: np.ndarray | None = None
+    clipped: int = 0
+
+
+@dataclass(frozen=True)
+class BusFrame:
+    """One raw frame as a bus backend received it (python-can's ``Message`` fields that matter for
+    replaying it into the decoder); ``time`` is the bus timestamp (s), ``host_time`` the host
+    clock at arrival (s, Unix epoch)."""
+
+    time: float
+    arbitration_id: int
+    data: bytes
+    is_extended: bool = False
+    is_fd: bool = False
+    bitrate_switch: bool = False
+    is_error: bool = False
+    is_remote: bool = False
+    host_time: float = 0.0
 
 
 @dataclass
@@ -200,8 +220,9 @@ class AccelerationSource(abc.ABC):
         """Stop streaming."""
 
     @abc.abstractmethod
-    def read(self, timeout: float) -> list[Block | Event]:
-        """Blocks (host-timestamped) and events received so far; waits at most ``timeout`` s.
+    def read(self, timeout: float) -> list[Block | Event | BusFrame]:
+        """Blocks (host-timestamped), events and raw bus frames (bus backends) received so far;
+        waits at most ``timeout`` s.
 
         Returns an empty list when nothing came in time; raises DeviceDisconnected when the
         device is gone. The recorder decides when silence means a dead device.

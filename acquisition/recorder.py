@@ -25,18 +25,21 @@ from wearbench.acquisition.drivers import (
     ACCELERATION,
     ENCODER,
     Block,
+    BusFrame,
     DeviceDisconnected,
     DeviceTimeout,
     Event,
     MotorState,
     Rig,
 )
-from wearbench.acquisition.layout import Command
+from wearbench.acquisition.layout import Command, CrankAngle, clip_level, count_clipped
 from wearbench.acquisition.session_file import BENCH_ATTACHMENT
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.hardware.bench import Bench
 
 __all__ = ["Progress", "Recorder", "SessionPlan", "SessionResult", "record_session"]
+
+_FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
 
 
 @dataclass
@@ -88,6 +91,7 @@ class SessionResult:
     repeated_blocks: dict[str, int]
     malformed: int
     events: int
+    clipped: int = 0  # acceleration samples at or beyond the range
     writer_cpu: float = 0.0  # s of CPU used by the writer thread
     reader_cpu: float = 0.0  # s of CPU used by the reader threads
 
@@ -129,14 +133,20 @@ def _failure_reason(exc: Exception, what: str) -> str:
 
 
 class Recorder:
-    """Runs one session on ``rig`` and writes it to ``out`` (a path or an unbuffered binary file)."""
+    """Runs one session on ``rig`` and writes it to ``out`` (a path or an unbuffered binary file).
+
+    ``queue_size`` (items between the readers and the writer; default: a quarter of the writer's
+    ballast at 1 KiB an item, 64 to 4096) bounds what waits in memory when the disk fills."""
 
     def __init__(self, rig: Rig, bench: Bench, plan: SessionPlan, out: str | Path | BinaryIO, *,
-                 on_progress: Callable[[Progress], None] | None = None, queue_size: int = 4096,
+                 on_progress: Callable[[Progress], None] | None = None, queue_size: int | None = None,
                  writer: SessionWriter | None = None):
         self.rig, self.bench, self.plan = rig, bench, plan
         self.writer = writer or SessionWriter(out)
         self.on_progress = on_progress
+        if queue_size is None:
+            reserve = getattr(self.writer, "reserve", 0)
+            queue_size = min(4096, max(64, reserve // 4 // 1024)) if reserve else 4096
         self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()  # the session should end
         self._halt = threading.Event()  # the readers should end (after the ramp-down)
@@ -145,7 +155,6 @@ class Recorder:
         self._recording = threading.Event()
         self._writer_done = threading.Event()
         self._checks = {ACCELERATION: _SequenceCheck(), ENCODER: _SequenceCheck()}
-        self._units: dict[str, str] = {}
         self._malformed = 0
         self._events = 0
         self._cpu: dict[str, float] = {}
@@ -154,6 +163,10 @@ class Recorder:
         self._overflow: list = []
         self._lost = 0  # items the writer could not encode
         self._signal: str | None = None  # SIGINT/SIGTERM seen by the handler
+        self._clip_level = math.inf  # |a| from which an acceleration sample is clipped
+        self._clipping = False  # the last acceleration block had clipped samples
+        self._clipped = 0
+        self._write_failures = 0
 
     # ---- stopping ---------------------------------------------------------------------------
 
@@ -202,7 +215,7 @@ class Recorder:
                             item.host_time = time.time()
                         if not recording:
                             continue
-                    elif item.device_time is None:
+                    elif isinstance(item, Event) and item.device_time is None:
                         item.device_time = self._device_now
                     if isinstance(item, Event) and item.kind == "malformed":
                         self._malformed += 1
@@ -221,15 +234,40 @@ class Recorder:
         finally:
             self._cpu[f"reader:{source.name}"] = time.thread_time()
 
+    def _clip_check(self, block: Block) -> Event | None:
+        """Count the block's clipped samples; the warning event when clipping starts."""
+        block.clipped = count_clipped(block.samples, self._clip_level)
+        self._clipped += block.clipped
+        starts, self._clipping = block.clipped > 0 and not self._clipping, block.clipped > 0
+        if not starts:
+            return None
+        self._events += 1
+        return Event("clipping", f"acceleration clipping: {block.clipped} of {len(block.samples)} samples of "
+                     f"block {block.sequence} at or beyond the range (|a| >= {self._clip_level:.6g} m/s^2)",
+                     device_time=block.device_time)
+
     def _write(self, item: object) -> None:
+        """Hand ``item`` (and the events it causes) to the writer. The writer keeps what it was
+        handed even when the file write fails (OSError: the bytes wait in memory), so every part
+        is handed over before the first such error is raised."""
         w = self.writer
         if isinstance(item, Block):
             note = self._checks[item.stream].check(item)
-            w.write_block(item, self._units.get(item.stream, ""))
+            events = [self._clip_check(item) if item.stream == ACCELERATION else None]
             if note:
                 self._events += 1
-                w.write_event(Event("drop" if "missing" in note else "repeat", note,
-                                    device_time=item.device_time))
+                events.append(Event("drop" if "missing" in note else "repeat", note, device_time=item.device_time))
+            error = None
+            for part in (item, *filter(None, events)):
+                try:
+                    if part is item:
+                        w.write_block(item)
+                    else:
+                        w.write_event(part)
+                except OSError as exc:
+                    error = error or exc
+            if error is not None:
+                raise error
         elif isinstance(item, MotorState):
             w.write_state(item)
         elif isinstance(item, Command):
@@ -237,9 +275,22 @@ class Recorder:
         elif isinstance(item, Event):
             self._events += 1
             w.write_event(item)
+        elif isinstance(item, BusFrame):
+            w.write_frame(item)
+
+    def _write_failed(self, exc: OSError) -> None:
+        """A write failed (its bytes wait in memory): the first failure stops the session with
+        ``disk full`` (ENOSPC) or ``writing the session failed`` and gives the ballast back."""
+        self._write_failures += 1
+        if self._write_failures > 1:
+            return
+        what = "disk full" if exc.errno == errno.ENOSPC else "writing the session failed"
+        self.stop(f"{what}: {exc}", "error")
+        freed = self.writer.release_ballast()
+        self._post(Event("error", f"{what}; {'released the ballast file and ' if freed else ''}"
+                         "finishing the file with what was recorded", device_time=self._device_now))
 
     def _writer_loop(self) -> None:
-        failures = 0
         try:
             while True:
                 try:
@@ -250,15 +301,8 @@ class Recorder:
                     continue
                 try:
                     self._write(item)
-                except OSError as exc:
-                    # the item is in the writer; the bytes that failed wait in memory for a retry
-                    failures += 1
-                    what = "disk full" if exc.errno == errno.ENOSPC else "writing the session failed"
-                    if failures == 1:
-                        self.stop(f"{what}: {exc}", "error")
-                        freed = self.writer.release_ballast()
-                        self._post(Event("error", f"{what}; {'released the ballast file and ' if freed else ''}"
-                                         "finishing the file with what was recorded", device_time=self._device_now))
+                except OSError as exc:  # the item is in the writer; the failed bytes wait in memory
+                    self._write_failed(exc)
                 except Exception as exc:  # noqa: BLE001 - one bad item must not end the writer
                     self._lost += 1
                     self.stop(f"writer failed: {type(exc).__name__}: {exc}", "error")
@@ -294,12 +338,17 @@ class Recorder:
             s0 = self._poll()
             cpr = float(calibration.get("encoder.counts_per_rev", 0) or 0)
             if cpr:
-                calibration["encoder.angle_offset"] = repr(s0.angle - s0.counts * 2 * math.pi / cpr)
+                offset = s0.angle - s0.counts * 2 * math.pi / cpr
+                calibration["encoder.angle_offset"] = repr(offset)
+                self.writer.crank = CrankAngle(cpr, offset)
         except Exception as exc:  # noqa: BLE001 - a drive that cannot answer shows up again in _run
             calibration["encoder.angle_offset"] = f"unknown ({exc})"
         for source in self.rig.sources:
             for info in source.describe():
-                self._units[info.name] = info.unit
+                if info.name == ACCELERATION:
+                    full_scale = float(info.extra.get("range", b.sensor("accelerometer").range))
+                    lsb = info.extra.get("lsb")
+                    self._clip_level = clip_level(full_scale, float(lsb) if lsb else None)
                 calibration[f"{info.name}.stream"] = (f"{info.unit} {info.dtype}{list(info.shape) or ''} "
                                                       f"at {info.sample_rate:g} Hz from {info.source or source.name}")
                 calibration.update({f"{info.name}.{k}": v for k, v in info.extra.items()})
@@ -366,9 +415,6 @@ class Recorder:
         p, rig = self.plan, self.rig
         acc = p.acceleration or self.bench.motor.max_acceleration
         prog.target = p.cycles if p.cycles is not None else p.duration
-        for source in rig.sources:
-            accel = self.bench.sensor("accelerometer")
-            source.configure(accel.range, accel.sample_rate)
         self._command("enable")
         for source in rig.sources:
             source.start()
@@ -438,18 +484,29 @@ class Recorder:
             for sig in (signal.SIGINT, signal.SIGTERM):  # the handler only notes the signal: it
                 old[sig] = signal.signal(sig, self._on_signal)  # must not take a lock the main thread holds
         try:
-            self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml", self.bench.source.encode())})
             prog = Progress()
+            try:  # before the metadata, which records the streams as configured (range, LSB, rate)
+                accel = self.bench.sensor("accelerometer")
+                for source in self.rig.sources:
+                    source.configure(accel.range, accel.sample_rate)
+            except Exception as exc:  # noqa: BLE001 - the file still records what happened
+                self.stop(_failure_reason(exc, "configuring the stream"), "error")
+            try:
+                self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml",
+                                                                        self.bench.source.encode())})
+            except OSError as exc:  # a full disk already: nothing to record, the file still gets finished
+                self._write_failed(exc)
             readers = [threading.Thread(target=self._reader, args=(s,), name=f"reader-{s.name}", daemon=True)
                        for s in self.rig.sources]
             writer = threading.Thread(target=self._writer_loop, name="writer", daemon=True)
             writer.start()
             started = False
             try:
-                for t in readers:
-                    t.start()
-                started = True
-                self._run(prog)
+                if not self._stop.is_set():
+                    for t in readers:
+                        t.start()
+                    started = True
+                    self._run(prog)
             except KeyboardInterrupt:
                 self.stop("interrupted (KeyboardInterrupt)", "interrupt")
             except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
@@ -477,7 +534,7 @@ class Recorder:
             dropped_blocks={k: v.dropped for k, v in c.items()},
             dropped_samples={k: v.dropped_samples for k, v in c.items()},
             repeated_blocks={k: v.repeated for k, v in c.items()}, malformed=self._malformed,
-            events=self._events, writer_cpu=self._cpu.get("writer", 0.0),
+            events=self._events, clipped=self._clipped, writer_cpu=self._cpu.get("writer", 0.0),
             reader_cpu=sum(v for k, v in self._cpu.items() if k.startswith("reader")))
 
     def _finish(self, prog: Progress) -> SessionResult:
@@ -504,7 +561,7 @@ class Recorder:
             w.add_metadata("result", {
                 "reason": r.reason, "completed": str(r.completed), "cycles": repr(r.cycles),
                 "duration_s": repr(r.duration), "malformed_frames": str(r.malformed),
-                "lost_items": str(self._lost),
+                "lost_items": str(self._lost), "acceleration.clipped_samples": str(r.clipped),
                 **{f"{k}.{name}": str(v) for name, d in (("blocks", r.blocks), ("samples", r.samples),
                                                           ("dropped_blocks", r.dropped_blocks),
                                                           ("dropped_samples", r.dropped_samples),
@@ -512,14 +569,17 @@ class Recorder:
                    for k, v in d.items()}})
         except OSError:
             pass  # accepted, as above
-        for attempt in range(2):
+        for attempt in range(_FINISH_TRIES):  # space may come back (the ballast, another process)
             try:
                 w.finish()
                 return r
-            except OSError:
-                if attempt:
-                    raise  # the file is valid up to its last complete chunk: 'wearbench recover'
+            except OSError as exc:
                 w.release_ballast()
+                if attempt == _FINISH_TRIES - 1:
+                    raise OSError(exc.errno, f"{r.reason}; the session file could not be finished ({exc}); "
+                                  "it holds every chunk written: run 'wearbench recover' on it",
+                                  str(w.path) if w.path else None) from exc
+                time.sleep(0.2 * (attempt + 1))
         raise AssertionError("unreachable")
 
 

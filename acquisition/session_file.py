@@ -1,4 +1,7 @@
-"""Reading a session MCAP back: :func:`read_session` (the shared contract) and a tolerant scan.
+"""Reading a session MCAP back: :func:`read_session` (the shared contract), a tolerant scan, and
+the decoded messages of a scan (:func:`blocks`, :func:`events`, :func:`states`, :func:`frames`) in
+either layout: the current one (``layout``, protobuf) or the first (``layout1``, JSON), told apart
+by each channel's message encoding. Everything that reads sessions goes through here.
 
 The scan walks the file record by record and keeps every complete record: a file cut short by a
 killed process, a torn last chunk or a missing summary end the walk, they do not fail it. Chunks
@@ -9,7 +12,6 @@ Imports mcap, pandas and the layout; no backend library.
 
 from __future__ import annotations
 
-import json
 import math
 import zlib
 from dataclasses import dataclass, field
@@ -30,11 +32,13 @@ from mcap.records import (
     Statistics,
 )
 from mcap.stream_reader import StreamReader, breakup_chunk
-from wearbench.acquisition.drivers import ACCELERATION, ENCODER
-from wearbench.acquisition.layout import TOPICS, decode_block
+from wearbench.acquisition import layout, layout1
+from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
+from wearbench.acquisition.layout import TOPICS, clip_level
 from wearbench.hardware.bench import Bench, BenchError, parse_bench
 
-__all__ = ["BENCH_ATTACHMENT", "Scan", "Session", "read_session", "scan_mcap"]
+__all__ = ["BENCH_ATTACHMENT", "Scan", "Session", "blocks", "events", "frames", "read_session", "scan_mcap",
+           "states"]
 
 BENCH_ATTACHMENT = "bench.toml"
 
@@ -120,7 +124,7 @@ class Session:
     metadata: dict[str, dict[str, str]]
     clearances: dict[str, float]
     wear_state: dict[str, str]
-    acceleration: pd.DataFrame  # time, host_time, acc, sequence
+    acceleration: pd.DataFrame  # time, host_time, acc, sequence, clipped (at or beyond the range)
     encoder: pd.DataFrame  # time, angle, speed, index, sequence
     events: pd.DataFrame  # time, kind, message
     motor: pd.DataFrame  # time, host_time, angle, speed, counts, index_count, enabled, fault
@@ -131,10 +135,30 @@ class Session:
     host_origin: float  # host time (s, Unix) of time 0
 
 
-def _blocks(scan: Scan, stream: str):
-    topic = TOPICS[stream]
-    ids = {cid for cid, c in scan.channels.items() if c.topic == topic}
-    return [decode_block(stream, m.data) for m in scan.messages if m.channel_id in ids]
+def _messages(scan: Scan, key: str):
+    """(message, codec module) of every message on the topic of ``key``, in file order."""
+    codecs = {cid: layout1 if c.message_encoding == layout1.ENCODING else layout
+              for cid, c in scan.channels.items() if c.topic == TOPICS[key]}
+    return [(m, codecs[m.channel_id]) for m in scan.messages if m.channel_id in codecs]
+
+
+def blocks(scan: Scan, stream: str) -> list[Block]:
+    """The blocks of ``stream`` (ACCELERATION or ENCODER) in file order."""
+    return [codec.decode_block(stream, m.data) for m, codec in _messages(scan, stream)]
+
+
+def states(scan: Scan) -> list[MotorState]:
+    return [codec.decode_state(m.data) for m, codec in _messages(scan, "state")]
+
+
+def events(scan: Scan) -> list[Event]:
+    return [layout1.decode_event(m.data) if codec is layout1 else layout.decode_event(m.data, m.publish_time, m.log_time)
+            for m, codec in _messages(scan, "events")]
+
+
+def frames(scan: Scan) -> list[BusFrame]:
+    """Raw bus frames (``/can/frames``; layout 2 only) in file order."""
+    return [layout.decode_frame(m.data, m.log_time) for m, _ in _messages(scan, "frames")]
 
 
 def _dedupe(blocks, stream: str, quality: dict) -> list:
@@ -227,15 +251,18 @@ def read_session(path: str | Path) -> Session:
     calib = meta.get("calibration", {})
 
     quality: dict[str, dict[str, int]] = {}
-    acc_blocks = _dedupe(_blocks(scan, ACCELERATION), ACCELERATION, quality)
-    enc_blocks = _dedupe(_blocks(scan, ENCODER), ENCODER, quality)
+    acc_blocks = _dedupe(blocks(scan, ACCELERATION), ACCELERATION, quality)
+    enc_blocks = _dedupe(blocks(scan, ENCODER), ENCODER, quality)
     firsts = acc_blocks or enc_blocks
     origin = min((b.device_time for b in firsts), default=0.0)
     host_origin = min((b.host_time for b in firsts), default=0.0)
 
     t, h, seq = _sample_frame(acc_blocks, origin, host_origin)
     values = np.concatenate([b.samples for b in acc_blocks]).astype(np.float64) if acc_blocks else np.zeros(0)
-    acceleration = pd.DataFrame({"time": t, "host_time": h, "acc": values, "sequence": seq})
+    acc_range = _float(calib, "acceleration.range", _float(calib, "accelerometer.range", 0.0))
+    level = clip_level(acc_range, _float(calib, "acceleration.lsb", acc_range / 32768))
+    acceleration = pd.DataFrame({"time": t, "host_time": h, "acc": values, "sequence": seq,
+                                 "clipped": np.abs(values) >= level})
 
     t, h, seq = _sample_frame(enc_blocks, origin, host_origin)
     cpr = _float(calib, "encoder.counts_per_rev", 0.0)
@@ -251,23 +278,16 @@ def read_session(path: str | Path) -> Session:
     encoder = pd.DataFrame({"time": t, "angle": angle, "speed": speed, "index": index.astype(bool),
                             "sequence": seq})
 
-    ev_rows, st_rows = [], []
-    for m in scan.messages:
-        topic = scan.topic(m.channel_id)
-        if topic == TOPICS["events"]:
-            e = json.loads(m.data)
-            dt = e.get("device_time")
-            ev_rows.append({"time": (dt - origin) if dt is not None else e["host_time"] - host_origin,
-                            "host_time": e["host_time"] - host_origin, "kind": e["kind"],
-                            "message": e["message"]})
-        elif topic == TOPICS["state"]:
-            s = json.loads(m.data)
-            st_rows.append({"time": s["device_time"] - origin, "host_time": s["host_time"] - host_origin,
-                            **{k: s[k] for k in ("angle", "speed", "counts", "index_count", "enabled", "fault")}})
-    events = pd.DataFrame(ev_rows, columns=["time", "host_time", "kind", "message"])
+    ev_rows = [{"time": (e.device_time - origin) if e.device_time is not None else e.host_time - host_origin,
+                "host_time": e.host_time - host_origin, "kind": e.kind, "message": e.message}
+               for e in events(scan)]
+    st_rows = [{"time": m.device_time - origin, "host_time": m.host_time - host_origin, "angle": m.angle,
+                "speed": m.speed, "counts": m.counts, "index_count": m.index_count, "enabled": m.enabled,
+                "fault": m.fault} for m in states(scan)]
+    event_frame = pd.DataFrame(ev_rows, columns=["time", "host_time", "kind", "message"])
     motor = pd.DataFrame(st_rows, columns=["time", "host_time", "angle", "speed", "counts", "index_count",
                                            "enabled", "fault"])
     return Session(path=path, bench=bench, metadata=meta, clearances=clearances, wear_state=wear_state,
-                   acceleration=acceleration, encoder=encoder, events=events, motor=motor,
+                   acceleration=acceleration, encoder=encoder, events=event_frame, motor=motor,
                    finished=scan.finished, problem=problem, quality=quality, origin=origin,
                    host_origin=host_origin)

@@ -1,12 +1,20 @@
 """Writing one session to MCAP so that whatever happens, what was recorded stays readable.
 
-- Small zstd chunks, closed at least every ``flush_interval`` seconds and handed to the OS, so a
-  process killed outright loses at most that much (``wearbench recover`` restores the rest).
+- Chunks of at most ``CHUNK_SIZE`` bytes, ``COMPRESSION`` compressed, each followed by its message
+  indexes (every MCAP reader, including the indexed one viewers use, opens the file), and closed
+  at least every ``flush_interval`` seconds and handed to the OS, so a process killed outright loses
+  at most that much (``wearbench recover`` restores the rest). Chunk and data-section CRCs are on.
 - Metadata and the bench file go in first, so even a killed session says what it was.
+- Disk space: a session refuses to start with less than ``MIN_FREE_BYTES`` free; a ballast file of
+  an eighth of the free space (64 KiB to 4 MiB) is set aside at the start and given back when a
+  write fails. It leaves room for what waits when the disk fills: the chunk in progress (chunks are
+  capped at half the ballast), the recorder's queue (capped at a quarter, see ``Recorder``), and
+  the summary and footer.
 - Writes go through :class:`DurableFile`, which never leaves half a record behind: a failed
   write (a full disk) is cut back to the last whole record and kept in memory until it can be
-  written, so the file can still be finished once space is back; a small ballast file set aside
-  at the start gives that space back.
+  written, so the file can still be finished once space is back.
+- A live view (``live``, see ``acquisition.live``) is offered every message after it went to the
+  file; it never blocks and never fails the writer.
 
 Imports mcap and the layout; no backend library.
 """
@@ -16,27 +24,63 @@ from __future__ import annotations
 import errno
 import io
 import os
+import shutil
 import time
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, Protocol
 
 from mcap.writer import CompressionType, IndexType, Writer
-from wearbench.acquisition.drivers import Block, Event, MotorState
+from wearbench.acquisition.drivers import Block, BusFrame, Event, MotorState
 from wearbench.acquisition.layout import (
+    ENCODING,
     SCHEMAS,
     TOPICS,
     Command,
+    CrankAngle,
     encode_block,
     encode_command,
     encode_event,
+    encode_frame,
     encode_state,
     ns,
+    publish_time,
 )
 
-__all__ = ["BALLAST_BYTES", "PROFILE", "DurableFile", "SessionWriter"]
+__all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
+           "SessionWriter", "ballast_bytes", "check_free_space"]
 
 PROFILE = "wearbench-session"
-BALLAST_BYTES = 4 << 20
+# Chosen by measurement (benchmarks/session_format.py, 20 kHz): zstd 148 MB per hour against lz4's
+# 248 and none's 377, at the same write CPU (0.4 % of a core); 256 KiB and 1 MiB chunks compress
+# alike. The flush interval closes a chunk every 0.5 s (about 48 kB before compression at 20 kHz),
+# so CHUNK_SIZE caps a burst (a writer catching up), and with it what a full disk leaves in memory.
+CHUNK_SIZE = 256 << 10
+COMPRESSION = CompressionType.ZSTD
+MIN_FREE_BYTES = 1 << 20
+
+
+def ballast_bytes(free: int) -> int:
+    """The ballast set aside with ``free`` bytes free: an eighth of it, 64 KiB to 4 MiB."""
+    return int(min(4 << 20, max(64 << 10, free // 8)))
+
+
+class NotEnoughSpace(OSError):
+    """Less than ``MIN_FREE_BYTES`` free where the session would be written."""
+
+
+def check_free_space(path: str | Path) -> int:
+    """Bytes free where ``path`` would be written; raises :class:`NotEnoughSpace` below the minimum."""
+    folder = Path(path).resolve().parent
+    free = shutil.disk_usage(folder).free
+    if free < MIN_FREE_BYTES:
+        raise NotEnoughSpace(errno.ENOSPC, f"{free / 2**20:.2f} MiB free; a session needs at least "
+                             f"{MIN_FREE_BYTES / 2**20:g} MiB to start (about 150 MB per hour at 20 kHz)",
+                             str(folder))
+    return free
+
+
+class LiveSink(Protocol):
+    def offer(self, key: str, data: bytes, log_time: int) -> None: ...
 
 
 class DurableFile:
@@ -115,40 +159,60 @@ class SessionWriter:
     """One MCAP session file: ``start``, then ``write_*``, then ``finish``.
 
     ``out`` is a path or an unbuffered binary file object (tests pass one that fails on purpose).
+    A path with less than ``MIN_FREE_BYTES`` free raises :class:`NotEnoughSpace` before anything is
+    written. ``crank`` (set after ``start``) derives the encoder messages' crank angle and cycle.
     """
 
-    def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int = 256 << 10,
-                 flush_interval: float = 0.5, ballast: bool = True):
+    def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int | None = None,
+                 compression: CompressionType = COMPRESSION, flush_interval: float = 0.5,
+                 ballast: bool = True, live: LiveSink | None = None):
+        self._ballast = None
+        self.reserve = 0  # bytes of ballast set aside
         if isinstance(out, (str, Path)):
             self.path: Path | None = Path(out)
+            free = check_free_space(self.path)
             raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
+            if ballast:
+                self._ballast = self.path.with_name(self.path.name + ".ballast")
+                self.reserve = self._set_aside(self._ballast, ballast_bytes(free))
         else:
             self.path, raw = None, out
         self._file = DurableFile(raw)
-        # no message indexes: small chunks make them worth little; chunk indexes remain
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD,
-                              index_types=IndexType.CHUNK | IndexType.ATTACHMENT | IndexType.METADATA)
+        if chunk_size is None:  # a chunk that fails to write must fit in the ballast
+            chunk_size = min(CHUNK_SIZE, self.reserve // 2) if self.reserve else CHUNK_SIZE
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression,
+                              index_types=IndexType.ALL, enable_crcs=True, enable_data_crcs=True)
         self._channels: dict[str, int] = {}
         self._flush_interval = flush_interval
         self._last_flush = time.monotonic()
-        self._ballast = None
-        if ballast and self.path is not None:
-            self._ballast = self.path.with_name(self.path.name + ".ballast")
-            try:
-                with open(self._ballast, "wb") as fh:
-                    fh.truncate(BALLAST_BYTES)
-                    os.posix_fallocate(fh.fileno(), 0, BALLAST_BYTES)
-            except (OSError, AttributeError):
-                pass  # no room for ballast or no fallocate: the session still records
+        self.live = live
+        self.crank: CrankAngle | None = None
         self.finished = False
         self._mcap_finished = False
+
+    @staticmethod
+    def _set_aside(path: Path, size: int) -> int:
+        """Reserve ``size`` bytes in ``path`` (as much as fits); returns the bytes reserved."""
+        try:
+            with open(path, "wb") as fh:
+                try:
+                    os.posix_fallocate(fh.fileno(), 0, size)
+                except (OSError, AttributeError):  # no fallocate here: write the bytes
+                    zeros = bytes(64 << 10)
+                    fh.writelines(zeros for _ in range(0, size, len(zeros)))
+        except OSError:
+            pass  # what was reserved stays reserved; the session still records
+        try:
+            return path.stat().st_blocks * 512
+        except OSError:
+            return 0
 
     def start(self, metadata: dict[str, dict[str, str]], attachments: dict[str, tuple[str, bytes]]) -> None:
         """Header, schemas, channels, metadata records and attachments ``{name: (media_type, data)}``."""
         self._writer.start(profile=PROFILE, library="wearbench")
-        for key, (name, schema) in SCHEMAS.items():
-            sid = self._writer.register_schema(name=name, encoding="jsonschema", data=schema)
-            self._channels[key] = self._writer.register_channel(TOPICS[key], "json", sid)
+        for key in SCHEMAS:
+            if key != "frames":  # raw bus frames: registered with the first one (bus backends only)
+                self._register(key)
         now = time.time_ns()
         for name, (media_type, data) in attachments.items():
             self._writer.add_attachment(create_time=now, log_time=now, name=name,
@@ -156,6 +220,12 @@ class SessionWriter:
         for name, record in metadata.items():
             self.add_metadata(name, record)
         self.flush()
+
+    def _register(self, key: str) -> int:
+        name, schema = SCHEMAS[key]
+        sid = self._writer.register_schema(name=name, encoding=ENCODING, data=schema)
+        self._channels[key] = self._writer.register_channel(TOPICS[key], ENCODING, sid)
+        return self._channels[key]
 
     def add_metadata(self, name: str, record: dict[str, str]) -> None:
         self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
@@ -169,15 +239,19 @@ class SessionWriter:
 
     def _add(self, key: str, data: bytes, host_time: float, device_time: float | None,
              sequence: int = 0) -> None:
-        self._writer.add_message(self._channels[key], log_time=ns(host_time), data=data,
-                                 publish_time=ns(device_time if device_time is not None else 0.0),
+        log_time = ns(host_time)
+        channel = self._channels.get(key) or self._register(key)
+        self._writer.add_message(channel, log_time=log_time, data=data,
+                                 publish_time=publish_time(device_time, log_time),
                                  sequence=sequence & 0xFFFFFFFF)
+        if self.live is not None:
+            self.live.offer(key, data, log_time)
         if time.monotonic() - self._last_flush > self._flush_interval:
             self.flush()
         self._raise()
 
-    def write_block(self, block: Block, unit: str = "") -> None:
-        self._add(block.stream, encode_block(block, unit), block.host_time, block.device_time,
+    def write_block(self, block: Block) -> None:
+        self._add(block.stream, encode_block(block, self.crank), block.host_time, block.device_time,
                   block.sequence)
 
     def write_state(self, state: MotorState) -> None:
@@ -188,6 +262,9 @@ class SessionWriter:
 
     def write_event(self, event: Event) -> None:
         self._add("events", encode_event(event), event.host_time, event.device_time)
+
+    def write_frame(self, frame: BusFrame) -> None:
+        self._add("frames", encode_frame(frame), frame.host_time or frame.time, None)
 
     def flush(self) -> None:
         """Close the chunk in progress and hand everything to the OS."""

@@ -6,15 +6,14 @@ tolerant scan). Imports the session reader and the layout only.
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
-from wearbench.acquisition.layout import TOPICS, decode_block
-from wearbench.acquisition.session_file import scan_mcap
+from wearbench.acquisition.layout import TOPICS
+from wearbench.acquisition.session_file import blocks, events, scan_mcap
 
 __all__ = ["SessionSummary", "StreamSummary", "format_summary", "summarize"]
 
@@ -30,6 +29,7 @@ class StreamSummary:
     repeated_blocks: int = 0
     gaps: int = 0  # breaks in time longer than 1.5 sample periods between consecutive blocks
     longest_gap: float = 0.0  # s
+    clipped: int = 0  # acceleration samples at or beyond the range (layout 2 records them per block)
 
 
 @dataclass
@@ -54,6 +54,7 @@ def _block_stream(topic: str, blocks) -> StreamSummary:
     s.dropped_blocks = int(np.sum(np.clip(steps - 1, 0, None)))
     s.repeated_blocks = int(np.sum(steps <= 0))
     s.samples = int(sum(len(b.samples) for b in blocks))
+    s.clipped = int(sum(b.clipped for b in blocks))
     start = np.array([b.device_time for b in blocks])
     end = start + np.array([len(b.samples) / b.sample_rate for b in blocks])
     s.duration = float(end[-1] - start[0])
@@ -75,7 +76,7 @@ def summarize(path: str | Path) -> SessionSummary:
     streams = {TOPICS[ACCELERATION]: ACCELERATION, TOPICS[ENCODER]: ENCODER}
     for topic, msgs in by_topic.items():
         if topic in streams:
-            out.streams.append(_block_stream(topic, [decode_block(streams[topic], m.data) for m in msgs]))
+            out.streams.append(_block_stream(topic, blocks(scan, streams[topic])))
             continue
         s = StreamSummary(topic, len(msgs))
         if len(msgs) > 1:
@@ -84,7 +85,7 @@ def summarize(path: str | Path) -> SessionSummary:
             s.rate = (len(msgs) - 1) / s.duration if s.duration > 0 else 0.0
         out.streams.append(s)
         if topic == TOPICS["events"]:
-            out.events.update(json.loads(m.data)["kind"] for m in msgs)
+            out.events.update(e.kind for e in events(scan))
     return out
 
 
@@ -92,11 +93,11 @@ def format_summary(s: SessionSummary) -> str:
     lines = [f"{s.path}: " + ("finished" if s.finished else f"NOT finished: {s.problem}")
              + f", {s.chunks} chunks"]
     lines.append(f"  {'channel':16s} {'messages':>9s} {'samples':>10s} {'duration':>10s} {'rate':>11s} "
-                 f"{'dropped':>8s} {'repeated':>8s} {'gaps':>5s} {'longest gap':>12s}")
+                 f"{'dropped':>8s} {'repeated':>8s} {'gaps':>5s} {'longest gap':>12s} {'clipped':>8s}")
     for c in s.streams:
         lines.append(f"  {c.topic:16s} {c.messages:9d} {c.samples:10d} {c.duration:9.3f}s "
                      f"{c.rate:9.1f}Hz {c.dropped_blocks:8d} {c.repeated_blocks:8d} {c.gaps:5d} "
-                     f"{c.longest_gap * 1e3:10.2f}ms")
+                     f"{c.longest_gap * 1e3:10.2f}ms {c.clipped:8d}")
     if s.events:
         lines.append("  events: " + ", ".join(f"{k} x{n}" for k, n in sorted(s.events.items())))
     if s.attachments:

@@ -33,6 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wear", default="", help="wear state per joint, e.g. A=new,B=stage2.npz")
     p.add_argument("--operator", default="", help="who ran the session")
     p.add_argument("--settle", default="0.5s", help="time held at speed before recording (default 0.5s)")
+    p.add_argument("--live", nargs="?", const="127.0.0.1:8765", metavar="HOST:PORT",
+                   help="serve the session while it records over the Foxglove WebSocket protocol "
+                   "(open it in Foxglove: Open connection, Foxglove WebSocket; default 127.0.0.1:8765); "
+                   "a slow or lost viewer never costs the recording a sample")
     p.set_defaults(func=run)
 
 
@@ -58,6 +62,7 @@ def _option_value(text: str):
 def run(args: argparse.Namespace) -> int:
     from wearbench.acquisition.backends import open_rig
     from wearbench.acquisition.recorder import Recorder, SessionPlan
+    from wearbench.acquisition.session_writer import SessionWriter, check_free_space
     from wearbench.cli.progress import progress
     from wearbench.hardware.bench import load_bench, shipped_bench
 
@@ -84,7 +89,19 @@ def run(args: argparse.Namespace) -> int:
         if not sep:
             raise ValueError(f"--option {item!r}: expected KEY=VALUE")
         options[key.strip()] = _option_value(value.strip())
-    rig = open_rig(bench.with_clearances(clearances) if clearances else bench, args.backend, options)
+    check_free_space(args.out)  # refuse before the rig starts
+    live = None
+    if args.live is not None:
+        from wearbench.acquisition.live import LiveView, parse_address
+
+        live = LiveView(*parse_address(args.live), name=f"wearbench {bench.name}")
+        print(f"live view: {live.url} (Foxglove: Open connection, Foxglove WebSocket)", flush=True)
+    try:
+        rig = open_rig(bench.with_clearances(clearances) if clearances else bench, args.backend, options)
+    except BaseException:
+        if live is not None:
+            live.close()
+        raise
     unit = "cycles" if plan.cycles is not None else "s"
     with progress() as bar:
         task = bar.add_task(f"record {bench.name}", total=plan.cycles or plan.duration, info="")
@@ -95,9 +112,12 @@ def run(args: argparse.Namespace) -> int:
                        info=f"{done:.1f} {unit}  {p.sample_rate / 1e3:.1f} kS/s  dropped {p.dropped}")
 
         try:
-            result = Recorder(rig, bench, plan, args.out, on_progress=show).run()
+            writer = SessionWriter(args.out, live=live)
+            result = Recorder(rig, bench, plan, args.out, on_progress=show, writer=writer).run()
         finally:
             rig.close()
+            if live is not None:
+                live.close()
         done = result.cycles if plan.cycles is not None else result.duration
         bar.update(task, completed=min(done, plan.cycles or plan.duration), description="done     ")
     drops = sum(result.dropped_samples.values())
@@ -105,7 +125,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.out}: {result.reason}; {result.cycles:.2f} cycles in {result.duration:.2f} s, "
           f"{result.samples.get('acceleration', 0)} acceleration samples, "
           f"{result.samples.get('encoder', 0)} encoder samples, dropped {drops} samples, "
-          f"repeated {repeats} blocks, {result.malformed} malformed frames")
+          f"repeated {repeats} blocks, {result.malformed} malformed frames, "
+          f"{result.clipped} clipped acceleration samples")
+    if live is not None:
+        print(f"live view: {live.published} messages published, {live.dropped} not offered to viewers "
+              "(queue full)")
     if not result.completed:
         print(f"wearbench record: session stopped early: {result.reason} (the file is complete up to "
               "that point)", file=sys.stderr)

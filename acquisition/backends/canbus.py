@@ -3,19 +3,23 @@
 Any python-can interface works (socketcan, pcan, kvaser, slcan, virtual); frames are those of
 ``hardware/protocol/wearbench.dbc``. A ``can.Notifier`` thread feeds :class:`BenchFrames`, which
 routes replies to the waiting command and blocks and events to the source (python-can's
-listener pattern). The ``canopen`` backend reuses :class:`BenchFrames` and :class:`CanSource` for
-the acceleration stream. Options (``[hardware.can]``): ``interface`` (default "virtual"),
+listener pattern); a second listener, :class:`FrameLog`, keeps every frame received, which the
+source hands to the recorder for the session's ``/can/frames`` channel, and :func:`replay` feeds
+recorded frames back into a fresh decoder. The ``canopen`` backend reuses :class:`BenchFrames`,
+:class:`FrameLog` and :class:`CanSource` for the acceleration stream. Options (``[hardware.can]``): ``interface`` (default "virtual"),
 ``channel`` (default "wearbench"), ``bitrate``, ``data_bitrate``, ``fd`` (default true),
-``reply_timeout`` (s, default 1.0). Imports python-can and the CAN codec only.
+``reply_timeout`` (s, default 1.0), ``log_frames`` (default true: every frame received goes to the
+session's ``/can/frames``, about 130 MB per hour at 10 kHz). Imports python-can and the CAN codec only.
 """
 
 from __future__ import annotations
 
+import collections
 import math
 import queue
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import can
@@ -26,6 +30,7 @@ from wearbench.acquisition.drivers import (
     ENCODER,
     AccelerationSource,
     Block,
+    BusFrame,
     DeviceDisconnected,
     DeviceTimeout,
     DriverError,
@@ -39,9 +44,10 @@ from wearbench.hardware.bench import Bench
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode
 
-__all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "open_bus", "open_rig"]
+__all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "FrameLog", "frame_log", "open_bus", "open_rig",
+           "replay"]
 
-BUS_OPTIONS = {"interface", "channel", "bitrate", "data_bitrate", "fd", "reply_timeout"}
+BUS_OPTIONS = {"interface", "channel", "bitrate", "data_bitrate", "fd", "reply_timeout", "log_frames"}
 _MOTOR = {"ENABLE": 1, "DISABLE": 2, "SET_SPEED": 3, "STOP": 4, "CLEAR_FAULT": 5, "GET_STATUS": 6}
 _STREAM = {"STOP": 0, "START": 1, "CONFIGURE": 2}
 
@@ -160,6 +166,55 @@ class BenchFrames(can.Listener):
         return cls(enc.counts_per_rev, phase)
 
 
+class FrameLog(can.Listener):
+    """Every frame received, as :class:`BusFrame` records, until :meth:`drain` hands them out."""
+
+    def __init__(self) -> None:
+        self._frames: collections.deque[BusFrame] = collections.deque()
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self._frames.append(BusFrame(
+            time=msg.timestamp, arbitration_id=msg.arbitration_id, data=bytes(msg.data),
+            is_extended=msg.is_extended_id, is_fd=msg.is_fd, bitrate_switch=msg.bitrate_switch,
+            is_error=msg.is_error_frame, is_remote=msg.is_remote_frame, host_time=time.time()))
+
+    def drain(self) -> list[BusFrame]:
+        out = []
+        while self._frames:
+            out.append(self._frames.popleft())
+        return out
+
+
+def frame_log(options: Mapping[str, Any]) -> FrameLog | None:
+    """A :class:`FrameLog` unless the options say ``log_frames = false``."""
+    value = options.get("log_frames", True)
+    if isinstance(value, str):
+        value = {"true": True, "false": False}.get(value.lower(), value)
+    if not isinstance(value, bool):
+        raise ValueError(f"log_frames = {value!r}: expected true or false")  # noqa: TRY004 - a user error
+    return FrameLog() if value else None
+
+
+def replay(frames: Iterable[BusFrame], bench: Bench, calibration: Mapping[str, str]) -> list[Block | Event]:
+    """What a fresh decoder makes of recorded ``frames``: the blocks and events the source would
+    have delivered. ``calibration`` is the session's metadata record of that name (LSB and rates)."""
+    decoder = BenchFrames.for_bench(bench)
+    decoder.lsb = float(calibration["acceleration.lsb"])
+    decoder.sample_rate = float(calibration["acceleration.sample_rate"])
+    decoder.encoder_rate = float(calibration["encoder.sample_rate"])
+    for f in frames:
+        decoder.on_message_received(can.Message(
+            timestamp=f.time, arbitration_id=f.arbitration_id, data=f.data, is_extended_id=f.is_extended,
+            is_fd=f.is_fd, bitrate_switch=f.bitrate_switch, is_error_frame=f.is_error,
+            is_remote_frame=f.is_remote, check=False))
+    out = []
+    while not decoder.inbox.empty():
+        item = decoder.inbox.get_nowait()
+        if not isinstance(item, Exception):
+            out.append(item)
+    return out
+
+
 def _send(bus: can.BusABC, name: str, values: dict) -> None:
     try:
         bus.send(cf.encode_frame(name, values), timeout=0.2)
@@ -172,8 +227,9 @@ class CanSource(AccelerationSource):
 
     name = "can-daq"
 
-    def __init__(self, bus: can.BusABC, frames: BenchFrames, bench: Bench, reply_timeout: float):
-        self.bus, self.frames, self.reply_timeout = bus, frames, reply_timeout
+    def __init__(self, bus: can.BusABC, frames: BenchFrames, bench: Bench, reply_timeout: float,
+                 log: FrameLog | None = None):
+        self.bus, self.frames, self.reply_timeout, self.log = bus, frames, reply_timeout, log
         acc, enc = bench.sensor("accelerometer"), bench.sensor("encoder")
         self._range, self._rate = acc.range, acc.sample_rate
         frames.encoder_rate = enc.sample_rate
@@ -199,9 +255,11 @@ class CanSource(AccelerationSource):
     def describe(self) -> tuple[StreamInfo, ...]:
         src = f"CAN {self.bus.channel_info}"
         return (StreamInfo(ACCELERATION, "m/s^2", self._rate, "float32", source=src,
-                           extra={"range": repr(self._range), "lsb": repr(cf.accel_lsb(self._range))}),
+                           extra={"range": repr(self._range), "lsb": repr(cf.accel_lsb(self._range)),
+                                  "sample_rate": repr(self._rate)}),
                 StreamInfo(ENCODER, "counts", self._enc.sample_rate, "int32", source=src,
-                           extra={"counts_per_rev": str(self.frames.counts_per_rev)}))
+                           extra={"counts_per_rev": str(self.frames.counts_per_rev),
+                                  "sample_rate": repr(self.frames.encoder_rate)}))
 
     def start(self) -> None:
         self._control("START")
@@ -209,8 +267,8 @@ class CanSource(AccelerationSource):
     def stop(self) -> None:
         self._control("STOP")
 
-    def read(self, timeout: float) -> list[Block | Event]:
-        out = []
+    def read(self, timeout: float) -> list[Block | Event | BusFrame]:
+        out: list[Block | Event | BusFrame] = []
         try:
             item = self.frames.inbox.get(timeout=timeout)
             while True:
@@ -220,6 +278,8 @@ class CanSource(AccelerationSource):
                 item = self.frames.inbox.get_nowait()
         except queue.Empty:
             pass
+        if self.log is not None:
+            out += self.log.drain()
         return out
 
 
@@ -301,10 +361,10 @@ def _check(bench: Bench, options: Mapping[str, Any], allowed: set[str], section:
 def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     reply_timeout = _check(bench, options, BUS_OPTIONS, "can")
     bus = open_bus(options)
-    frames = BenchFrames.for_bench(bench)
-    notifier = can.Notifier(bus, [frames], timeout=0.1)
+    frames, log = BenchFrames.for_bench(bench), frame_log(options)
+    notifier = can.Notifier(bus, [frames, *([log] if log else [])], timeout=0.1)
     closer = _Bus(bus, notifier)
-    drive, source = CanDrive(bus, frames, reply_timeout), CanSource(bus, frames, bench, reply_timeout)
+    drive, source = CanDrive(bus, frames, reply_timeout), CanSource(bus, frames, bench, reply_timeout, log)
     drive.close = source.close = closer.close  # type: ignore[method-assign]
     try:
         drive.state()

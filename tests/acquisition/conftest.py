@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
-from wearbench.acquisition.layout import TOPICS, decode_block
-from wearbench.acquisition.session_file import scan_mcap
+from wearbench.acquisition.session_file import blocks, scan_mcap
 from wearbench.hardware.bench import load_bench, shipped_bench
 from wearbench.hardware.protocol import messages
 from wearbench.hardware.protocol.frames import FrameParser
@@ -25,12 +24,9 @@ def recorded_blocks(path) -> dict[str, dict[int, object]]:
     """Blocks of a session file by stream and sequence (a repeated sequence keeps the first)."""
     scan = scan_mcap(path)
     out: dict[str, dict[int, object]] = {ACCELERATION: {}, ENCODER: {}}
-    for m in scan.messages:
-        topic = scan.topic(m.channel_id)
-        for stream in (ACCELERATION, ENCODER):
-            if topic == TOPICS[stream]:
-                b = decode_block(stream, m.data)
-                out[stream].setdefault(b.sequence, b)
+    for stream in (ACCELERATION, ENCODER):
+        for b in blocks(scan, stream):
+            out[stream].setdefault(b.sequence, b)
     return out
 
 

@@ -214,11 +214,11 @@ def test_writer_exception(bench, tmp_path):
     writer = SessionWriter(out)
     write_block, calls = writer.write_block, []
 
-    def failing(block, unit=""):
+    def failing(block):
         calls.append(block.sequence)
         if len(calls) == 40:
             raise ValueError("cannot encode")
-        write_block(block, unit)
+        write_block(block)
 
     writer.write_block = failing
     result = _run(rig, bench, plan, out, writer=writer)
@@ -336,3 +336,30 @@ def test_canopen_stall(bench, tmp_path):
     assert result.reason == "drive fault: stall"
     s = _assert_stopped(out, "drive fault: stall")
     assert (s.events.kind == "stall").any()  # the EMCY
+
+
+def test_canopen_enable_after_a_stall_resets_the_fault(bench):
+    """The host's CiA 402 state machine (canopen's BaseNode402) leaves FAULT through a fault reset."""
+    from wearbench.hardware.emulators.can_server import CanEmulator
+
+    channel = "wearbench-test-fault-reset"
+    with CanEmulator(bench, channel=channel, config={**HARMONIC, "faults": {"stall_at": "0.5 s"}}):
+        rig = open_rig(bench, "canopen", {"channel": channel})
+        try:
+            drive, source = rig.drive, rig.sources[0]
+            accel = bench.sensor("accelerometer")
+            source.configure(accel.range, accel.sample_rate)
+            drive.enable()
+            source.start()
+            drive.set_speed(20.0, 200.0)
+            deadline = time.monotonic() + 10
+            while (s := drive.state()).fault is None and time.monotonic() < deadline:
+                source.read(0.01)
+            assert s.fault == "stall" and not s.enabled and drive.node.state == "FAULT"
+            drive.enable()
+            s = drive.state()
+            assert s.fault is None and s.enabled and drive.node.state == "OPERATION ENABLED"
+            drive.disable()
+            assert drive.node.state == "READY TO SWITCH ON"
+        finally:
+            rig.close()

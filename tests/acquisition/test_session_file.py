@@ -62,9 +62,10 @@ def test_cli_record_and_inspect(session_file):
     assert s.metadata["session"]["bench_sha256"] == s.bench.sha256
     with open(session_file, "rb") as fh:  # a standard MCAP reader sees the channels and schemas
         summary = make_reader(fh).get_summary()
-    topics = {c.topic: summary.schemas[c.schema_id].encoding for c in summary.channels.values()}
-    assert topics == {"/acceleration": "jsonschema", "/encoder": "jsonschema", "/motor/state": "jsonschema",
-                      "/motor/command": "jsonschema", "/events": "jsonschema"}
+    topics = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+    assert topics == {"/acceleration": "wearbench.AccelerationBlock", "/encoder": "wearbench.EncoderBlock",
+                      "/motor/state": "wearbench.MotorState", "/motor/command": "wearbench.MotorCommand",
+                      "/events": "foxglove.Log"}  # /can/frames only on the CAN backends
     r = subprocess.run([sys.executable, "-m", "wearbench.cli", "inspect", str(session_file)],
                        capture_output=True, text=True, timeout=60, check=False)
     assert r.returncode == 0, r.stderr

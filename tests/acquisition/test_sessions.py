@@ -1,23 +1,26 @@
 """A 20-cycle session through each backend against the emulators: the MCAP holds, block for block,
-exactly what the emulator sent, and read_session turns it into consistent frames."""
+exactly what the emulator sent, and read_session turns it into consistent frames; on CAN the
+recorded raw frames replay into the decoder as the same blocks."""
 
 from __future__ import annotations
 
 import math
+import re
 import time
 
 import numpy as np
 import pytest
 from wearbench.acquisition.backends import open_rig
-from wearbench.acquisition.drivers import ACCELERATION, ENCODER
+from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block
 from wearbench.acquisition.recorder import Recorder, SessionPlan
-from wearbench.acquisition.session_file import read_session
+from wearbench.acquisition.session_file import frames, read_session, scan_mcap
 from wearbench.validation.cycles import reference_angle
 
 from .conftest import (
     FAST,
     HARMONIC,
     assert_same_blocks,
+    recorded_blocks,
     sent_from_can,
     sent_from_device,
     sent_from_serial_log,
@@ -99,6 +102,22 @@ def test_can_session_equals_emulator(bench, tmp_path, backend):
     assert result.completed, result.reason
     assert_same_blocks(out, sent_from_can(emulator))
     _check_session(out, bench)
+    # the session's raw frames, replayed into a fresh decoder, give the recorded blocks again
+    from wearbench.acquisition.backends.canbus import replay
+
+    s = read_session(out)
+    replayed = {ACCELERATION: {}, ENCODER: {}}
+    for item in replay(frames(scan_mcap(out)), bench, s.metadata["calibration"]):
+        if isinstance(item, Block):
+            replayed[item.stream].setdefault(item.sequence, item)
+    for stream, blocks in recorded_blocks(out).items():
+        assert set(blocks) <= set(replayed[stream])
+        for seq, b in blocks.items():
+            r = replayed[stream][seq]
+            assert (r.device_time, r.sample_rate) == (b.device_time, b.sample_rate)
+            np.testing.assert_array_equal(r.samples, b.samples)
+            if stream == ENCODER:
+                np.testing.assert_array_equal(r.index, b.index)
 
 
 def test_speed_profile_sim_and_serial(bench):
@@ -128,3 +147,43 @@ def test_speed_profile_sim_and_serial(bench):
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_clipped_samples_are_flagged(bench, tmp_path):
+    """A 10 g accelerometer on a signal that peaks beyond it: each acceleration message counts its
+    samples at or beyond the range (within one LSB), a warning is logged when clipping starts, and
+    read_session flags the samples."""
+    from wearbench.acquisition.layout import log_level
+    from wearbench.hardware.bench import parse_bench
+
+    small = parse_bench(re.sub(r'\nrange = "[^"]*"', '\nrange = "10 g"', bench.source), bench.path)
+    full_scale = small.sensor("accelerometer").range
+    rig = open_rig(small, "sim", {"speedup": math.inf, "config": HARMONIC})
+    out = tmp_path / "clipped.mcap"
+    try:
+        result = Recorder(rig, small, SessionPlan(speed=FAST, cycles=3), out).run()
+    finally:
+        rig.close()
+    assert result.completed, result.reason
+    blocks = recorded_blocks(out)[ACCELERATION]
+    level = full_scale * (1 - 1.0001 / 32768)  # one LSB (range/32768) below full scale
+    expected = {seq: int(np.sum(np.abs(b.samples.astype(np.float64)) >= level)) for seq, b in blocks.items()}
+    assert {seq: b.clipped for seq, b in blocks.items()} == expected
+    assert 0 < sum(expected.values()) == result.clipped < len(blocks) * 200
+    s = read_session(out)
+    assert int(s.acceleration.clipped.sum()) == result.clipped
+    assert s.metadata["result"]["acceleration.clipped_samples"] == str(result.clipped)
+    starts = sum(1 for a, b in zip([0, *[expected[k] for k in sorted(expected)]], [expected[k] for k in sorted(expected)])
+                 if b and not a)
+    warnings = s.events[s.events.kind == "clipping"]
+    assert len(warnings) == starts >= 1 and log_level("clipping").name == "Warning"
+    assert np.abs(s.acceleration.acc).max() <= full_scale
+
+
+def test_frame_log_option():
+    from wearbench.acquisition.backends.canbus import FrameLog, frame_log
+
+    assert isinstance(frame_log({}), FrameLog) and isinstance(frame_log({"log_frames": "true"}), FrameLog)
+    assert frame_log({"log_frames": False}) is None and frame_log({"log_frames": "false"}) is None
+    with pytest.raises(ValueError, match="log_frames = 'sometimes': expected true or false"):
+        frame_log({"log_frames": "sometimes"})

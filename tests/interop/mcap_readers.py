@@ -1,0 +1,120 @@
+"""Reading session files with the readers other tools use: ``@mcap/core``'s indexed reader under node
+(the reader Foxglove opens files with; messages decoded by protobufjs) and the Python ``mcap``
+readers with CRC validation. Used by the suite-wide check in ``tests/conftest.py`` and by
+``test_readers.py``.
+
+The node packages are installed with npm into a cache folder outside the repository
+(``$WEARBENCH_CACHE/node``, default ``~/.cache/wearbench/node``), once per package set, under a
+file lock (pytest-xdist workers share it). No ``node``: :class:`NodeMissing` (tests skip with the
+reason); ``npm`` failing (registry unreachable, ...): :class:`NodeSetupError` (tests fail).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+from mcap.reader import NonSeekingReader, SeekingReader
+
+PACKAGES = ("@mcap/core@2.2.2", "@mcap/support@1.1.0", "@mcap/nodejs@1.0.2", "protobufjs@7.6.6")
+SCRIPT = Path(__file__).with_name("read_mcap.mjs")
+MAGIC = b"\x89MCAP0\r\n"
+
+
+class NodeMissing(RuntimeError):
+    """``node`` is not on PATH."""
+
+
+class NodeSetupError(RuntimeError):
+    """The node packages could not be installed."""
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("WEARBENCH_CACHE") or Path.home() / ".cache" / "wearbench"
+    return Path(root) / "node"
+
+
+def install(folder: Path | None = None) -> Path:
+    """The folder holding the packages and the reader script, installing what is missing."""
+    if shutil.which("node") is None:
+        raise NodeMissing("node is not on PATH: the @mcap/core reader check needs Node.js (>= 18)")
+    folder = folder or cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    marker = folder / "installed.txt"
+    with open(folder / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (marker.exists() and marker.read_text() == " ".join(PACKAGES)):
+            npm = shutil.which("npm")
+            if npm is None:
+                raise NodeSetupError("npm is not on PATH: cannot install " + " ".join(PACKAGES))
+            if not (folder / "package.json").exists():
+                (folder / "package.json").write_text('{"private": true, "type": "module"}\n')
+            r = subprocess.run([npm, "install", "--no-audit", "--no-fund", "--loglevel=error", *PACKAGES],
+                               cwd=folder, capture_output=True, text=True, timeout=600, check=False)
+            if r.returncode:
+                raise NodeSetupError(f"npm install {' '.join(PACKAGES)} into {folder} failed "
+                                     f"(exit {r.returncode}): {r.stderr.strip()[-2000:]}")
+            marker.write_text(" ".join(PACKAGES))
+        shutil.copyfile(SCRIPT, folder / SCRIPT.name)  # beside node_modules, so its imports resolve
+    return folder
+
+
+def read_with_node(paths: list[Path], folder: Path) -> list[dict]:
+    """One result per file from ``read_mcap.mjs`` (see its header for the fields)."""
+    if not paths:
+        return []
+    r = subprocess.run(["node", str(folder / SCRIPT.name), *map(str, paths)], cwd=folder,
+                       capture_output=True, text=True, timeout=300, check=False)
+    if r.returncode:
+        raise RuntimeError(f"node {SCRIPT.name} exited {r.returncode}: {r.stderr.strip()[-2000:]}")
+    return json.loads(r.stdout)
+
+
+def read_with_python(path: Path) -> dict[str, int]:
+    """Messages per topic through the summary and indexes (chunk CRCs checked), after a record-
+    by-record pass that checks every chunk CRC and the data-section CRC. Raises on any mismatch."""
+    with open(path, "rb") as fh:
+        for _ in NonSeekingReader(fh, validate_crcs=True).iter_messages():
+            pass
+    counts: dict[str, int] = {}
+    with open(path, "rb") as fh:
+        for _, channel, _ in SeekingReader(fh, validate_crcs=True).iter_messages(log_time_order=False):
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    return counts
+
+
+def is_finished_mcap(path: Path) -> bool:
+    """Starts and ends with the MCAP magic (unfinished or cut files are checked after recovery)."""
+    size = path.stat().st_size
+    if size < 2 * len(MAGIC):
+        return False
+    with open(path, "rb") as fh:
+        head = fh.read(len(MAGIC))
+        fh.seek(size - len(MAGIC))
+        return head == MAGIC and fh.read() == MAGIC
+
+
+def check(paths: list[Path], folder: Path | None) -> list[str]:
+    """Problems of finished session files: a reader that fails, or readers that disagree on the
+    messages per topic. ``folder`` None: Python readers only (node absent)."""
+    paths = [p for p in paths if is_finished_mcap(p)]
+    problems, python = [], {}
+    for p in paths:
+        try:
+            python[p] = read_with_python(p)
+        except Exception as exc:  # noqa: BLE001 - every failing file is reported
+            problems.append(f"{p}: Python mcap reader with CRC validation: {type(exc).__name__}: {exc}")
+    if folder is not None:
+        for result in read_with_node(paths, folder):
+            p = Path(result["path"])
+            if not result["ok"]:
+                problems.append(f"{p}: @mcap/core McapIndexedReader: {result.get('error')}")
+                continue
+            node = {t: v["messages"] for t, v in result["topics"].items()}
+            if p in python and node != python[p]:
+                problems.append(f"{p}: messages per topic differ: node {node}, Python {python[p]}")
+    return problems
