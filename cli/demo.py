@@ -19,6 +19,8 @@ import math
 import time
 from pathlib import Path
 
+from wearbench.cli.compute import add_compute_arguments, compute_options
+
 BENCH = "ninebar-testbed"
 TRUTH_SEED = 2026  # truth i is drawn with TRUTH_SEED + i; the ensembles use seeds from 1
 
@@ -48,8 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=TRUTH_SEED, help=f"truth seed of the first state ({TRUTH_SEED})")
     p.add_argument("--twin", action="store_true",
                    help="the emulator plays the nominal model (a twin: earlier versions' demo, for comparison)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="dask scheduler for the ensembles (default: local)")
-    p.add_argument("--workers", type=int, help="local workers for the ensembles (default: the machine's cores)")
+    add_compute_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -115,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     sessions_dir, report_dir = args.out / "sessions", args.out / "report"
     sessions_dir.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
-    with compute_client(args.scheduler, args.workers):
+    with compute_client(**compute_options(args)):
         ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), progress="theory ensembles")
         tasks = [Task(prepare_truth, {"bench": bench, "state": s, "seed": seeds[s.name]},
                       task_key("demo-truth", bench.sha256, s.name, seeds[s.name], time.time_ns()), f"truth {s.name}")

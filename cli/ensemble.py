@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 
+from wearbench.cli.compute import add_compute_arguments, compute_options
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -22,8 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-ensembles.npz)")
     p.add_argument("--ship", action="store_true",
                    help="save where wearbench looks for a shipped bench's precomputed ensembles (maintainers)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="dask scheduler (default: a local cluster)")
-    p.add_argument("--workers", type=int, help="local workers (default: the machine's cores)")
+    add_compute_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -48,8 +49,8 @@ def run(args: argparse.Namespace) -> int:
     speed = parse_quantity(args.speed, "angular_speed") if args.speed else bench.speed
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.cycles)
     # built fresh (no shipped file is consulted), so --ship really refreshes it
-    ensembles = build_ensembles(bench, states, speed=speed, settings=settings, scheduler=args.scheduler,
-                                workers=args.workers, shipped=False)
+    ensembles = build_ensembles(bench, states, speed=speed, settings=settings, shipped=False,
+                                **compute_options(args))
     out = shipped_ensembles_path(bench) if args.ship else Path(args.out or f"{bench.name}-ensembles.npz")
     save_ensembles(ensembles, out, key=ensembles_key(bench, states, speed, settings))
     for name, e in ensembles.items():
