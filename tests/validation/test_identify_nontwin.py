@@ -59,3 +59,23 @@ def test_a_state_that_is_not_a_candidate_is_not_named_with_high_probability(case
     for a in assess_sessions(mine, ensembles=others):
         assert a.identification.verdict in (NONE, UNDECIDED), a.identification
         assert not any(a.identification.consistent.values()), a.identification.p_value
+
+
+def test_identify_command_with_saved_ensembles(case, tmp_path, capsys):
+    import json
+
+    from wearbench.cli import main
+    from wearbench.validation.ensemble import ensembles_key, save_ensembles
+    bench, ensembles, _, paths = case
+    saved = save_ensembles(ensembles, tmp_path / "e.npz", key=ensembles_key(bench, bench.states, bench.speed, SETTINGS))
+    out = tmp_path / "ids.json"
+    assert main(["identify", str(paths[0]), str(paths[2]), "--ensembles", str(saved), "--json", str(out),
+                 "--out", str(tmp_path / "report")]) == 0
+    rows = json.loads(out.read_text())
+    assert [r["session"] for r in rows] == [paths[0].stem, paths[2].stem]
+    assert all(abs(sum(r["posterior"].values()) - 1) < 1e-9 for r in rows)
+    assert "posterior probability" in capsys.readouterr().out
+    html = (tmp_path / "report" / "report.html").read_text()
+    assert "Which state explains each session" in html and "band_" in html
+    # a bad threshold is one clear line, exit 2
+    assert main(["identify", str(paths[0]), "--ensembles", str(saved), "--threshold", "1.5"]) == 2
