@@ -69,7 +69,8 @@ def main() -> None:
     paths = []
     for s, seed in truths:
         paths.append(out / f"{slug(s.name)}_{seed}.mcap")
-        record_state(bench, s, seed, paths[-1], backend="sim", cycles=args.cycles)
+        # one cycle more than analysed: cycles are cut at crank angle 0, so the partial ends are dropped
+        record_state(bench, s, seed, paths[-1], backend="sim", cycles=args.cycles + 1)
     t_record = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -88,8 +89,9 @@ def main() -> None:
     print("\ncycles  sessions  top-1   named right  named wrong  undecided  none   Brier   wrong state explains")
     reliability = []
     final = {}
-    for n in sorted({1, 2, 5, 10, args.cycles}):
-        if n > min(f.cycles for f in feats):
+    full = min(min(f.cycles for f in feats), args.cycles)
+    for n in sorted({1, 2, 5, 10, full}):
+        if n > full:
             continue
         rows = []
         for f, truth in zip(feats, truth_names, strict=True):
@@ -106,12 +108,14 @@ def main() -> None:
         print(f"{n:6d}  {len(rows):8d}  {top1:5.2f}   {right:11.2f}  {wrong:11.2f}  {undecided:9.2f}  {none:4.2f}   "
               f"{brier:5.3f}   {explains:5.2f}")
         reliability += [(r.p_top, max(r.posterior, key=r.posterior.get) == t) for t, r in rows]
-        if n == args.cycles:
+        if n == full:
             final = {i: r for i, (_, r) in enumerate(rows)}
-    print(f"\nconfusion at {args.cycles} cycles (rows: truth, columns: top state)")
+    print(f"\nconfusion at {full} cycles (rows: truth, columns: top state)")
     print(" " * 22 + "".join(f"{s[:18]:>20s}" for s in names))
     for s in names:
         tops = [max(final[i].posterior, key=final[i].posterior.get) for i, t in enumerate(truth_names) if t == s]
+        if not tops:
+            continue
         print(f"{s:22s}" + "".join(f"{tops.count(c):20d}" for c in names))
     print("\nreliability (all cycle counts): p_top bin, count, mean p_top, observed accuracy")
     p = np.array([x[0] for x in reliability])

@@ -2,8 +2,9 @@
 
 Each session's emulator plays a bench drawn from the test bed's [tolerances] with a seed no
 ensemble uses (other masses, lengths, friction, speed, start state) through the test bed's sensor
-chain, recorded through the sim backend to MCAP. Small ensembles and 10-cycle sessions keep this
-to about a minute; ``benchmarks/identify.py`` runs the full-size version.
+chain, recorded through the sim backend to MCAP, against the test bed's shipped ensembles (32
+realisations per state, whose freshness test_ensemble.py checks). Two draws per state and 10-cycle
+sessions keep this to about a minute; ``benchmarks/identify.py`` runs the full-size version.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from wearbench.validation.identify import NONE, UNDECIDED
 
 pytestmark = pytest.mark.slow
 
-SETTINGS = EnsembleSettings(realisations=12, cycles=6)
+SETTINGS = EnsembleSettings()
 CYCLES = 10
 
 
@@ -28,8 +29,8 @@ def case(tmp_path_factory):
     states = bench.states
     truths = [(s, 7000 + 10 * k + d) for k, s in enumerate(states) for d in range(2)]
     out = tmp_path_factory.mktemp("nontwin")
+    ensembles = build_ensembles(bench, states, settings=SETTINGS, progress=None)  # shipped: no simulation
     with compute_client(workers=2):
-        ensembles = build_ensembles(bench, states, settings=SETTINGS, progress=None)
         run_tasks([Task(prepare_truth, {"bench": bench, "state": s, "seed": seed, "revolutions": 14},
                         task_key("test-truth", s.name, seed), s.name) for s, seed in truths], cache=False)
     paths = []
