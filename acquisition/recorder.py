@@ -39,13 +39,15 @@ from wearbench.hardware.bench import Bench
 
 __all__ = ["Progress", "Recorder", "SessionPlan", "SessionResult", "record_session"]
 
+_PULSE_MARGIN = 0.05  # revolutions recorded past the index pulse that closes the last cycle
 _FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
 
 
 @dataclass
 class SessionPlan:
-    """What to record. ``speed`` is the motor speed (rad/s); stop after ``cycles`` crank
-    revolutions or ``duration`` s of recording (device clock), whichever is given."""
+    """What to record. ``speed`` is the motor speed (rad/s); stop after ``cycles`` complete crank
+    cycles (index pulse to index pulse) or ``duration`` s of recording (device clock), whichever is
+    given."""
 
     speed: float
     cycles: float | None = None
@@ -63,8 +65,13 @@ class SessionPlan:
     def __post_init__(self) -> None:
         if (self.cycles is None) == (self.duration is None):
             raise ValueError("a session needs exactly one of cycles or duration")
-        if self.speed == 0:
-            raise ValueError("speed = 0 rad/s: a session needs the crank turning")
+        if self.speed == 0 or not math.isfinite(self.speed):
+            raise ValueError(f"speed = {self.speed!r} rad/s: a session needs the crank turning (finite, non-zero)")
+        for name, value, unit in (("cycles", self.cycles, ""), ("duration", self.duration, " s")):
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r}{unit}: expected a finite number > 0")
+        if not (math.isfinite(self.settle) and self.settle >= 0):
+            raise ValueError(f"settle = {self.settle!r} s: expected a finite number >= 0")
 
 
 @dataclass
@@ -438,13 +445,22 @@ class Recorder:
         self._recording.set()
         start = self._poll()
         self._post(Event("phase", f"record: steady at {start.speed:.4g} rad/s", device_time=start.device_time))
+        # Cycles run from index pulse to index pulse (validation.cycles), so `cycles` complete ones
+        # need ceil(cycles) + 1 pulses after the start, and a little more so the blocks holding the
+        # last pulse are written; a drive without index pulses records one revolution more.
+        pulses_needed = math.ceil(p.cycles) + 1 if p.cycles is not None else 0
+        last_pulse: float | None = None  # revolutions at the last needed pulse
         while not self._stop.is_set():
             s = self._wait(0.0, prog)
             if s is None:
                 return
             prog.cycles = abs(s.angle - start.angle) / (2 * math.pi)  # revolutions of the encoder crank
             prog.elapsed = s.device_time - start.device_time
-            if (p.cycles is not None and prog.cycles >= p.cycles) or (
+            if p.cycles is not None and last_pulse is None and s.index_count - start.index_count >= pulses_needed:
+                last_pulse = prog.cycles
+            if (p.cycles is not None and prog.cycles >= p.cycles and (
+                    prog.cycles >= p.cycles + 1 + _PULSE_MARGIN
+                    or (last_pulse is not None and prog.cycles >= last_pulse + _PULSE_MARGIN))) or (
                     p.duration is not None and prog.elapsed >= p.duration):
                 self.stop("completed", "phase")
                 return
@@ -570,8 +586,9 @@ class Recorder:
         except OSError:
             pass  # accepted, as above
         for attempt in range(_FINISH_TRIES):  # space may come back (the ballast, another process)
-            try:
-                w.finish()
+            try:  # a session that recorded nothing (a failed start) never replaces an existing file
+                w.finish(replace=r.samples.get(ACCELERATION, 0) > 0)
+                r.path = w.path
                 return r
             except OSError as exc:
                 w.release_ballast()

@@ -7,7 +7,7 @@ import math
 
 from rich.console import Console
 from rich.table import Table
-from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench
+from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench, resolve_bench
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,17 +36,19 @@ def _list(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> int:
     for file in args.files:
-        bench = load_bench(file)
+        bench = load_bench(resolve_bench(file))
         from wearbench.model import build_scene  # the model owns the kinematics of assembly
 
         scene = build_scene(bench)
+        missing = [k for k in ("encoder", "accelerometer") if k not in {s.kind for s in bench.sensors}]
+        can = f"; simulate only, cannot record: no {' or '.join(missing)} sensor" if missing else ""
         print(f"{file}: ok ({bench.name}: {len(bench.bodies)} bodies, {len(bench.joints)} joints, "
-              f"{scene.dof} degrees of freedom with the drivers applied: {scene.description})")
+              f"{scene.dof} degrees of freedom with the drivers applied: {scene.description}{can})")
     return 0
 
 
 def _show(args: argparse.Namespace) -> int:
-    bench: Bench = load_bench(args.file)
+    bench: Bench = load_bench(resolve_bench(args.file))
     console = Console()
     console.print(f"[bold]{bench.name}[/bold]: {bench.description}")
     console.print(f"motor speed {bench.speed:.4g} rad/s ({bench.speed * 30 / math.pi:.4g} rpm), "

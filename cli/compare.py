@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 
+from wearbench.cli.options import nonnegative_number, positive_int, positive_number
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -22,8 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--filter", default="cfc180",
                    help="cfc60|cfc180|cfc600|cfc1000, butter:CUTOFF_HZ[:ORDER] or none (default cfc180)")
     p.add_argument("--windows", default="all", help="all | random:COUNT[:SEED] (default all)")
-    p.add_argument("--cycles", type=int, default=5, help="crank cycles per window (default 5)")
-    p.add_argument("--max-shift", type=float, default=0.2, metavar="CYCLES",
+    p.add_argument("--cycles", type=positive_int, default=5, help="crank cycles per window (default 5)")
+    p.add_argument("--max-shift", type=nonnegative_number, default=0.2, metavar="CYCLES",
                    help="residual time-shift search, fraction of a crank cycle, < 0.5 (default 0.2)")
     p.add_argument("--max-delay", default="5ms", metavar="TIME",
                    help="hold the shift search to the sensor chain's plausible delay (default 5ms)")
@@ -31,12 +33,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also identify each session among candidate states ([[state]] tables of a file, or "
                         "'bench' for those of the session's bench file) against theory ensembles, and score its "
                         "windows against the identified state's ensemble instead of one simulation")
-    p.add_argument("--dtw-band", type=float, default=0.05, metavar="CYCLES",
+    p.add_argument("--dtw-band", type=nonnegative_number, default=0.05, metavar="CYCLES",
                    help="DTW band half-width, fraction of a crank cycle (default 0.05)")
     p.add_argument("--no-shift", action="store_true", help="report the residual shift but do not remove it")
     p.add_argument("--detrend", action="store_true", help="remove a linear trend before filtering")
     p.add_argument("--keep-bias", action="store_true", help="do not subtract the mean (sensor bias)")
-    p.add_argument("--revolutions", type=float, default=3.0,
+    p.add_argument("--revolutions", type=positive_number, default=3.0,
                    help="revolutions to simulate when theory is simulated (default 3)")
     p.add_argument("--contiguous-theory", action="store_true",
                    help="compare with the theory's last revolutions in a row (simulate at least a window "
