@@ -33,7 +33,7 @@ from wearbench.acquisition.drivers import (
     Rig,
 )
 from wearbench.acquisition.layout import Command, CrankAngle, clip_level, count_clipped
-from wearbench.acquisition.session_file import BENCH_ATTACHMENT
+from wearbench.acquisition.session_file import BENCH_ATTACHMENT, surface_attachment
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.hardware.bench import Bench
 
@@ -410,6 +410,14 @@ class Recorder:
                 return s
             clock.sleep(self.plan.state_interval)
 
+    def _surface_attachments(self) -> dict[str, tuple[str, bytes]]:
+        """The worn-surface files the wear state names, embedded so the session is self-contained."""
+        out = {}
+        for joint, state in self.plan.wear.items():
+            if Path(state).suffix == ".npz" and Path(state).is_file():
+                out[surface_attachment(joint)] = ("application/x-npz", Path(state).read_bytes())
+        return out
+
     def _crank_ratio(self) -> float:
         """Speed ratio of the encoder's crank to the motor (1 without an encoder driver)."""
         try:
@@ -509,7 +517,8 @@ class Recorder:
                 self.stop(_failure_reason(exc, "configuring the stream"), "error")
             try:
                 self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml",
-                                                                        self.bench.source.encode())})
+                                                                        self.bench.source.encode()),
+                                                     **self._surface_attachments()})
             except OSError as exc:  # a full disk already: nothing to record, the file still gets finished
                 self._write_failed(exc)
             readers = [threading.Thread(target=self._reader, args=(s,), name=f"reader-{s.name}", daemon=True)

@@ -37,13 +37,28 @@ from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame
 from wearbench.acquisition.layout import SCHEMAS, TOPICS, clip_level
 from wearbench.hardware.bench import Bench, BenchError, parse_bench
 
-__all__ = ["BENCH_ATTACHMENT", "Scan", "Session", "blocks", "events", "frames", "read_session", "scan_mcap",
-           "states"]
+__all__ = [
+    "BENCH_ATTACHMENT",
+    "Scan",
+    "Session",
+    "blocks",
+    "events",
+    "frames",
+    "read_session",
+    "scan_mcap",
+    "states",
+    "surface_attachment",
+]
 
 BENCH_ATTACHMENT = "bench.toml"
 
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"  # the first bytes of every MCAP file
+
+
+def surface_attachment(joint: str) -> str:
+    """Attachment name of the worn-surface file (.npz) a session's wear state names for ``joint``."""
+    return f"wear/{joint}.npz"
 
 @dataclass
 class Scan:
@@ -140,6 +155,7 @@ class Session:
     quality: dict[str, dict[str, int]]  # per stream: blocks, samples, dropped, repeated
     origin: float  # device time (s) of time 0
     host_origin: float  # host time (s, Unix) of time 0
+    surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> embedded worn-surface .npz
 
 
 def _messages(scan: Scan, key: str):
@@ -313,4 +329,6 @@ def read_session(path: str | Path) -> Session:
     return Session(path=path, bench=bench, metadata=meta, clearances=clearances, wear_state=wear_state,
                    acceleration=acceleration, encoder=encoder, events=event_frame, motor=motor,
                    finished=scan.finished, problem=problem, quality=quality, origin=origin,
-                   host_origin=host_origin)
+                   host_origin=host_origin,
+                   surface_files={a.name[5:-4]: a.data for a in scan.attachments
+                                  if a.name.startswith("wear/") and a.name.endswith(".npz")})

@@ -94,6 +94,15 @@ def run(args: argparse.Namespace) -> int:
         if j not in known:
             raise ValueError(f"--clearance/--wear: {bench.name} has no clearance joint {j!r}; "
                              f"expected one of {sorted(known)}")
+    for joint, state in _pairs(args.wear, "wear").items():  # a file it names travels in the session
+        if Path(state).suffix == ".npz" or "/" in state:
+            from wearbench.model.surfaces import JointSurfaces
+
+            try:
+                JointSurfaces.load(state)
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"--wear {joint}={state}: {exc}; expected a worn-surface .npz file "
+                                 "(written by 'wearbench wear') or a label such as new") from None
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,

@@ -156,7 +156,8 @@ def theory_curve(session: MeasuredSession, theory: Any = None, *, options: Compa
         if session.bench is None:
             raise ValueError(f"session {session.label}: no bench in the file to simulate; pass a theory")
         base = session.path.parent if session.path else None
-        worn = surfaces if surfaces is not None else resolve_surfaces(session.wear_state, base)
+        worn = surfaces if surfaces is not None else resolve_surfaces(session.wear_state, base,
+                                                                         session.surface_files)
         known = {j.name for j in session.bench.clearance_joints}
         clearances = {j: c for j, c in session.clearances.items() if j in known} or None
         rate = options.output_rate or session.fs

@@ -35,6 +35,7 @@ class MeasuredSession:
     wear_state: dict[str, str] = field(default_factory=dict)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     path: Path | None = None
+    surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> worn-surface .npz embedded
     speed_tolerance: float = 0.02
     points_per_rev: int = 720
 
@@ -92,4 +93,5 @@ def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSessi
         raise ValueError(f"{path}: the session holds no encoder samples")
     return MeasuredSession(label=label or path.stem, acceleration=s.acceleration[["time", "acc"]],
                            encoder=s.encoder, bench=s.bench, clearances=dict(s.clearances),
-                           wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path)
+                           wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path,
+                           surface_files=dict(s.surface_files))

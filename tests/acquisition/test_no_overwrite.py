@@ -126,3 +126,25 @@ def test_serial_device_left_streaming_by_a_crash_is_reset_on_connect(bench, tmp_
         proc.terminate()
         proc.wait(timeout=10)
     assert result.completed, result.reason
+
+
+def test_wear_files_are_checked_and_travel_in_the_session(bench, tmp_path, capsys):
+    """`--wear A=missing.npz` is refused before the rig starts; a named surface file is embedded, so
+    the session can be scored after the file moved."""
+    import numpy as np
+    from wearbench.model.surfaces import JointSurfaces
+    from wearbench.validation.theory import resolve_surfaces
+
+    out = tmp_path / "s.mcap"
+    assert main([*_record_args(bench, out, tmp_path), "--wear", "A=missing.npz"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "missing.npz" in err and "does not exist" in err and not out.exists()
+    worn = JointSurfaces(np.linspace(0, 1e-5, 100), np.zeros(100), 1e5, "stage 1")
+    path = worn.save(tmp_path / "stage1.npz")
+    assert main([*_record_args(bench, out, tmp_path), "--wear", f"A={path}"]) == 0
+    path.rename(tmp_path / "moved.npz")
+    session = read_session(out)
+    with pytest.raises(ValueError, match="neither"):
+        resolve_surfaces(session.wear_state)  # the file is gone and no copy given
+    again = resolve_surfaces(session.wear_state, embedded=session.surface_files)["A"]
+    np.testing.assert_array_equal(again.bearing, worn.bearing)
