@@ -6,6 +6,7 @@ import argparse
 import math
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench, resolve_bench
 
@@ -53,12 +54,12 @@ def _show(args: argparse.Namespace) -> int:
     console.print(f"[bold]{bench.name}[/bold]: {bench.description}")
     console.print(f"motor speed {bench.speed:.4g} rad/s ({bench.speed * 30 / math.pi:.4g} rpm), "
                   f"backend {bench.hardware.backend}")
-    bodies = Table("body", "mass [kg]", "inertia [kg m^2]", "length [mm]", "points")
+    bodies = Table(*map(escape, ("body", "mass [kg]", "inertia [kg m^2]", "length [mm]", "points")))
     for b in bench.bodies:
         bodies.add_row(b.name, f"{b.mass:.4g}", f"{b.inertia:.4g}",
                        "" if b.length is None else f"{b.length * 1e3:.4g}", ", ".join(b.points))
     console.print(bodies)
-    joints = Table("joint", "type", "bodies", "clearance [mm]", "bearing / journal radius [mm]")
+    joints = Table(*map(escape, ("joint", "type", "bodies", "clearance [mm]", "bearing / journal radius [mm]")))
     for j in bench.joints:
         c = j.clearance
         joints.add_row(j.name, j.kind, " - ".join(j.bodies),

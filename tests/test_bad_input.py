@@ -92,3 +92,10 @@ def test_every_bench_command_resolves_shipped_names():
     for name in ("bench", "wear", "study", "sweep", "simulate", "record", "emulate", "ensemble"):
         source = inspect.getsource(__import__(f"wearbench.cli.{cli.COMMANDS[name]}", fromlist=["run"]))
         assert "resolve_bench(" in source and "shipped_bench(" not in source, name
+
+
+def test_bench_show_headers_keep_their_units(capsys):
+    assert main(["bench", "show", "ninebar"]) == 0
+    out = capsys.readouterr().out
+    for header in ("mass [kg]", "inertia [kg m^2]", "clearance [mm]"):
+        assert header in out
