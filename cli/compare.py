@@ -6,6 +6,7 @@ Thin front of ``wearbench.validation.compare.compare_sessions``; prints the summ
 from __future__ import annotations
 
 import argparse
+import sys
 
 from wearbench.cli.options import nonnegative_number, positive_int, positive_number
 
@@ -86,14 +87,27 @@ def run(args: argparse.Namespace) -> int:
                          "give it once or once per session")
     if args.label and len(args.label) != len(args.sessions):
         raise ValueError(f"--label given {len(args.label)} times for {len(args.sessions)} sessions")
-    comparisons = []
+    comparisons, failed = [], []
     with progress() as bar:
         task = bar.add_task("compare", total=len(args.sessions), info="")
         for i, (path, theory) in enumerate(zip(args.sessions, theories)):
             bar.update(task, info=str(path))
-            comparisons.append(compare_session(path, theory, options=options,
-                                               label=args.label[i] if args.label else None))
+            try:
+                comparisons.append(compare_session(path, theory, options=options,
+                                                   label=args.label[i] if args.label else None))
+            except ValueError as exc:  # one session that cannot be scored does not cost the others
+                if len(args.sessions) == 1:
+                    raise
+                failed.append(f"{path}: {exc}")
             bar.advance(task)
+    for line in failed:
+        print(f"wearbench compare: not scored: {line}", file=sys.stderr)
+    if not comparisons:
+        raise ValueError(f"none of the {len(args.sessions)} sessions could be scored")
+    for c in comparisons:
+        if not c.session.finished:
+            print(f"wearbench compare: {c.session.path}: unfinished session ({c.session.problem}); scored up "
+                  "to its last complete chunk", file=sys.stderr)
     report = write_report(comparisons, args.out)
     table = Table(title=f"{options.filter.label}; {options.windows.label}")
     for col in ("session", "windows", "ISO R", "grade", "shift ms", "NRMSE", "corr", "S&G C"):
@@ -109,4 +123,4 @@ def run(args: argparse.Namespace) -> int:
     console = Console()
     console.print(table)
     console.print(f"report: {report.html}  scores: {report.scores_json}")
-    return 0
+    return 1 if failed else 0
