@@ -21,6 +21,7 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import BinaryIO
 
+import numpy as np
 from wearbench.acquisition.drivers import (
     ACCELERATION,
     ENCODER,
@@ -174,6 +175,8 @@ class Recorder:
         self._clipping = False  # the last acceleration block had clipped samples
         self._clipped = 0
         self._write_failures = 0
+        self._pulses = 0  # index pulses (rising edges) in the recorded encoder blocks
+        self._index_high = False
 
     # ---- stopping ---------------------------------------------------------------------------
 
@@ -222,6 +225,10 @@ class Recorder:
                             item.host_time = time.time()
                         if not recording:
                             continue
+                        if item.stream == ENCODER and item.index is not None and len(item.index):
+                            high = np.asarray(item.index, dtype=bool)
+                            self._pulses += int(np.count_nonzero(high & ~np.concatenate([[self._index_high], high[:-1]])))
+                            self._index_high = bool(high[-1])
                     elif isinstance(item, Event) and item.device_time is None:
                         item.device_time = self._device_now
                     if isinstance(item, Event) and item.kind == "malformed":
@@ -454,8 +461,9 @@ class Recorder:
         start = self._poll()
         self._post(Event("phase", f"record: steady at {start.speed:.4g} rad/s", device_time=start.device_time))
         # Cycles run from index pulse to index pulse (validation.cycles), so `cycles` complete ones
-        # need ceil(cycles) + 1 pulses after the start, and a little more so the blocks holding the
-        # last pulse are written; a drive without index pulses records one revolution more.
+        # need ceil(cycles) + 1 pulses in the recorded encoder blocks (counted by the reader: the
+        # drive's own index count may lag the stream), and a little more; a stream without index
+        # pulses records one revolution more.
         pulses_needed = math.ceil(p.cycles) + 1 if p.cycles is not None else 0
         last_pulse: float | None = None  # revolutions at the last needed pulse
         while not self._stop.is_set():
@@ -464,7 +472,7 @@ class Recorder:
                 return
             prog.cycles = abs(s.angle - start.angle) / (2 * math.pi)  # revolutions of the encoder crank
             prog.elapsed = s.device_time - start.device_time
-            if p.cycles is not None and last_pulse is None and s.index_count - start.index_count >= pulses_needed:
+            if p.cycles is not None and last_pulse is None and self._pulses >= pulses_needed:
                 last_pulse = prog.cycles
             if (p.cycles is not None and prog.cycles >= p.cycles and (
                     prog.cycles >= p.cycles + 1 + _PULSE_MARGIN
