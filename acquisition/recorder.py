@@ -21,6 +21,7 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import BinaryIO
 
+import numpy as np
 from wearbench.acquisition.drivers import (
     ACCELERATION,
     ENCODER,
@@ -33,19 +34,21 @@ from wearbench.acquisition.drivers import (
     Rig,
 )
 from wearbench.acquisition.layout import Command, CrankAngle, clip_level, count_clipped
-from wearbench.acquisition.session_file import BENCH_ATTACHMENT
+from wearbench.acquisition.session_file import BENCH_ATTACHMENT, surface_attachment
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.hardware.bench import Bench
 
 __all__ = ["Progress", "Recorder", "SessionPlan", "SessionResult", "record_session"]
 
+_PULSE_MARGIN = 0.05  # revolutions recorded past the index pulse that closes the last cycle
 _FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
 
 
 @dataclass
 class SessionPlan:
-    """What to record. ``speed`` is the motor speed (rad/s); stop after ``cycles`` crank
-    revolutions or ``duration`` s of recording (device clock), whichever is given."""
+    """What to record. ``speed`` is the motor speed (rad/s); stop after ``cycles`` complete crank
+    cycles (index pulse to index pulse) or ``duration`` s of recording (device clock), whichever is
+    given."""
 
     speed: float
     cycles: float | None = None
@@ -63,8 +66,13 @@ class SessionPlan:
     def __post_init__(self) -> None:
         if (self.cycles is None) == (self.duration is None):
             raise ValueError("a session needs exactly one of cycles or duration")
-        if self.speed == 0:
-            raise ValueError("speed = 0 rad/s: a session needs the crank turning")
+        if self.speed == 0 or not math.isfinite(self.speed):
+            raise ValueError(f"speed = {self.speed!r} rad/s: a session needs the crank turning (finite, non-zero)")
+        for name, value, unit in (("cycles", self.cycles, ""), ("duration", self.duration, " s")):
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r}{unit}: expected a finite number > 0")
+        if not (math.isfinite(self.settle) and self.settle >= 0):
+            raise ValueError(f"settle = {self.settle!r} s: expected a finite number >= 0")
 
 
 @dataclass
@@ -167,6 +175,8 @@ class Recorder:
         self._clipping = False  # the last acceleration block had clipped samples
         self._clipped = 0
         self._write_failures = 0
+        self._pulses = 0  # index pulses (rising edges) in the recorded encoder blocks
+        self._index_high = False
 
     # ---- stopping ---------------------------------------------------------------------------
 
@@ -215,6 +225,10 @@ class Recorder:
                             item.host_time = time.time()
                         if not recording:
                             continue
+                        if item.stream == ENCODER and item.index is not None and len(item.index):
+                            high = np.asarray(item.index, dtype=bool)
+                            self._pulses += int(np.count_nonzero(high & ~np.concatenate([[self._index_high], high[:-1]])))
+                            self._index_high = bool(high[-1])
                     elif isinstance(item, Event) and item.device_time is None:
                         item.device_time = self._device_now
                     if isinstance(item, Event) and item.kind == "malformed":
@@ -403,6 +417,14 @@ class Recorder:
                 return s
             clock.sleep(self.plan.state_interval)
 
+    def _surface_attachments(self) -> dict[str, tuple[str, bytes]]:
+        """The worn-surface files the wear state names, embedded so the session is self-contained."""
+        out = {}
+        for joint, state in self.plan.wear.items():
+            if Path(state).suffix == ".npz" and Path(state).is_file():
+                out[surface_attachment(joint)] = ("application/x-npz", Path(state).read_bytes())
+        return out
+
     def _crank_ratio(self) -> float:
         """Speed ratio of the encoder's crank to the motor (1 without an encoder driver)."""
         try:
@@ -438,13 +460,23 @@ class Recorder:
         self._recording.set()
         start = self._poll()
         self._post(Event("phase", f"record: steady at {start.speed:.4g} rad/s", device_time=start.device_time))
+        # Cycles run from index pulse to index pulse (validation.cycles), so `cycles` complete ones
+        # need ceil(cycles) + 1 pulses in the recorded encoder blocks (counted by the reader: the
+        # drive's own index count may lag the stream), and a little more; a stream without index
+        # pulses records one revolution more.
+        pulses_needed = math.ceil(p.cycles) + 1 if p.cycles is not None else 0
+        last_pulse: float | None = None  # revolutions at the last needed pulse
         while not self._stop.is_set():
             s = self._wait(0.0, prog)
             if s is None:
                 return
             prog.cycles = abs(s.angle - start.angle) / (2 * math.pi)  # revolutions of the encoder crank
             prog.elapsed = s.device_time - start.device_time
-            if (p.cycles is not None and prog.cycles >= p.cycles) or (
+            if p.cycles is not None and last_pulse is None and self._pulses >= pulses_needed:
+                last_pulse = prog.cycles
+            if (p.cycles is not None and prog.cycles >= p.cycles and (
+                    prog.cycles >= p.cycles + 1 + _PULSE_MARGIN
+                    or (last_pulse is not None and prog.cycles >= last_pulse + _PULSE_MARGIN))) or (
                     p.duration is not None and prog.elapsed >= p.duration):
                 self.stop("completed", "phase")
                 return
@@ -493,7 +525,8 @@ class Recorder:
                 self.stop(_failure_reason(exc, "configuring the stream"), "error")
             try:
                 self.writer.start(self._metadata(), {BENCH_ATTACHMENT: ("application/toml",
-                                                                        self.bench.source.encode())})
+                                                                        self.bench.source.encode()),
+                                                     **self._surface_attachments()})
             except OSError as exc:  # a full disk already: nothing to record, the file still gets finished
                 self._write_failed(exc)
             readers = [threading.Thread(target=self._reader, args=(s,), name=f"reader-{s.name}", daemon=True)
@@ -570,8 +603,9 @@ class Recorder:
         except OSError:
             pass  # accepted, as above
         for attempt in range(_FINISH_TRIES):  # space may come back (the ballast, another process)
-            try:
-                w.finish()
+            try:  # a session that recorded nothing (a failed start) never replaces an existing file
+                w.finish(replace=r.samples.get(ACCELERATION, 0) > 0)
+                r.path = w.path
                 return r
             except OSError as exc:
                 w.release_ballast()

@@ -34,14 +34,31 @@ from mcap.records import (
 from mcap.stream_reader import StreamReader, breakup_chunk
 from wearbench.acquisition import layout, layout1
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
-from wearbench.acquisition.layout import TOPICS, clip_level
+from wearbench.acquisition.layout import SCHEMAS, TOPICS, clip_level
 from wearbench.hardware.bench import Bench, BenchError, parse_bench
 
-__all__ = ["BENCH_ATTACHMENT", "Scan", "Session", "blocks", "events", "frames", "read_session", "scan_mcap",
-           "states"]
+__all__ = [
+    "BENCH_ATTACHMENT",
+    "Scan",
+    "Session",
+    "blocks",
+    "events",
+    "frames",
+    "read_session",
+    "scan_mcap",
+    "states",
+    "surface_attachment",
+]
 
 BENCH_ATTACHMENT = "bench.toml"
 
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"  # the first bytes of every MCAP file
+
+
+def surface_attachment(joint: str) -> str:
+    """Attachment name of the worn-surface file (.npz) a session's wear state names for ``joint``."""
+    return f"wear/{joint}.npz"
 
 @dataclass
 class Scan:
@@ -81,6 +98,11 @@ def scan_mcap(path: str | Path) -> Scan:
     """Read every complete record of ``path``; never raises for a truncated or damaged tail."""
     scan = Scan()
     with open(path, "rb") as fh:
+        head = fh.read(len(MCAP_MAGIC))
+        if head != MCAP_MAGIC:
+            what = "an empty file" if not head else f"it starts with {head!r}"
+            raise ValueError(f"{path}: not an MCAP file ({what}; expected the MCAP magic {MCAP_MAGIC!r})")
+        fh.seek(0)
         reader = StreamReader(fh, emit_chunks=True, record_size_limit=1 << 30)
         footer = False
         try:
@@ -133,6 +155,7 @@ class Session:
     quality: dict[str, dict[str, int]]  # per stream: blocks, samples, dropped, repeated
     origin: float  # device time (s) of time 0
     host_origin: float  # host time (s, Unix) of time 0
+    surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> embedded worn-surface .npz
 
 
 def _messages(scan: Scan, key: str):
@@ -142,18 +165,34 @@ def _messages(scan: Scan, key: str):
     return [(m, codecs[m.channel_id]) for m in scan.messages if m.channel_id in codecs]
 
 
+def _decode(scan: Scan, key: str, decode) -> list:
+    """``decode(message, codec)`` of every message of ``key``; a message that is not wearbench's (a
+    foreign file reusing the topic with another schema) raises one ValueError naming topic and schema."""
+    out = []
+    for m, codec in _messages(scan, key):
+        try:
+            out.append(decode(m, codec))
+        except Exception as exc:  # noqa: BLE001 - any decoding failure means the same to the user
+            channel = scan.channels[m.channel_id]
+            schema = scan.schemas.get(channel.schema_id)
+            raise ValueError(f"{channel.topic}: not a wearbench {key} message (schema "
+                             f"{schema.name if schema else 'none'!r}, encoding {channel.message_encoding!r}; "
+                             f"expected {SCHEMAS[key][0]!r}): {type(exc).__name__}: {exc}") from None
+    return out
+
+
 def blocks(scan: Scan, stream: str) -> list[Block]:
     """The blocks of ``stream`` (ACCELERATION or ENCODER) in file order."""
-    return [codec.decode_block(stream, m.data) for m, codec in _messages(scan, stream)]
+    return _decode(scan, stream, lambda m, codec: codec.decode_block(stream, m.data))
 
 
 def states(scan: Scan) -> list[MotorState]:
-    return [codec.decode_state(m.data) for m, codec in _messages(scan, "state")]
+    return _decode(scan, "state", lambda m, codec: codec.decode_state(m.data))
 
 
 def events(scan: Scan) -> list[Event]:
-    return [layout1.decode_event(m.data) if codec is layout1 else layout.decode_event(m.data, m.publish_time, m.log_time)
-            for m, codec in _messages(scan, "events")]
+    return _decode(scan, "events", lambda m, codec: layout1.decode_event(m.data) if codec is layout1
+                   else layout.decode_event(m.data, m.publish_time, m.log_time))
 
 
 def frames(scan: Scan) -> list[BusFrame]:
@@ -290,4 +329,6 @@ def read_session(path: str | Path) -> Session:
     return Session(path=path, bench=bench, metadata=meta, clearances=clearances, wear_state=wear_state,
                    acceleration=acceleration, encoder=encoder, events=event_frame, motor=motor,
                    finished=scan.finished, problem=problem, quality=quality, origin=origin,
-                   host_origin=host_origin)
+                   host_origin=host_origin,
+                   surface_files={a.name[5:-4]: a.data for a in scan.attachments
+                                  if a.name.startswith("wear/") and a.name.endswith(".npz")})

@@ -13,6 +13,10 @@
 - Writes go through :class:`DurableFile`, which never leaves half a record behind: a failed
   write (a full disk) is cut back to the last whole record and kept in memory until it can be
   written, so the file can still be finished once space is back.
+- A session never silently replaces a file: a path that exists is refused (``FileExistsError``)
+  unless ``replace=True``, and then the new session is written beside it (``NAME.new``) and renamed
+  over the old file only when finished, so the old file stays whole until then. One writer per
+  path: an exclusive ``flock`` on ``.NAME.lock`` beside it (released by the OS if the process dies).
 - A live view (``live``, see ``acquisition.live``) is offered every message after it went to the
   file; it never blocks and never fails the writer.
 
@@ -22,6 +26,7 @@ Imports mcap and the layout; no backend library.
 from __future__ import annotations
 
 import errno
+import fcntl
 import io
 import os
 import shutil
@@ -47,7 +52,8 @@ from wearbench.acquisition.layout import (
 )
 
 __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
-           "SessionWriter", "ballast_bytes", "check_free_space"]
+           "SessionWriter", "ballast_bytes", "check_free_space", "lock_session_path",
+           "unlock_session_path"]
 
 PROFILE = "wearbench-session"
 # Chosen by measurement (benchmarks/session_format.py, 20 kHz): zstd 148 MB per hour against lz4's
@@ -77,6 +83,40 @@ def check_free_space(path: str | Path) -> int:
                              f"{MIN_FREE_BYTES / 2**20:g} MiB to start (about 150 MB per hour at 20 kHz)",
                              str(folder))
     return free
+
+
+def lock_session_path(path: str | Path) -> int:
+    """Take the exclusive lock on writing ``path`` (``flock`` on ``.NAME.lock`` beside it); returns
+    the lock's file descriptor (close it to release). Raises ``OSError(EBUSY)`` naming the file when
+    another process holds it."""
+    path = Path(path)
+    lock = _lock_path(path)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OSError(errno.EBUSY, "another recorder is writing this session file", str(path)) from None
+        try:  # the holder before us may have removed the lock file: then lock the new one
+            if os.stat(lock).st_ino == os.fstat(fd).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def _lock_path(path: Path) -> Path:
+    return path.with_name(f".{path.name}.lock")
+
+
+def unlock_session_path(path: str | Path, fd: int) -> None:
+    """Release the lock :func:`lock_session_path` took (and remove its file)."""
+    try:
+        os.unlink(_lock_path(Path(path)))
+    except OSError:
+        pass
+    os.close(fd)
 
 
 class LiveSink(Protocol):
@@ -160,18 +200,36 @@ class SessionWriter:
 
     ``out`` is a path or an unbuffered binary file object (tests pass one that fails on purpose).
     A path with less than ``MIN_FREE_BYTES`` free raises :class:`NotEnoughSpace` before anything is
-    written. ``crank`` (set after ``start``) derives the encoder messages' crank angle and cycle.
+    written; a path that exists raises ``FileExistsError`` unless ``replace`` (then the session is
+    written to ``NAME.new`` and ``finish`` renames it over the old file); a path another writer
+    holds raises ``OSError(EBUSY)``. ``path`` is where the session file is (after ``finish``: the
+    final name, or ``NAME.new`` when ``finish(replace=False)`` kept the old file). ``crank`` (set after ``start``) derives the encoder messages' crank angle and cycle.
     """
 
     def __init__(self, out: str | Path | BinaryIO, *, chunk_size: int | None = None,
                  compression: CompressionType = COMPRESSION, flush_interval: float = 0.5,
-                 ballast: bool = True, live: LiveSink | None = None):
+                 ballast: bool = True, live: LiveSink | None = None, replace: bool = False):
         self._ballast = None
         self.reserve = 0  # bytes of ballast set aside
+        self._lock: int | None = None
+        self._target: Path | None = None  # the name to rename to at finish (replace=True)
         if isinstance(out, (str, Path)):
             self.path: Path | None = Path(out)
             free = check_free_space(self.path)
-            raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
+            self._lock = lock_session_path(self.path)
+            try:
+                if replace and self.path.exists():
+                    self._target, self.path = self.path, self.path.with_name(self.path.name + ".new")
+                    raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
+                else:
+                    raw = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed by finish()
+            except FileExistsError:
+                self._unlock()
+                raise FileExistsError(errno.EEXIST, "a file already exists there; it is never replaced "
+                                      "silently (replace it explicitly, e.g. record --force)", str(self.path)) from None
+            except BaseException:
+                self._unlock()
+                raise
             if ballast:
                 self._ballast = self.path.with_name(self.path.name + ".ballast")
                 self.reserve = self._set_aside(self._ballast, ballast_bytes(free))
@@ -279,9 +337,16 @@ class SessionWriter:
             return True
         return False
 
-    def finish(self) -> None:
+    def _unlock(self) -> None:
+        if self._lock is not None:
+            unlock_session_path(self._target or self.path, self._lock)
+            self._lock = None
+
+    def finish(self, replace: bool = True) -> None:
         """Write the summary and footer and close. Raises OSError while the file's backlog cannot
-        be written (a full disk); call again once there is room: nothing is lost in between."""
+        be written (a full disk); call again once there is room: nothing is lost in between.
+        A session written beside an existing file (``replace=True`` at creation) is renamed over it
+        if ``replace``; otherwise it stays at ``NAME.new`` and the old file is untouched."""
         if self.finished:
             return
         if not self._mcap_finished:
@@ -297,3 +362,7 @@ class SessionWriter:
         self.finished = True
         self._file.close()
         self.release_ballast()
+        if self._target is not None and replace:
+            os.replace(self.path, self._target)
+            self.path = self._target
+        self._unlock()

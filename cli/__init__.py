@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 from importlib.metadata import version
 
@@ -43,7 +44,19 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for module in COMMANDS.values():
         importlib.import_module(f"wearbench.cli.{module}").register(sub)
+    _allow_negative_values(parser)
     return parser
+
+
+def _allow_negative_values(parser: argparse.ArgumentParser) -> None:
+    """Let option values that look like negative quantities through as values (``--speed -2pi``,
+    ``--t-end -1s``): argparse takes only plain negative numbers as values. No wearbench option
+    looks like a negative number, so nothing is lost."""
+    parser._negative_number_matcher = re.compile(r"^-(\d|\.\d|pi|π)")
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _allow_negative_values(child)
 
 
 def main(argv: list[str] | None = None) -> int:

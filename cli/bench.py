@@ -6,8 +6,9 @@ import argparse
 import math
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
-from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench
+from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench, resolve_bench
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,27 +37,29 @@ def _list(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> int:
     for file in args.files:
-        bench = load_bench(file)
+        bench = load_bench(resolve_bench(file))
         from wearbench.model import build_scene  # the model owns the kinematics of assembly
 
         scene = build_scene(bench)
+        missing = [k for k in ("encoder", "accelerometer") if k not in {s.kind for s in bench.sensors}]
+        can = f"; simulate only, cannot record: no {' or '.join(missing)} sensor" if missing else ""
         print(f"{file}: ok ({bench.name}: {len(bench.bodies)} bodies, {len(bench.joints)} joints, "
-              f"{scene.dof} degrees of freedom with the drivers applied: {scene.description})")
+              f"{scene.dof} degrees of freedom with the drivers applied: {scene.description}{can})")
     return 0
 
 
 def _show(args: argparse.Namespace) -> int:
-    bench: Bench = load_bench(args.file)
+    bench: Bench = load_bench(resolve_bench(args.file))
     console = Console()
     console.print(f"[bold]{bench.name}[/bold]: {bench.description}")
     console.print(f"motor speed {bench.speed:.4g} rad/s ({bench.speed * 30 / math.pi:.4g} rpm), "
                   f"backend {bench.hardware.backend}")
-    bodies = Table("body", "mass [kg]", "inertia [kg m^2]", "length [mm]", "points")
+    bodies = Table(*map(escape, ("body", "mass [kg]", "inertia [kg m^2]", "length [mm]", "points")))
     for b in bench.bodies:
         bodies.add_row(b.name, f"{b.mass:.4g}", f"{b.inertia:.4g}",
                        "" if b.length is None else f"{b.length * 1e3:.4g}", ", ".join(b.points))
     console.print(bodies)
-    joints = Table("joint", "type", "bodies", "clearance [mm]", "bearing / journal radius [mm]")
+    joints = Table(*map(escape, ("joint", "type", "bodies", "clearance [mm]", "bearing / journal radius [mm]")))
     for j in bench.joints:
         c = j.clearance
         joints.add_row(j.name, j.kind, " - ".join(j.bodies),

@@ -6,6 +6,9 @@ Thin front of ``wearbench.validation.compare.compare_sessions``; prints the summ
 from __future__ import annotations
 
 import argparse
+import sys
+
+from wearbench.cli.options import nonnegative_number, positive_int, positive_number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,8 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--filter", default="cfc180",
                    help="cfc60|cfc180|cfc600|cfc1000, butter:CUTOFF_HZ[:ORDER] or none (default cfc180)")
     p.add_argument("--windows", default="all", help="all | random:COUNT[:SEED] (default all)")
-    p.add_argument("--cycles", type=int, default=5, help="crank cycles per window (default 5)")
-    p.add_argument("--max-shift", type=float, default=0.2, metavar="CYCLES",
+    p.add_argument("--cycles", type=positive_int, default=5, help="crank cycles per window (default 5)")
+    p.add_argument("--max-shift", type=nonnegative_number, default=0.2, metavar="CYCLES",
                    help="residual time-shift search, fraction of a crank cycle, < 0.5 (default 0.2)")
     p.add_argument("--max-delay", default="5ms", metavar="TIME",
                    help="hold the shift search to the sensor chain's plausible delay (default 5ms)")
@@ -31,12 +34,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also identify each session among candidate states ([[state]] tables of a file, or "
                         "'bench' for those of the session's bench file) against theory ensembles, and score its "
                         "windows against the identified state's ensemble instead of one simulation")
-    p.add_argument("--dtw-band", type=float, default=0.05, metavar="CYCLES",
+    p.add_argument("--dtw-band", type=nonnegative_number, default=0.05, metavar="CYCLES",
                    help="DTW band half-width, fraction of a crank cycle (default 0.05)")
     p.add_argument("--no-shift", action="store_true", help="report the residual shift but do not remove it")
     p.add_argument("--detrend", action="store_true", help="remove a linear trend before filtering")
     p.add_argument("--keep-bias", action="store_true", help="do not subtract the mean (sensor bias)")
-    p.add_argument("--revolutions", type=float, default=3.0,
+    p.add_argument("--revolutions", type=positive_number, default=3.0,
                    help="revolutions to simulate when theory is simulated (default 3)")
     p.add_argument("--contiguous-theory", action="store_true",
                    help="compare with the theory's last revolutions in a row (simulate at least a window "
@@ -84,14 +87,27 @@ def run(args: argparse.Namespace) -> int:
                          "give it once or once per session")
     if args.label and len(args.label) != len(args.sessions):
         raise ValueError(f"--label given {len(args.label)} times for {len(args.sessions)} sessions")
-    comparisons = []
+    comparisons, failed = [], []
     with progress() as bar:
         task = bar.add_task("compare", total=len(args.sessions), info="")
         for i, (path, theory) in enumerate(zip(args.sessions, theories)):
             bar.update(task, info=str(path))
-            comparisons.append(compare_session(path, theory, options=options,
-                                               label=args.label[i] if args.label else None))
+            try:
+                comparisons.append(compare_session(path, theory, options=options,
+                                                   label=args.label[i] if args.label else None))
+            except ValueError as exc:  # one session that cannot be scored does not cost the others
+                if len(args.sessions) == 1:
+                    raise
+                failed.append(f"{path}: {exc}")
             bar.advance(task)
+    for line in failed:
+        print(f"wearbench compare: not scored: {line}", file=sys.stderr)
+    if not comparisons:
+        raise ValueError(f"none of the {len(args.sessions)} sessions could be scored")
+    for c in comparisons:
+        if not c.session.finished:
+            print(f"wearbench compare: {c.session.path}: unfinished session ({c.session.problem}); scored up "
+                  "to its last complete chunk", file=sys.stderr)
     report = write_report(comparisons, args.out)
     table = Table(title=f"{options.filter.label}; {options.windows.label}")
     for col in ("session", "windows", "ISO R", "grade", "shift ms", "NRMSE", "corr", "S&G C"):
@@ -107,4 +123,4 @@ def run(args: argparse.Namespace) -> int:
     console = Console()
     console.print(table)
     console.print(f"report: {report.html}  scores: {report.scores_json}")
-    return 0
+    return 1 if failed else 0

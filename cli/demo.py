@@ -61,6 +61,7 @@ def record_state(bench, state, seed: int | None, out: Path, *, backend: str, cyc
     ``emulator``: top-level ``[emulator]`` keys (e.g. ``revolutions``) for ``emulator_config``."""
     from wearbench.acquisition.backends import open_rig
     from wearbench.acquisition.recorder import Recorder, SessionPlan
+    from wearbench.acquisition.session_writer import SessionWriter
     from wearbench.hardware.emulators.config import emulator_config
 
     table = emulator_config(bench, state, seed, **emulator).to_table()
@@ -78,7 +79,9 @@ def record_state(bench, state, seed: int | None, out: Path, *, backend: str, cyc
     try:
         rig = open_rig(bench.with_clearances(plan.clearances), backend, options)
         try:
-            result = Recorder(rig, bench, plan, out, on_progress=on_progress).run()
+            # the demo owns its sessions folder: a rerun replaces its own files (safely, on finish)
+            result = Recorder(rig, bench, plan, out, on_progress=on_progress,
+                              writer=SessionWriter(out, replace=True)).run()
         finally:
             rig.close()
     finally:

@@ -18,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Run the emulated bench device of BENCH.toml: the serial protocol on a new "
                        "pseudo-terminal. Prints the port path on the first line and serves until Ctrl-C. "
                        "The bench file's [emulator] table sets imperfections, hidden truth and faults.")
-    p.add_argument("bench", type=Path, help="bench file (.toml)")
+    p.add_argument("bench", help="bench file (TOML), or the name of a shipped bench")
     p.add_argument("--serial", action="store_true", required=True,
                    help="serve the serial protocol on a new pseudo-terminal and print its path")
     p.add_argument("--config", type=Path, help="JSON file replacing the bench's [emulator] table")
@@ -33,11 +33,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.hardware.bench import load_bench
+    from wearbench.hardware.bench import load_bench, resolve_bench
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.hardware.emulators.serial_server import serve
 
-    bench = load_bench(args.bench)
+    bench = load_bench(resolve_bench(args.bench))
     if args.config is not None:
         try:
             table = json.loads(args.config.read_text())

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.options import positive_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,8 +20,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("bench", metavar="BENCH.toml", help="bench file (or the name of a shipped bench)")
     p.add_argument("--candidates", metavar="STATES.toml", help="[[state]] tables (default: the bench's own)")
     p.add_argument("--speed", help="commanded motor speed, e.g. 2pi or 60rpm (default: the bench's)")
-    p.add_argument("--realisations", type=int, default=32, help="realisations per state (32)")
-    p.add_argument("--cycles", type=int, default=8, help="settled cycles per realisation (8)")
+    p.add_argument("--realisations", type=positive_int, default=32, help="realisations per state (32)")
+    p.add_argument("--cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
     p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-ensembles.npz)")
     p.add_argument("--ship", action="store_true",
                    help="save where wearbench looks for a shipped bench's precomputed ensembles (maintainers)")
@@ -31,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from wearbench.hardware.bench import load_bench, load_states, shipped_bench
+    from wearbench.hardware.bench import load_bench, load_states, resolve_bench
     from wearbench.hardware.units import parse_quantity
     from wearbench.validation.ensemble import (
         EnsembleSettings,
@@ -41,8 +42,7 @@ def run(args: argparse.Namespace) -> int:
         shipped_ensembles_path,
     )
 
-    path = Path(args.bench)
-    bench = load_bench(path if path.suffix == ".toml" or path.exists() else shipped_bench(args.bench))
+    bench = load_bench(resolve_bench(args.bench))
     states = load_states(args.candidates, bench) if args.candidates else bench.states
     if not states:
         raise ValueError(f"{bench.name}: no [[state]] tables; give --candidates STATES.toml")

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
+from wearbench.cli.options import positive_number, positive_quantity
 from wearbench.hardware.units import parse_quantity
 
 
@@ -18,10 +20,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="example: wearbench record ninebar-testbed.toml --speed 2pi --cycles 20 --out s.mcap "
         "--clearance A=0.3mm,B=0.3mm --wear A=new,B=new --operator ana")
     p.add_argument("bench", help="bench file (TOML), or the name of a shipped bench")
-    p.add_argument("--out", "-o", required=True, help="MCAP file to write")
+    p.add_argument("--out", "-o", required=True, help="MCAP file to write (never replaced unless --force)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing --out file; the old file is kept until the new session is "
+                   "finished (written as OUT.new, renamed at the end), and kept if nothing was recorded")
     p.add_argument("--speed", help="motor speed, e.g. 2pi (rad/s), 60rpm, 1Hz (default: the bench's)")
     what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--cycles", type=float, help="crank revolutions to record")
+    what.add_argument("--cycles", type=positive_number,
+                      help="complete crank cycles (index to index) to record")
     what.add_argument("--duration", help="time to record, e.g. 30s, 2min")
     p.add_argument("--backend", choices=["sim", "serial", "can", "canopen", "nidaqmx"],
                    help="hardware backend (default: the bench file's [hardware] backend)")
@@ -64,12 +70,22 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.acquisition.recorder import Recorder, SessionPlan
     from wearbench.acquisition.session_writer import SessionWriter, check_free_space
     from wearbench.cli.progress import progress
-    from wearbench.hardware.bench import load_bench, shipped_bench
+    from wearbench.hardware.bench import load_bench, resolve_bench
 
-    path = Path(args.bench)
-    bench = load_bench(path if path.exists() or path.suffix else shipped_bench(args.bench))
+    bench = load_bench(resolve_bench(args.bench))
+    out = Path(args.out)
+    if out.is_dir():
+        raise IsADirectoryError(f"--out {out}: is a folder; expected a session file name, e.g. {out}/s.mcap")
+    if out.exists() and not args.force:
+        raise FileExistsError(f"--out {out}: a file already exists there; choose another name, or pass --force "
+                              "to replace it (the old file is kept until the new session is finished)")
+    missing = [k for k in ("encoder", "accelerometer") if k not in {s.kind for s in bench.sensors}]
+    if missing:
+        raise ValueError(f"{bench.path or bench.name}: no [[sensor]] of kind {' or '.join(missing)}; a session "
+                         "records an encoder (to count crank cycles) and an accelerometer (see "
+                         "'wearbench bench show ninebar-testbed')")
     speed = parse_quantity(args.speed, "angular_speed", bare_unit="rad/s") if args.speed else bench.speed
-    if not 0 < abs(speed) <= bench.motor.max_speed:
+    if not (math.isfinite(speed) and 0 < abs(speed) <= bench.motor.max_speed):
         raise ValueError(f"--speed {args.speed}: {speed:.4g} rad/s; expected a non-zero speed of at most the "
                          f"motor's max_speed {bench.motor.max_speed:.4g} rad/s ({bench.path})")
     clearances = {j: parse_quantity(v, "length") for j, v in _pairs(args.clearance, "clearance").items()}
@@ -78,11 +94,20 @@ def run(args: argparse.Namespace) -> int:
         if j not in known:
             raise ValueError(f"--clearance/--wear: {bench.name} has no clearance joint {j!r}; "
                              f"expected one of {sorted(known)}")
+    for joint, state in _pairs(args.wear, "wear").items():  # a file it names travels in the session
+        if Path(state).suffix == ".npz" or "/" in state:
+            from wearbench.model.surfaces import JointSurfaces
+
+            try:
+                JointSurfaces.load(state)
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"--wear {joint}={state}: {exc}; expected a worn-surface .npz file "
+                                 "(written by 'wearbench wear') or a label such as new") from None
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
-        duration=parse_quantity(args.duration, "time", bare_unit="s") if args.duration else None,
+        duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,
         clearances=clearances, wear=_pairs(args.wear, "wear"), operator=args.operator,
-        settle=parse_quantity(args.settle, "time", bare_unit="s"))
+        settle=positive_quantity(args.settle, "time", "--settle", bare_unit="s", allow_zero=True))
     options = {}
     for item in args.option:
         key, sep, value = item.partition("=")
@@ -112,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
                        info=f"{done:.1f} {unit}  {p.sample_rate / 1e3:.1f} kS/s  dropped {p.dropped}")
 
         try:
-            writer = SessionWriter(args.out, live=live)
+            writer = SessionWriter(args.out, live=live, replace=args.force)
             result = Recorder(rig, bench, plan, args.out, on_progress=show, writer=writer).run()
         finally:
             rig.close()
@@ -122,7 +147,10 @@ def run(args: argparse.Namespace) -> int:
         bar.update(task, completed=min(done, plan.cycles or plan.duration), description="done     ")
     drops = sum(result.dropped_samples.values())
     repeats = sum(result.repeated_blocks.values())
-    print(f"{args.out}: {result.reason}; {result.cycles:.2f} cycles in {result.duration:.2f} s, "
+    if result.path is not None and result.path != out:
+        print(f"wearbench record: {out} kept as it was: nothing was recorded; this attempt is in "
+              f"{result.path}", file=sys.stderr)
+    print(f"{result.path or args.out}: {result.reason}; {result.cycles:.2f} cycles in {result.duration:.2f} s, "
           f"{result.samples.get('acceleration', 0)} acceleration samples, "
           f"{result.samples.get('encoder', 0)} encoder samples, dropped {drops} samples, "
           f"repeated {repeats} blocks, {result.malformed} malformed frames, "

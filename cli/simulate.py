@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 from pathlib import Path
 
+from wearbench.cli.options import positive_number, positive_quantity
 from wearbench.hardware.units import parse_quantity
 
 
@@ -28,21 +28,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--surfaces", metavar="J=FILE.npz,...", default="",
                    help="worn surfaces per clearance joint (saved JointSurfaces .npz files)")
     p.add_argument("--speed", help="motor speed: '-5pi' (rad/s), '300rpm', '2Hz' (default: the bench's)")
-    p.add_argument("--revolutions", type=float, default=3.0, help="duration in motor revolutions (default 3)")
+    p.add_argument("--revolutions", type=positive_number, default=3.0, help="duration in motor revolutions (default 3)")
     p.add_argument("--t-end", help="duration instead of revolutions, e.g. '0.5s'")
     p.add_argument("--method", default="default",
                    help="default (chosen from the scene: kinematics, or DOPRI5 at rtol 1e-6) | kinematics | dopri5 | "
                    "accurate (DOPRI5 at rtol 1e-8) | rk4-paper")
-    p.add_argument("--rtol", type=float, help="relative tolerance of the adaptive method")
-    p.add_argument("--atol", type=float, help="absolute tolerance (m) of the adaptive method")
+    p.add_argument("--rtol", type=positive_number, help="relative tolerance of the adaptive method")
+    p.add_argument("--atol", type=positive_number, help="absolute tolerance (m) of the adaptive method")
     p.add_argument("--step", help="fixed step of rk4-paper, e.g. '1e-4s' or '50us'")
     p.add_argument("--output-rate", help="table samples per second, e.g. '20kHz' (default 20 kHz)")
     p.add_argument("--out", metavar="FILE", help="write the table (.parquet or .csv)")
     p.add_argument("--contacts", metavar="DIR", help="record per-step contact data into DIR/<joint>.parquet")
     p.add_argument("--plots", metavar="DIR", help="write the paper-style figures (PNG and SVG) into DIR")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
-    # let "--speed -5pi" read as a value, not as an option (argparse only knows plain negative numbers)
-    p._negative_number_matcher = re.compile(r"^-(\d|\.\d|pi)")
     p.set_defaults(func=run)
 
 
@@ -56,19 +54,12 @@ def _pairs(text: str, what: str) -> dict[str, str]:
     return out
 
 
-def _bench_path(name: str) -> Path:
-    from wearbench.hardware.bench import shipped_bench
-
-    path = Path(name)
-    return path if path.exists() or path.suffix == ".toml" else shipped_bench(name)
-
-
 def run(args: argparse.Namespace) -> int:
-    from wearbench.hardware.bench import load_bench
+    from wearbench.hardware.bench import load_bench, resolve_bench
     from wearbench.model import build_scene, simulate
     from wearbench.model.surfaces import JointSurfaces
 
-    bench = load_bench(_bench_path(args.bench))
+    bench = load_bench(resolve_bench(args.bench))
     clearances = {j: (None if v.lower() == "ideal" else parse_quantity(v, "length", bare_unit="m"))
                   for j, v in _pairs(args.clearance, "clearance").items()}
     surfaces = {j: JointSurfaces.load(v) for j, v in _pairs(args.surfaces, "surfaces").items()} or None
@@ -79,9 +70,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(str(exc.args[0])) from None
     result = simulate(
         scene, revolutions=args.revolutions, method=args.method, rtol=args.rtol, atol=args.atol, speed=speed,
-        t_end=parse_quantity(args.t_end, "time", bare_unit="s") if args.t_end else None,
-        step=parse_quantity(args.step, "time", bare_unit="s") if args.step else None,
-        output_rate=parse_quantity(args.output_rate, "frequency", bare_unit="Hz") if args.output_rate else None,
+        t_end=positive_quantity(args.t_end, "time", "--t-end", bare_unit="s") if args.t_end else None,
+        step=positive_quantity(args.step, "time", "--step", bare_unit="s") if args.step else None,
+        output_rate=positive_quantity(args.output_rate, "frequency", "--output-rate", bare_unit="Hz") if args.output_rate else None,
         record_contacts=bool(args.contacts),
     )
     if args.out:

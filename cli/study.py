@@ -8,8 +8,9 @@ import sys
 from pathlib import Path
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.options import positive_number
 from wearbench.cli.wear import add_plan_arguments, plan_from_args
-from wearbench.hardware.bench import load_bench
+from wearbench.hardware.bench import load_bench, resolve_bench
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -21,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "cluster by default, or --scheduler); finished cases are cached, so a rerun is quick.")
     p.add_argument("bench", metavar="BENCH.toml")
     add_plan_arguments(p)
-    p.add_argument("--dyn-revolutions", type=float, default=None,
+    p.add_argument("--dyn-revolutions", type=positive_number, default=None,
                    help="revolutions of each before/after dynamics run (default 10; Poincare maps get one "
                    "point per revolution)")
     p.add_argument("--quick", action="store_true",
@@ -38,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import progress
     from wearbench.model.study import StudyConfig, run_study
 
-    bench = load_bench(args.bench)
+    bench = load_bench(resolve_bench(args.bench))
     if len(bench.clearance_joints) == 0:
         raise ValueError(f"{args.bench}: no clearance joints, nothing to study")
     plan = plan_from_args(args, bench, 1)

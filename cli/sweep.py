@@ -7,8 +7,9 @@ import json
 import sys
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.wear import add_plan_arguments, allow_negative_quantities, plan_from_args
-from wearbench.hardware.bench import load_bench
+from wearbench.cli.options import nonnegative_int, nonnegative_number, positive_int, positive_number
+from wearbench.cli.wear import add_plan_arguments, plan_from_args
+from wearbench.hardware.bench import load_bench, resolve_bench
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,22 +21,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "Finished runs are cached: a rerun or an interrupted sweep recomputes only what is missing.",
         epilog="Example: wearbench sweep ninebar.toml --vary clearance=0.1mm..0.6mm:6 "
         "--vary speed=-6pi..-4pi:5 --wear-stages 1 --sim-cycles 5 --out sweep/")
-    allow_negative_quantities(p)
     p.add_argument("bench", metavar="BENCH.toml")
     p.add_argument("--vary", action="append", required=True, metavar="NAME=FROM..TO:N",
                    help="a varied parameter: clearance (every clearance joint), clearance.JOINT, speed or "
                    "wear_coefficient, as FROM..TO:COUNT (ends included) or V1,V2,...; repeat for a grid")
-    p.add_argument("--wear-stages", type=int, default=0, help="wear stages per run before the dynamics "
+    p.add_argument("--wear-stages", type=nonnegative_int, default=0, help="wear stages per run before the dynamics "
                    "(default 0: unworn)")
-    p.add_argument("--realisations", type=int, default=1,
+    p.add_argument("--realisations", type=positive_int, default=1,
                    help="runs per point: 1 is the nominal bench; M > 1 draws the bench M times within its "
                    "[tolerances] (seeds --seed, --seed + 1, ...)")
     p.add_argument("--seed", type=int, default=0, help="first realisation seed (default 0)")
-    p.add_argument("--dyn-revolutions", type=float, default=5.0,
+    p.add_argument("--dyn-revolutions", type=positive_number, default=5.0,
                    help="revolutions of each dynamics run whose statistics are kept (default 5)")
-    p.add_argument("--dyn-settle", type=float, default=1.0,
+    p.add_argument("--dyn-settle", type=nonnegative_number, default=1.0,
                    help="revolutions simulated first and not counted (start transient), default 1")
-    p.add_argument("--output-rate", type=float, default=5000.0, help="dynamics table rate, Hz (default 5000)")
+    p.add_argument("--output-rate", type=positive_number, default=5000.0, help="dynamics table rate, Hz (default 5000)")
     add_plan_arguments(p)
     add_compute_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
@@ -47,7 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from wearbench.model.sweep import SweepSpec, axes_from, run_sweep, write_sweep
 
-    bench = load_bench(args.bench)
+    bench = load_bench(resolve_bench(args.bench))
     axes = axes_from(args.vary)
     clearance_names = [j.name for j in bench.clearance_joints]
     for a in axes:

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 
-from wearbench.hardware.bench import Bench, load_bench
+from wearbench.cli.options import nonnegative_int, positive_int, positive_number
+from wearbench.hardware.bench import Bench, load_bench, resolve_bench
 from wearbench.hardware.units import QuantityError, parse_quantity
 
 
@@ -41,20 +41,14 @@ def parse_speed(text: str | None) -> float | None:
         raise ValueError(f"--speed {text!r}: {exc}") from None
 
 
-def allow_negative_quantities(p: argparse.ArgumentParser) -> None:
-    """Let option values such as ``--speed -5pi`` through (argparse takes only plain negative numbers
-    as values; this parser has no options that look like negative numbers)."""
-    p._negative_number_matcher = re.compile(r"^-(\d|\.\d|pi|π)")
-
-
 def add_plan_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by `wear` and `study` that shape how the surfaces wear."""
-    p.add_argument("--stage-cycles", type=float, default=None,
+    p.add_argument("--stage-cycles", type=positive_number, default=None,
                    help="crank cycles per stage (default: bench cycles_per_stage x stage_scale = 200000)")
     p.add_argument("--update-depth", default=None,
                    help="most depth one surface update adds to any surface, e.g. 4um (default 4 um; "
                    "updates also shrink when the contact pressure changes)")
-    p.add_argument("--settle", type=int, default=None,
+    p.add_argument("--settle", type=nonnegative_int, default=None,
                    help="revolutions simulated before the first update, not counted (default 1)")
     p.add_argument("--sliding", choices=("rotation", "tangential"), default="rotation",
                    help="sliding distance per step: R1 x relative rotation (paper, default) or |v_t| dt")
@@ -75,11 +69,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "Archard wear (V = K_n F dS) over the contact arc by pressure and apply it for as many cycles as keep "
         "the depth added per update under --update-depth, until each stage (default 200,000 cycles) is worn. "
         "Starts from the surfaces the bench file names, else unworn.")
-    allow_negative_quantities(p)
     p.add_argument("bench", metavar="BENCH.toml")
     p.add_argument("--clearance", help="radial clearance: '0.6mm' for every joint or 'A=0.6mm,B=0.3mm'")
     p.add_argument("--speed", help="motor speed, e.g. -5pi (rad/s), 150rpm (default: the bench's)")
-    p.add_argument("--stages", type=int, default=2, help="number of wear stages (default 2)")
+    p.add_argument("--stages", type=positive_int, default=2, help="number of wear stages (default 2)")
     add_plan_arguments(p)
     p.add_argument("--convergence", default=None, metavar="K1,K2,...",
                    help="also wear the same total cycles with the update depth divided by K1, K2, ... and report "
@@ -123,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.model.wear_report import convergence_markdown, run_summary, write_run
     from wearbench.model.wear_stages import run_stages
 
-    bench = load_bench(args.bench)
+    bench = load_bench(resolve_bench(args.bench))
     clearances = parse_clearances(args.clearance, bench)
     speed = parse_speed(args.speed)
     plan = plan_from_args(args, bench, args.stages)

@@ -39,6 +39,7 @@ __all__ = [
     "WearState",
     "load_bench",
     "load_states",
+    "resolve_bench",
     "shipped_bench",
 ]
 
@@ -741,3 +742,18 @@ def shipped_bench(name: str) -> Path:
         known = sorted(p.stem for p in BENCH_DIR.glob("*.toml"))
         raise FileNotFoundError(f"no shipped bench {name!r}; shipped: {known}")
     return path
+
+
+def resolve_bench(text: str | Path) -> Path:
+    """The bench file ``text`` names: a path to a file, or the name of a shipped bench
+    ("ninebar-testbed", with or without ".toml"). Every command that takes a bench uses this.
+    Raises FileNotFoundError naming what was tried and the shipped benches."""
+    path = Path(text)
+    if path.is_file():
+        return path
+    shipped = BENCH_DIR / f"{path.name.removesuffix('.toml')}.toml"
+    if path.parent == Path(".") and shipped.is_file():
+        return shipped
+    known = sorted(p.stem for p in BENCH_DIR.glob("*.toml"))
+    raise FileNotFoundError(f"{text}: no such bench file, and no shipped bench of that name; "
+                            f"shipped: {', '.join(known)}")

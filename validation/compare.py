@@ -156,7 +156,8 @@ def theory_curve(session: MeasuredSession, theory: Any = None, *, options: Compa
         if session.bench is None:
             raise ValueError(f"session {session.label}: no bench in the file to simulate; pass a theory")
         base = session.path.parent if session.path else None
-        worn = surfaces if surfaces is not None else resolve_surfaces(session.wear_state, base)
+        worn = surfaces if surfaces is not None else resolve_surfaces(session.wear_state, base,
+                                                                         session.surface_files)
         known = {j.name for j in session.bench.clearance_joints}
         clearances = {j: c for j, c in session.clearances.items() if j in known} or None
         rate = options.output_rate or session.fs
@@ -212,7 +213,7 @@ def _score_window(session: MeasuredSession, theory: TheoryCurve, start: int, opt
     core = slice(c0 - i0, c1 - i0)
     x, y = test_f[core], theo_f[core]
     scores = score_window(x, y, fs, cycle_samples=cycle_samples, max_lag=max_lag,
-                          dtw_band=max(1, int(options.dtw_band_cycles * cycle_samples)))
+                          dtw_band=max(1, int(options.dtw_band_cycles * cycle_samples)), ties="wearbench")
     speed = abs(2 * np.pi * n_cyc / (t1 - t0))
     return WindowResult(start, t0, t1, lag / fs, float(np.degrees(lag / fs * speed)), scores,
                         t[core] - t0, x, y)

@@ -4,7 +4,9 @@ Holds ``dtw_banded``: local cost ``(x_i - y_j)^2``, steps (i-1, j), (i, j-1), (i
 weight 1 (the step pattern of the ISO/TS 18571 reference implementation), path from (0, 0) to
 (n-1, m-1) with ``|i - j| <= band``. Memory is O(n band) bytes (one direction byte per band cell)
 and time O(n band), so a 50,000-sample window with a 500-sample band needs 50 MB and well under a
-second, where a full matrix would need n m floats (20 GB). Ties prefer the diagonal, then (i-1, j).
+second, where a full matrix would need n m floats (20 GB). Ties prefer the diagonal, then (i-1, j)
+(``ties="diagonal"``), or, as ISO/TS 18571's reference implementation does (checked against it in
+tests/validation/test_metrics.py), (i, j-1), then (i-1, j), then the diagonal (``ties="standard"``).
 Imports nothing from wearbench.
 """
 
@@ -19,7 +21,7 @@ _DIAG, _UP, _LEFT = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def _dtw_band(x: np.ndarray, y: np.ndarray, w: int):  # pragma: no cover - compiled
+def _dtw_band(x: np.ndarray, y: np.ndarray, w: int, standard: bool):  # pragma: no cover - compiled
     n, m = x.size, y.size
     width = 2 * w + 1
     inf = np.inf
@@ -39,14 +41,25 @@ def _dtw_band(x: np.ndarray, y: np.ndarray, w: int):  # pragma: no cover - compi
                 continue
             best = inf
             step = _DIAG
-            if i > 0 and j > 0:
-                best = prev[d]  # (i-1, j-1): same offset in the previous row
-            if i > 0 and d + 1 < width and prev[d + 1] < best:  # (i-1, j)
-                best = prev[d + 1]
-                step = _UP
-            if j > 0 and d > 0 and cur[d - 1] < best:  # (i, j-1)
-                best = cur[d - 1]
-                step = _LEFT
+            if standard:  # the first minimum of (i, j-1), (i-1, j), (i-1, j-1)
+                if j > 0 and d > 0:
+                    best = cur[d - 1]
+                    step = _LEFT
+                if i > 0 and d + 1 < width and prev[d + 1] < best:
+                    best = prev[d + 1]
+                    step = _UP
+                if i > 0 and j > 0 and prev[d] < best:
+                    best = prev[d]
+                    step = _DIAG
+            else:
+                if i > 0 and j > 0:
+                    best = prev[d]  # (i-1, j-1): same offset in the previous row
+                if i > 0 and d + 1 < width and prev[d + 1] < best:  # (i-1, j)
+                    best = prev[d + 1]
+                    step = _UP
+                if j > 0 and d > 0 and cur[d - 1] < best:  # (i, j-1)
+                    best = cur[d - 1]
+                    step = _LEFT
             cur[d] = best + c
             steps[i, d] = step
         prev, cur = cur, prev
@@ -72,8 +85,10 @@ def _dtw_band(x: np.ndarray, y: np.ndarray, w: int):  # pragma: no cover - compi
     return cost, pi[:k][::-1].copy(), pj[:k][::-1].copy()
 
 
-def dtw_banded(x: np.ndarray, y: np.ndarray, band: int) -> tuple[float, np.ndarray, np.ndarray]:
+def dtw_banded(x: np.ndarray, y: np.ndarray, band: int, *, ties: str = "diagonal"
+               ) -> tuple[float, np.ndarray, np.ndarray]:
     """DTW of ``x`` and ``y`` with ``|i - j| <= band``: (total cost, path indices into x, into y).
+    ``ties``: "diagonal" or "standard" (see the module docstring).
 
     ``band >= |len(x) - len(y)|`` is required so that the end cell lies in the band.
     """
@@ -85,5 +100,7 @@ def dtw_banded(x: np.ndarray, y: np.ndarray, band: int) -> tuple[float, np.ndarr
     if band < abs(x.size - y.size):
         raise ValueError(f"dtw: band {band} must be at least the length difference {abs(x.size - y.size)}")
     band = min(band, max(x.size, y.size))
-    cost, pi, pj = _dtw_band(x, y, band)
+    if ties not in ("diagonal", "standard"):
+        raise ValueError(f"dtw: ties = {ties!r}: expected 'diagonal' or 'standard'")
+    cost, pi, pj = _dtw_band(x, y, band, ties == "standard")
     return float(cost), pi, pj

@@ -35,6 +35,9 @@ class MeasuredSession:
     wear_state: dict[str, str] = field(default_factory=dict)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     path: Path | None = None
+    surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> worn-surface .npz embedded
+    finished: bool = True  # False: the file was cut short (read up to its last complete chunk)
+    problem: str | None = None  # why the file is not finished
     speed_tolerance: float = 0.02
     points_per_rev: int = 720
 
@@ -81,7 +84,8 @@ class MeasuredSession:
 
 
 def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSession:
-    """Read a session MCAP (tolerates unfinished files) into a ``MeasuredSession``."""
+    """Read a session MCAP (tolerates unfinished files) into a ``MeasuredSession``; the label of an
+    unfinished one (a killed recorder, a file cut short) says so: ``NAME (unfinished)``."""
     from wearbench.acquisition.session_file import read_session
 
     path = Path(path)
@@ -90,6 +94,9 @@ def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSessi
         raise ValueError(f"{path}: the session holds no acceleration samples")
     if s.encoder.empty:
         raise ValueError(f"{path}: the session holds no encoder samples")
-    return MeasuredSession(label=label or path.stem, acceleration=s.acceleration[["time", "acc"]],
+    if label is None:
+        label = path.stem if s.finished else f"{path.stem} (unfinished)"
+    return MeasuredSession(label=label, acceleration=s.acceleration[["time", "acc"]],
                            encoder=s.encoder, bench=s.bench, clearances=dict(s.clearances),
-                           wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path)
+                           wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path,
+                           surface_files=dict(s.surface_files), finished=s.finished, problem=s.problem)

@@ -16,12 +16,22 @@ ISO/TS 18571:2014, as in its reference implementation (OpenVT, TU Graz):
   shifted pair, e_slope = L1 ratio, E_S = (eps_S - e_slope) / eps_S, eps_S = 2;
 - R = 0.4 Z + 0.2 E_P + 0.2 E_M + 0.2 E_S; grade excellent R > 0.94, good > 0.8, fair > 0.58, poor.
 
-Where wearbench departs from it, and why:
-- DTW band: the reference implementation uses a Sakoe-Chiba band of 10 % of the window; we use
-  ``dtw_band`` samples, by default 1 % of the window (validation.compare: 5 % of one crank cycle,
-  the same for a five-cycle window). On a periodic signal a 10 % band (half a cycle) lets the warping pair an impact
+Called plainly, ``iso18571(x, y)`` is the standard as its reference implementation computes it
+(checked against ``objective-rating-metrics``, TU Graz, in tests/validation/test_metrics.py): DTW
+band ceil(0.1 N) - 1 samples, phase search up to eps_P N, ties as the standard breaks them (the
+smallest shift; on an exact +/-m tie the comparison late first; DTW steps (i, j-1), (i-1, j), then
+the diagonal). Constant signals (all zero included) have no correlation and raise ValueError.
+
+Where the wearbench pipeline (validation.compare, validation.bands, through ``score_window``)
+departs from it, each an explicit option, and why:
+- DTW band: the reference implementation uses a Sakoe-Chiba band of 10 % of the window; the
+  pipeline passes ``dtw_band`` samples (validation.compare: 5 % of one crank cycle, 1 % of a
+  five-cycle window). On a periodic signal a 10 % band (half a cycle) lets the warping pair an impact
   with the next impact and hides magnitude errors; it would also cost 10x the time and memory
   (500 M band cells at 50,000 samples).
+- Ties (``ties="wearbench"``, ``score_window``'s default): on an exact +/-m phase tie the comparison
+  early first, DTW ties to the diagonal first. Exact ties need quantised or step-shaped signals;
+  kept so the pipeline's scores do not move (E_M differs by up to 0.05 on such signals).
 - Phase search: limited to ``max_lag`` (validation.compare: 0.2 of one cycle) instead of 0.2 N, since
   a five-cycle window shifted by 0.2 N = one whole cycle correlates perfectly with itself. The score
   still normalises by eps_P N, so values stay comparable with the standard's.
@@ -111,14 +121,21 @@ def _ratio(num: float, den: float) -> float:
 
 
 def iso18571(reference: np.ndarray, comparison: np.ndarray, *, max_lag: int | None = None,
-             dtw_band: int | None = None) -> IsoScore:
+             dtw_band: int | None = None, ties: str = "standard") -> IsoScore:
     """ISO/TS 18571 rating of ``comparison`` (theory) against ``reference`` (test), same sampling.
 
-    max_lag: phase search range (samples), default eps_P N. dtw_band: Sakoe-Chiba half-width
-    (samples), default 1 % of N (5 % of a cycle in a five-cycle window; the reference implementation
-    uses 10 %, see the module docstring).
+    Defaults are the standard's. max_lag: phase search range (samples), default eps_P N. dtw_band:
+    Sakoe-Chiba half-width (samples), default ceil(0.1 N') - 1 of the shifted length N' (the
+    standard's 10 %). ties: "standard" or "wearbench" (see the module docstring). Raises ValueError
+    for a constant signal.
     """
+    if ties not in ("standard", "wearbench"):
+        raise ValueError(f"iso18571: ties = {ties!r}: expected 'standard' or 'wearbench'")
     x, y = _pair(reference, comparison)
+    for name, s in (("reference", x), ("comparison", y)):
+        if np.ptp(s) == 0:
+            raise ValueError(f"iso18571: the {name} signal is constant ({s[0]:.6g} throughout); ISO/TS 18571 "
+                             "needs a varying signal (its phase score is a correlation)")
     n = x.size
     # corridor (unshifted)
     t_norm = np.max(np.abs(x))
@@ -135,13 +152,14 @@ def iso18571(reference: np.ndarray, comparison: np.ndarray, *, max_lag: int | No
     search = int(np.floor(limit)) if max_lag is None else int(min(max_lag, np.floor(limit)))
     lags, rho = lag_correlations(x, y, search)
     best = np.flatnonzero(rho >= rho.max() - 1e-12)  # ties (a whole period away): the smallest lag
-    lag = int(lags[best[np.argmin(np.abs(lags[best]))]])
+    smallest = lags[best][np.abs(lags[best]) == np.abs(lags[best]).min()]
+    lag = int(smallest.max() if ties == "standard" else smallest.min())  # +m: the comparison late
     phase = 1.0 if lag == 0 else float(max(0.0, (limit - abs(lag)) / limit) ** K_P)
     xs = x[max(-lag, 0): n - max(lag, 0)]
     ys = y[max(lag, 0): n - max(-lag, 0)]
     # magnitude by DTW of the shifted pair
-    band = int(np.ceil(0.01 * xs.size)) if dtw_band is None else int(dtw_band)
-    _, pi, pj = dtw_banded(xs, ys, max(band, 0))
+    band = int(np.ceil(0.1 * xs.size)) - 1 if dtw_band is None else int(dtw_band)
+    _, pi, pj = dtw_banded(xs, ys, max(band, 0), ties="standard" if ties == "standard" else "diagonal")
     e_mag = _ratio(float(np.sum(np.abs(ys[pj] - xs[pi]))), float(np.sum(np.abs(xs[pi]))))
     magnitude = float(np.clip((EPS_M - e_mag) / EPS_M, 0.0, 1.0) ** K_M)
     # slope of the shifted pair
@@ -223,13 +241,16 @@ def _peak_time_shift(x: np.ndarray, y: np.ndarray, fs: float, cycle_samples: flo
 
 
 def score_window(test: np.ndarray, theory: np.ndarray, fs: float, *, cycle_samples: float | None = None,
-                 max_lag: int | None = None, dtw_band: int | None = None) -> WindowScores:
+                 max_lag: int | None = None, dtw_band: int | None = None, ties: str = "wearbench") -> WindowScores:
     """All metrics of one window of test and theory sampled together at ``fs`` Hz.
 
-    cycle_samples: samples per crank cycle (per-cycle peak timing); max_lag, dtw_band: see ``iso18571``.
+    cycle_samples: samples per crank cycle (per-cycle peak timing); max_lag, dtw_band, ties: see
+    ``iso18571`` (the pipeline's ties by default; dtw_band None: 1 % of the window, as before).
     """
     x, y = _pair(test, theory)
-    iso = iso18571(x, y, max_lag=max_lag, dtw_band=dtw_band)
+    if dtw_band is None:
+        dtw_band = int(np.ceil(0.01 * x.size))
+    iso = iso18571(x, y, max_lag=max_lag, dtw_band=dtw_band, ties=ties)
     span = float(x.max() - x.min())
     nrmse = _ratio(float(np.sqrt(np.mean((y - x) ** 2))), span)
     px, py = float(np.max(np.abs(x))), float(np.max(np.abs(y)))

@@ -101,9 +101,14 @@ def load_theory(path: str | Path) -> pd.DataFrame:
         raise ValueError(f"theory {path}: not a readable parquet results table ({exc})") from exc
 
 
-def resolve_surfaces(wear_state: Mapping[str, str], base: Path | None = None) -> dict[str, Any] | None:
+def resolve_surfaces(wear_state: Mapping[str, str], base: Path | None = None,
+                     embedded: Mapping[str, bytes] | None = None) -> dict[str, Any] | None:
     """Worn surfaces named by a session's wear state: {joint: JointSurfaces} for entries that are
-    paths of saved surfaces (.npz); entries like "new" or "" mean unworn. Unknown labels raise."""
+    paths of saved surfaces (.npz); entries like "new" or "" mean unworn. Unknown labels raise.
+    ``embedded`` ({joint: .npz bytes}, the copies a session carries as attachments) is used when
+    the file is no longer where the wear state says."""
+    import tempfile
+
     from wearbench.model.surfaces import JointSurfaces
 
     surfaces: dict[str, Any] = {}
@@ -116,6 +121,12 @@ def resolve_surfaces(wear_state: Mapping[str, str], base: Path | None = None) ->
             p = base / p
         if p.suffix == ".npz" and p.exists():
             surfaces[joint] = JointSurfaces.load(p)
+            continue
+        if p.suffix == ".npz" and embedded and joint in embedded:
+            with tempfile.TemporaryDirectory() as tmp:
+                copy = Path(tmp, p.name)
+                copy.write_bytes(embedded[joint])
+                surfaces[joint] = JointSurfaces.load(copy)
             continue
         raise ValueError(f"wear state of joint {joint}: {s!r} is neither 'new' nor a saved surface file (.npz); "
                          "pass the theory explicitly (--theory, or surfaces=...)")

@@ -368,6 +368,7 @@ def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     drive.close = source.close = closer.close  # type: ignore[method-assign]
     try:
         drive.state()
+        source.stop()  # a recorder that died may have left the stream running
     except Exception:
         closer.close()
         raise

@@ -280,6 +280,9 @@ def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
                       float(options.get("reply_timeout", 1.0)), int(options.get("retries", 2)))
     try:
         info = link.info()
+        if info.protocol == m.PROTOCOL_VERSION:  # a recorder that died may have left it streaming
+            link.command(m.StopStream())
+            link.inbox.clear()
     except Exception:
         link.close()
         raise

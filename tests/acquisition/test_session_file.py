@@ -46,10 +46,13 @@ def session_file(tmp_path_factory):
     config = tmp / "emulator.json"
     config.write_text(json.dumps(HARMONIC))
     out = tmp / "cli.mcap"
+    from wearbench.model.surfaces import JointSurfaces
+
+    JointSurfaces(np.linspace(0, 2e-6, 100), np.zeros(100), 1e5, "worn").save(tmp / "worn.npz")
     r = subprocess.run([sys.executable, "-m", "wearbench.cli", "record", "ninebar-testbed", "--backend", "sim",
                         "--option", "speedup=inf", "--option", f"config={config}", "--speed", f"{FAST}rad/s", "--cycles", "20",
                         "--out", str(out), "--clearance", "A=0.25mm", "--wear", "B=worn.npz"],
-                       capture_output=True, text=True, timeout=120, check=False)
+                       capture_output=True, text=True, timeout=120, check=False, cwd=tmp)
     assert r.returncode == 0, r.stderr
     assert "completed" in r.stdout and "dropped 0 samples" in r.stdout
     return out
@@ -59,6 +62,7 @@ def test_cli_record_and_inspect(session_file):
     s = read_session(session_file)
     assert s.finished and s.clearances == pytest.approx({"A": 0.25e-3, "B": 0.3e-3})
     assert s.wear_state == {"A": "new", "B": "worn.npz"}
+    assert set(s.surface_files) == {"B"}  # the worn surface travels in the session
     assert s.metadata["session"]["bench_sha256"] == s.bench.sha256
     with open(session_file, "rb") as fh:  # a standard MCAP reader sees the channels and schemas
         summary = make_reader(fh).get_summary()
@@ -141,7 +145,7 @@ def test_inspect_unfinished(chunked_file, tmp_path):
 def test_read_session_rejects_other_files(tmp_path):
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"not an mcap file at all")
-    with pytest.raises(ValueError, match="no wearbench session"):
+    with pytest.raises(ValueError, match="not an MCAP file"):
         read_session(junk)
 
 

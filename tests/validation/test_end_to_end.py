@@ -83,3 +83,26 @@ def test_compare_cli(recorded, tmp_path, capsys):
     # errors meant for the user: one line, exit 2
     assert main(["compare", str(files["ideal"]), "--out", str(out), "--filter", "cfc100"]) == 2
     assert main(["compare", str(tmp_path / "missing.mcap"), "--out", str(out)]) == 2
+
+
+def test_compare_scores_what_it_can_and_says_what_is_unfinished(recorded, tmp_path, capsys):
+    """A session too short to score does not cost the others; a file cut short is scored and called
+    unfinished in the output and the report."""
+    files, theories = recorded
+    run = tmp_path / "theory.parquet"
+    theories["0.3mm"].to_parquet(run)
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    short = tmp_path / "short.mcap"
+    record_session(open_rig(bench, "sim", {"speedup": math.inf, "config": EMULATOR}), bench,
+                   SessionPlan(speed=bench.speed, cycles=1), short)
+    data = files["0.3mm"].read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(0.9 * len(data))])
+    out = tmp_path / "report"
+    code = main(["compare", str(short), str(cut), "--out", str(out), "--theory", str(run),
+                 "--windows", "random:1:3", "--cycles", "2"])
+    assert code == 1  # not everything was scored
+    err = capsys.readouterr().err
+    assert f"not scored: {short}" in err and f"{cut}: unfinished session" in err
+    scores = json.loads((out / "scores.json").read_text())
+    assert [s["label"] for s in scores["sessions"]] == ["cut (unfinished)"]

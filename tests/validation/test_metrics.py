@@ -137,3 +137,66 @@ def test_bad_input_is_named():
         score_window(np.zeros(100), np.zeros(99), FS)
     with pytest.raises(ValueError, match="NaN"):
         score_window(np.full(100, np.nan), np.zeros(100), FS)
+
+
+# ---- the plain call is the standard: against its reference implementation (TU Graz) -----------
+
+def _reference(x, y):
+    orm = pytest.importorskip("objective_rating_metrics.rating")
+    t = np.arange(x.size) * 1e-4
+    r = orm.ISO18571(np.column_stack([t, x]), np.column_stack([t, y]))
+    return {"corridor": r.corridor_rating(ndigits=-1), "phase": r.phase_rating(ndigits=-1),
+            "magnitude": r.magnitude_rating(ndigits=-1), "slope": r.slope_rating(ndigits=-1),
+            "rating": r.overall_rating(ndigits=-1)}
+
+
+def _tie_cases():
+    rng = np.random.default_rng(7)
+    t = np.linspace(0, 1, 400, endpoint=False)
+    wave = np.sin(2 * np.pi * 4 * t)
+    square = np.sign(np.sin(2 * np.pi * 3 * t)) + 0.5 * np.sign(np.sin(2 * np.pi * 7 * t))
+    pulse, pair = np.zeros(201), np.zeros(201)
+    pulse[96:105] = 1.0
+    pair[86:95] = pair[106:115] = 1.0  # mirror-symmetric: the shifts +10 and -10 correlate alike
+    return {
+        "random": (rng.normal(size=300), rng.normal(size=300)),
+        "noisy sine": (wave, 1.1 * np.roll(wave, 7) + 0.05 * rng.normal(size=400)),
+        "phase tie": (pulse, pair),
+        "dtw tie": (pulse, np.convolve(pulse, np.ones(5) / 5, mode="same")),  # flat runs: equal-cost paths
+        "quantised": (np.round(4 * wave) / 4, np.round(4 * 0.9 * np.roll(wave, 5)) / 4),
+        "steps": (square, 0.8 * np.roll(square, 9)),
+    }
+
+
+@pytest.mark.parametrize("case", list(_tie_cases()))
+def test_plain_call_matches_the_reference_implementation(case):
+    x, y = _tie_cases()[case]
+    ours = iso18571(x, y)
+    ref = _reference(x, y)
+    for key, value in ref.items():
+        assert getattr(ours, key) == pytest.approx(value, abs=1e-12), key
+
+
+def test_phase_tie_takes_the_comparison_late_shift():
+    x, y = _tie_cases()["phase tie"]
+    assert iso18571(x, y).lag == 10  # the standard: comparison late first
+    assert iso18571(x, y, ties="wearbench").lag == -10  # the pipeline's order, kept explicitly
+    assert iso18571(x, y).rating == pytest.approx(_reference(x, y)["rating"], abs=1e-12)
+
+
+def test_dtw_tie_order_matters_and_is_the_standards():
+    x, y = _tie_cases()["dtw tie"]
+    band = int(np.ceil(0.1 * x.size)) - 1
+    standard, diagonal = iso18571(x, y), iso18571(x, y, dtw_band=band, ties="wearbench")
+    assert standard.lag == diagonal.lag == 0
+    assert abs(standard.magnitude - diagonal.magnitude) > 0.01  # the tie order decides E_M here
+    assert standard.magnitude == pytest.approx(_reference(x, y)["magnitude"], abs=1e-12)
+
+
+@pytest.mark.parametrize("y", [np.zeros(100), np.full(100, 3.0)])
+def test_constant_signals_are_refused(y):
+    x = np.sin(np.linspace(0, 6, 100))
+    with pytest.raises(ValueError, match="constant"):
+        iso18571(x, y)
+    with pytest.raises(ValueError, match="constant"):
+        iso18571(y, x)

@@ -1,0 +1,101 @@
+"""Bad input at the command line gets one clear line and exit 2, before any work starts; values that
+look like negative quantities are values; shipped bench names work in every command taking a bench."""
+
+from __future__ import annotations
+
+import pytest
+from wearbench.cli import build_parser, main
+from wearbench.hardware.bench import BENCH_DIR, shipped_bench
+
+RECORD = ["record", "ninebar-testbed", "--backend", "sim", "--out"]
+
+
+@pytest.mark.parametrize("bad", [
+    ["--cycles", "-5"], ["--cycles", "0"], ["--cycles", "nan"], ["--cycles", "inf"], ["--duration=0s"],
+    ["--duration", "-1s"], ["--duration", "nan s"], ["--cycles", "2", "--speed", "nan"],
+    ["--cycles", "2", "--settle", "-1s"],
+])
+def test_record_counts_and_durations_are_checked_at_the_edge(bad, tmp_path, capsys):
+    out = tmp_path / "s.mcap"
+    with pytest.raises(SystemExit) as info:  # argparse's own exit, or ours below
+        raise SystemExit(main([*RECORD, str(out), *bad]))
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err and "Traceback" not in err[-1]
+    assert any(word in err[-1] for word in ("expected", "not a number")), err[-1]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["wear", "ninebar", "--stage-cycles", "0", "--out", "w"], ["wear", "ninebar", "--stages", "0", "--out", "w"],
+    ["simulate", "ninebar", "--revolutions", "0"], ["simulate", "ninebar", "--revolutions", "nan"],
+    ["sweep", "ninebar", "--vary", "speed=1..2:2", "--realisations", "0", "--out", "s"],
+    ["compare", "s.mcap", "--cycles", "0"], ["study", "ninebar", "--dyn-revolutions", "-1"],
+])
+def test_other_counts_are_checked_at_the_edge(argv, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    assert "expected" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", [["record", "ninebar-testbed", "--cycles", "1", "--out", "s.mcap"],
+                                     ["simulate", "ninebar"], ["wear", "ninebar", "--out", "w"]])
+def test_negative_quantity_as_a_separate_argument(command):
+    args = build_parser().parse_args([*command, "--speed", "-2pi"])
+    assert args.speed == "-2pi"
+
+
+def test_simulate_takes_negative_speed_through_the_command_line():
+    parser = build_parser()
+    assert parser.parse_args(["simulate", "ninebar", "--speed", "-5pi"]).speed == "-5pi"
+    assert parser.parse_args(["simulate", "ninebar", "--speed", "-.5"]).speed == "-.5"
+
+
+def test_a_bench_that_cannot_record(tmp_path, capsys):
+    fourbar = shipped_bench("fourbar")
+    assert main(["bench", "check", str(fourbar)]) == 0
+    assert "cannot record: no encoder" in capsys.readouterr().out
+    out = tmp_path / "s.mcap"
+    assert main(["record", str(fourbar), "--backend", "sim", "--cycles", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(fourbar) in err and "encoder" in err
+    assert not out.exists()
+
+
+def test_resolve_bench(tmp_path, monkeypatch):
+    from wearbench.hardware.bench import resolve_bench
+
+    monkeypatch.chdir(tmp_path)
+    assert resolve_bench("ninebar-testbed") == BENCH_DIR / "ninebar-testbed.toml"
+    assert resolve_bench("ninebar-testbed.toml") == BENCH_DIR / "ninebar-testbed.toml"
+    local = tmp_path / "ninebar-testbed.toml"
+    local.write_text("")
+    assert resolve_bench("ninebar-testbed.toml").resolve() == local  # a file here wins over a shipped name
+    with pytest.raises(FileNotFoundError, match="shipped: .*ninebar-testbed"):
+        resolve_bench("no-such-bench")
+
+
+@pytest.mark.parametrize("argv", [["bench", "check", "ninebar-testbed"], ["bench", "show", "ninebar-testbed"]])
+def test_shipped_names_in_bench_commands(argv, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 0
+    assert "ninebar-testbed" in capsys.readouterr().out
+
+
+def test_every_bench_command_resolves_shipped_names():
+    """Every subcommand with a bench argument goes through resolve_bench (no private resolver)."""
+    import inspect
+
+    from wearbench import cli
+
+    for name in ("bench", "wear", "study", "sweep", "simulate", "record", "emulate", "ensemble"):
+        source = inspect.getsource(__import__(f"wearbench.cli.{cli.COMMANDS[name]}", fromlist=["run"]))
+        assert "resolve_bench(" in source and "shipped_bench(" not in source, name
+
+
+def test_bench_show_headers_keep_their_units(capsys):
+    assert main(["bench", "show", "ninebar"]) == 0
+    out = capsys.readouterr().out
+    for header in ("mass [kg]", "inertia [kg m^2]", "clearance [mm]"):
+        assert header in out
