@@ -1,6 +1,7 @@
 """Suite-wide fixtures.
 
-- Every test gets its own result cache and no user compute config (tests never share results).
+- The run gets its own result cache and no user compute config (nothing read from or written to the
+  user's ~/.cache/wearbench or ~/.config/wearbench).
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
   (``tests/interop/mcap_readers.py``): @mcap/core's indexed reader under node and the Python mcap
   readers with CRC validation. Unfinished files (killed or cut on purpose) are left to the tests that
@@ -21,11 +22,17 @@ import mcap_readers
 NODE_FOLDER = mcap_readers.cache_dir()
 
 
-@pytest.fixture(autouse=True)
-def _isolated_compute(tmp_path, monkeypatch):
-    monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "wearbench-cache"))
-    monkeypatch.setenv("WEARBENCH_CONFIG", str(tmp_path / "no-user-config.toml"))
-    monkeypatch.delenv("WEARBENCH_SCHEDULER", raising=False)
+@pytest.fixture(scope="session", autouse=True)
+def _isolated_compute(tmp_path_factory):
+    # session scope: module fixtures and tests that point WEARBENCH_CACHE elsewhere keep their choice
+    # (a function-scoped fixture ran after module fixtures and moved their cache away)
+    mp = pytest.MonkeyPatch()
+    base = tmp_path_factory.mktemp("wearbench-session")
+    mp.setenv("WEARBENCH_CACHE", str(base / "cache"))
+    mp.setenv("WEARBENCH_CONFIG", str(base / "no-user-config.toml"))
+    mp.delenv("WEARBENCH_SCHEDULER", raising=False)
+    yield
+    mp.undo()
 
 
 @pytest.fixture(scope="session")
