@@ -1,6 +1,6 @@
 """Suite-wide fixtures.
 
-- Every test gets its own result cache and no user compute config (tests never share results).
+- Every test gets its own result cache (unless a module fixture chose one) and no user compute config.
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
   (``tests/interop/mcap_readers.py``): @mcap/core's indexed reader under node and the Python mcap
   readers with CRC validation. Unfinished files (killed or cut on purpose) are left to the tests that
@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -21,11 +22,24 @@ import mcap_readers
 NODE_FOLDER = mcap_readers.cache_dir()
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _session_compute(tmp_path_factory) -> str:
+    """No user compute config for the run, and a run-wide result cache (its path is returned)."""
+    mp = pytest.MonkeyPatch()
+    base = tmp_path_factory.mktemp("wearbench-session")
+    mp.setenv("WEARBENCH_CACHE", str(base / "cache"))
+    mp.setenv("WEARBENCH_CONFIG", str(base / "no-user-config.toml"))
+    mp.delenv("WEARBENCH_SCHEDULER", raising=False)
+    yield str(base / "cache")
+    mp.undo()
+
+
 @pytest.fixture(autouse=True)
-def _isolated_compute(tmp_path, monkeypatch):
-    monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "wearbench-cache"))
-    monkeypatch.setenv("WEARBENCH_CONFIG", str(tmp_path / "no-user-config.toml"))
-    monkeypatch.delenv("WEARBENCH_SCHEDULER", raising=False)
+def _isolated_compute(_session_compute, tmp_path, monkeypatch):
+    """Each test its own result cache, unless a module fixture already chose one (function-scoped
+    autouse fixtures run after module fixtures, so overriding theirs would move their cache away)."""
+    if os.environ.get("WEARBENCH_CACHE") == _session_compute:
+        monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "wearbench-cache"))
 
 
 @pytest.fixture(scope="session")
