@@ -56,15 +56,17 @@ def _arrays(session: MeasuredSession) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return t, np.interp(t, enc["time"].to_numpy(float), enc["angle"].to_numpy(float)), acc["acc"].to_numpy(float)
 
 
-def session_features(session: MeasuredSession, spec: FeatureSpec | None = None) -> CycleFeatures:
-    """Cycle features of a measured session; clipped samples counted at the accelerometer's range."""
+def session_features(session: MeasuredSession, spec: FeatureSpec | None = None,
+                     arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> CycleFeatures:
+    """Cycle features of a measured session; clipped samples counted at the accelerometer's range.
+    ``arrays``: the session's ``_arrays`` when the caller has them already."""
     range_ = None
     if session.bench is not None:
         try:
             range_ = session.bench.sensor("accelerometer").range
         except KeyError:
             range_ = None
-    return cycle_features(*_arrays(session), spec or FeatureSpec(), range_=range_)
+    return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), range_=range_)
 
 
 def commanded_speed(session: MeasuredSession) -> float:
@@ -117,9 +119,10 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
         st = next(iter(ens.values())).settings
         for i in idx:
             s = loaded[i]
-            ident = identify_features(session_features(s, st.features), models, label=s.label)
+            arrays = _arrays(s)
+            ident = identify_features(session_features(s, st.features, arrays), models, label=s.label)
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
-            curves, peaks = cycle_curves(*_arrays(s), grid=st.grid,
+            curves, peaks = cycle_curves(*arrays, grid=st.grid,
                                          filter_spec=parse_filter(st.curve_filter, remove_bias=False))
             bands = compare_bands(curves, peaks, ens[state], window=compare_options.windows.cycles)
             comparison = None

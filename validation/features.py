@@ -76,6 +76,15 @@ def _band(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
     return signal.sosfiltfilt(sos, x, padtype="odd", padlen=min(x.size - 1, int(10 * fs / lo)))
 
 
+def _turns(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Crank progress in the sense of rotation (never turning back), each sample's cycle index
+    (cycles start at crank angle 0), and the first and last complete cycle."""
+    u = np.asarray(angle, dtype=float)
+    u = np.maximum.accumulate(u if u[-1] >= u[0] else -u)
+    cycle = np.floor(u / TWO_PI).astype(np.int64)
+    return u, cycle, int(cycle[0]) + 1, int(cycle[-1]) - 1
+
+
 def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: FeatureSpec = FeatureSpec(), *,
                    range_: float | None = None) -> CycleFeatures:
     """Features of every complete crank revolution of a record.
@@ -94,10 +103,7 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
     if not np.all(np.isfinite(acc)):
         raise ValueError(f"features: {int(np.sum(~np.isfinite(acc)))} non-finite acceleration samples")
     fs = float(1.0 / np.median(np.diff(t)))
-    u = angle if angle[-1] >= angle[0] else -angle
-    u = np.maximum.accumulate(u)
-    cycle = np.floor(u / TWO_PI).astype(np.int64)
-    first, last = cycle[0] + 1, cycle[-1] - 1  # complete cycles only
+    u, cycle, first, last = _turns(angle)
     if last < first:
         return CycleFeatures(spec, np.zeros((0, spec.size)), np.zeros(0, dtype=np.int64))
     keep = (cycle >= first) & (cycle <= last)
@@ -135,13 +141,11 @@ def cycle_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int
     """
     t = np.asarray(t, dtype=float)
     acc = np.asarray(acc, dtype=float)
-    u = np.asarray(angle, dtype=float)
-    u = np.maximum.accumulate(u if u[-1] >= u[0] else -u)
+    u, cycle, k0, k1 = _turns(angle)
     fs = float(1.0 / np.median(np.diff(t)))
-    k0, k1 = int(np.floor(u[0] / TWO_PI)) + 1, int(np.floor(u[-1] / TWO_PI)) - 1
     if k1 < k0:
         return np.zeros((0, grid)), np.zeros(0)
-    whole = (u >= k0 * TWO_PI) & (u < (k1 + 1) * TWO_PI)
+    whole = (cycle >= k0) & (cycle <= k1)
     filtered = apply_filter(acc - acc[whole].mean(), fs, filter_spec or FilterSpec(remove_bias=False))
     steps = np.arange(grid) * (TWO_PI / grid)
     curves = np.empty((k1 - k0 + 1, grid))
