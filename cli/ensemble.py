@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.cycles)
     # built fresh (no shipped file is consulted), so --ship really refreshes it
     ensembles = build_ensembles(bench, states, speed=speed, settings=settings, shipped=False,
-                                **compute_options(args))
+                                **compute_options(args, bench))
     out = shipped_ensembles_path(bench) if args.ship else Path(args.out or f"{bench.name}-ensembles.npz")
     save_ensembles(ensembles, out, key=ensembles_key(bench, states, speed, settings))
     for name, e in ensembles.items():

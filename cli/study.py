@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     config = StudyConfig.quick(plan) if args.quick else StudyConfig(plan=plan)
     if args.dyn_revolutions:
         config = replace(config, dyn_revolutions=args.dyn_revolutions)
-    config = replace(config, **compute_options(args))
+    config = replace(config, **compute_options(args, bench))
     cases = 1 + len(config.clearance_cases)
     with progress() as bar:
         task = bar.add_task(f"study {bench.name}", total=cases, info="")

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
                      plan=plan_from_args(args, bench, max(1, args.wear_stages)), revolutions=args.dyn_revolutions,
                      settle=args.dyn_settle, output_rate=args.output_rate)
     n = len(spec.points()) * spec.realisations
-    result = run_sweep(bench, spec, progress=f"sweep {bench.name} ({n} runs)", **compute_options(args))
+    result = run_sweep(bench, spec, progress=f"sweep {bench.name} ({n} runs)", **compute_options(args, bench))
     summary = write_sweep(result, spec, args.out, plots=not args.no_plots)
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=float)

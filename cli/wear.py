@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import nonnegative_int, positive_int, positive_number
 from wearbench.hardware.bench import Bench, load_bench, resolve_bench
 from wearbench.hardware.units import QuantityError, parse_quantity
@@ -76,7 +77,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_plan_arguments(p)
     p.add_argument("--convergence", default=None, metavar="K1,K2,...",
                    help="also wear the same total cycles with the update depth divided by K1, K2, ... and report "
-                   "max depth, reachable depth and worn volume per refinement (e.g. 1,2,4); runs on 2 processes")
+                   "max depth, reachable depth and worn volume per refinement (e.g. 1,2,4); the refinements run on the "
+                   "compute layer (--scheduler, --workers)")
+    add_compute_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -120,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
     clearances = parse_clearances(args.clearance, bench)
     speed = parse_speed(args.speed)
     plan = plan_from_args(args, bench, args.stages)
+    compute = compute_options(args, bench) if args.convergence else {}  # a bad scheduler fails now, not after the run
     initial = surfaces_from_bench(bench) or None
     with progress() as bar:
         task = bar.add_task(f"wear {bench.name}", total=plan.stages * plan.stage_cycles, info="")
@@ -140,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--convergence {args.convergence!r}: expected refinement factors such as 1,2,4") from None
         total = plan.stage_cycles * plan.stages
         rows = staging_convergence(bench, ks, total, plan, clearances=clearances, speed=speed, initial=initial,
-                                   out=args.out, known={plan.refinement: wear_run})
+                                   out=args.out, known={plan.refinement: wear_run}, **compute)
         summary["convergence"] = rows
         paths["summary"].write_text(json.dumps(summary, indent=2, default=float) + "\n")
         if not args.json:

@@ -210,6 +210,9 @@ class Bench:
     emulator: Mapping[str, Any] = field(default_factory=dict)  # raw [emulator] table (hardware/)
     tolerances: Tolerances = field(default_factory=Tolerances)
     states: tuple[WearState, ...] = ()  # named candidate states ([[state]] tables)
+    # [compute] scheduler: where batches on this bench run ("local" or "tcp://HOST:PORT"); not physics,
+    # so left out of the repr (validation.ensemble.physics_key digests the repr)
+    scheduler: str | None = field(default=None, repr=False)
 
     def body(self, name: str) -> Body:
         for b in self.bodies:
@@ -529,7 +532,7 @@ def _hardware(r: _Reader, data: dict) -> Hardware:
 
 
 _TOP = {"bench", "operating", "motor", "materials", "contact", "wear", "frame", "body", "joint", "driver",
-        "assembly", "sensor", "hardware", "emulator", "tolerances", "state"}
+        "assembly", "sensor", "hardware", "emulator", "tolerances", "state", "compute"}
 
 _RELATIVE = {"mass", "inertia", "friction", "restitution", "exponent", "speed", "ripple", "start"}
 
@@ -543,6 +546,18 @@ def _tolerances(r: _Reader, data: dict) -> Tolerances:
     for name in ("length", "ground"):
         values[name] = r.quantity(data, key, name, "length", nonnegative=True, default=getattr(d, name))
     return Tolerances(**values)
+
+
+def _compute(r: _Reader, data: dict) -> str | None:
+    """``[compute] scheduler``: "local" or a Dask scheduler address ("tcp://10.0.0.5:8786")."""
+    r.keys(data, "compute", set(), {"scheduler"})
+    if "scheduler" not in data:
+        return None
+    value = data["scheduler"]
+    if not isinstance(value, str) or not (value.strip().lower() == "local" or "://" in value):
+        raise r.fail("compute.scheduler", value, "expected 'local' or a Dask scheduler address such as "
+                     "'tcp://10.0.0.5:8786'")
+    return value.strip()
 
 
 def _states(r: _Reader, raw: Any, joints: Mapping[str, Joint], base_dir: Path | None,
@@ -685,6 +700,7 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
     emulator = r.table(data.get("emulator", {}), "emulator")
     tolerances = _tolerances(r, r.table(data.get("tolerances", {}), "tolerances"))
     states = _states(r, data.get("state", []), joints, base_dir)
+    scheduler = _compute(r, r.table(data.get("compute", {}), "compute"))
 
     return Bench(
         name=r.text(head, "bench", "name"),
@@ -708,6 +724,7 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
         emulator=emulator,
         tolerances=tolerances,
         states=states,
+        scheduler=scheduler,
     )
 
 

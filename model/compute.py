@@ -7,8 +7,10 @@ at a scheduler address) and returns results in task order; a failed task yields 
 :class:`TaskFailure` in its slot and never hides the others. Results are pickled to the cache as
 they arrive on the client, so a rerun, a restarted cluster or a Ctrl-C loses nothing finished.
 
-Scheduler, first that is set: the ``scheduler`` argument, ``$WEARBENCH_SCHEDULER``, ``[compute]
-scheduler`` in the user config (``$WEARBENCH_CONFIG``, default ``~/.config/wearbench/config.toml``).
+Scheduler, first that is set (:func:`resolve_scheduler`): the ``scheduler`` argument,
+``$WEARBENCH_SCHEDULER``, ``[compute] scheduler`` in the bench file (commands on a bench pass it),
+``[compute] scheduler`` in the user config (``$WEARBENCH_CONFIG``, default
+``~/.config/wearbench/config.toml``); "local" or nothing set: a LocalCluster.
 
 Imports the standard library, numpy, rich and ``dask.distributed`` (lazily), and the model only in
 the worker warm-up; no CLI code.
@@ -40,6 +42,7 @@ from wearbench.model.digest import model_source_digest
 
 if TYPE_CHECKING:
     from distributed import Client
+    from wearbench.hardware.bench import Bench
 
 __all__ = ["LAYOUT_VERSION", "Task", "TaskFailure", "cache_dir", "compute_client", "resolve_scheduler",
            "run_tasks", "task_key", "usable_cores"]
@@ -241,12 +244,13 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _user_config() -> dict:
+def _user_config() -> tuple[Path, dict]:
+    """The user config's path and its ``[compute]`` table (empty when the file does not exist)."""
     path = Path(os.environ.get("WEARBENCH_CONFIG", Path.home() / ".config" / "wearbench" / "config.toml"))
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        return {}
+        return path, {}
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -254,23 +258,28 @@ def _user_config() -> dict:
     compute = data.get("compute", {})
     if not isinstance(compute, dict):
         raise ValueError(f"{path}: [compute] = {compute!r}: expected a table")  # noqa: TRY004 - a user error
-    return compute
+    return path, compute
 
 
-def resolve_scheduler(scheduler: str | None = None) -> str | None:
-    """The scheduler address to use: the argument, else ``$WEARBENCH_SCHEDULER``, else the user
-    config's ``[compute] scheduler``; None (or "local") means a LocalCluster on this machine."""
-    for source, value in (("scheduler", scheduler), ("WEARBENCH_SCHEDULER", os.environ.get("WEARBENCH_SCHEDULER")),
-                          ("[compute] scheduler", _user_config().get("scheduler"))):
+def resolve_scheduler(scheduler: str | None = None, *, bench: Bench | None = None) -> str | None:
+    """The scheduler address to use, first that is set: the argument, ``$WEARBENCH_SCHEDULER``,
+    ``bench``'s ``[compute] scheduler``, the user config's ``[compute] scheduler``. None (also for
+    "local" at any level, which stops the search there) means a LocalCluster on this machine."""
+
+    def sources() -> Iterator[tuple[str, Any]]:
+        yield "scheduler", scheduler
+        yield "WEARBENCH_SCHEDULER", os.environ.get("WEARBENCH_SCHEDULER")
+        if bench is not None:
+            yield f"{bench.path or bench.name}: compute.scheduler", bench.scheduler
+        path, table = _user_config()
+        yield f"{path}: compute.scheduler", table.get("scheduler")
+
+    for source, value in sources():
         if value:
-            if not isinstance(value, str):
-                raise ValueError(f"{source} = {value!r}: expected an address such as 'tcp://10.0.0.5:8786'")
-            if value.strip().lower() == "local":
-                return None
-            if "://" not in value:
-                raise ValueError(f"{source} = {value!r}: expected an address such as 'tcp://10.0.0.5:8786' "
-                                 "or 'local'")
-            return value.strip()
+            if not isinstance(value, str) or not (value.strip().lower() == "local" or "://" in value):
+                raise ValueError(f"{source} = {value!r}: expected 'local' or a Dask scheduler address such as "
+                                 "'tcp://10.0.0.5:8786'")
+            return None if value.strip().lower() == "local" else value.strip()
     return None
 
 

@@ -102,3 +102,32 @@ def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys):
     assert main(["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance.Q=1mm", "--out",
                  str(out)]) == 2
     assert "no clearance joint 'Q'" in capsys.readouterr().err
+
+
+def test_commands_on_a_bench_use_its_compute_scheduler_unless_told_otherwise(tmp_path, monkeypatch, capsys):
+    import wearbench.model.sweep as sweep
+    import wearbench.model.wear_stages as wear_stages
+
+    bench = tmp_path / "bench.toml"
+    bench.write_text(shipped_bench("slider-crank").read_text() + '\n[compute]\nscheduler = "tcp://127.0.0.1:8791"\n')
+    seen = []
+
+    def fake_run_sweep(bench, spec, **kwargs):
+        seen.append(kwargs["scheduler"])
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(sweep, "run_sweep", fake_run_sweep)
+    args = ["sweep", str(bench), "--vary", "clearance=0.2mm", "--out", str(tmp_path / "out")]
+    monkeypatch.delenv("WEARBENCH_SCHEDULER", raising=False)
+    assert main(args) == 2
+    monkeypatch.setenv("WEARBENCH_SCHEDULER", "tcp://127.0.0.1:9000")
+    assert main(args) == 2
+    assert main([*args, "--scheduler", "local"]) == 2
+    assert seen == ["tcp://127.0.0.1:8791", "tcp://127.0.0.1:9000", "local"]
+
+    # wear --convergence takes the same options and rejects a bad one before the (long) wear run
+    monkeypatch.setattr(wear_stages, "run_stages", lambda *a, **k: pytest.fail("ran despite a bad --scheduler"))
+    capsys.readouterr()
+    assert main(["wear", str(bench), "--convergence", "1,2", "--scheduler", "10.0.0.5", "--workers", "2",
+                 "--out", str(tmp_path / "wear")]) == 2
+    assert "scheduler = '10.0.0.5': expected 'local' or a Dask scheduler address" in capsys.readouterr().err

@@ -111,12 +111,42 @@ def test_scheduler_from_argument_env_and_user_config(tmp_path, monkeypatch):
     monkeypatch.setenv("WEARBENCH_SCHEDULER", "tcp://127.0.0.1:9000")
     assert compute.resolve_scheduler() == "tcp://127.0.0.1:9000"
     assert compute.resolve_scheduler("local") is None
-    with pytest.raises(ValueError, match="scheduler = '127.0.0.1:1'.*expected an address"):
+    with pytest.raises(ValueError, match="scheduler = '127.0.0.1:1'.*expected 'local' or a Dask scheduler address"):
         compute.resolve_scheduler("127.0.0.1:1")
     cfg.write_text("[compute\n")
     monkeypatch.delenv("WEARBENCH_SCHEDULER")
     with pytest.raises(ValueError, match="config.toml: not valid TOML"):
         compute.resolve_scheduler()
+
+
+def test_a_bench_files_scheduler_ranks_below_argument_and_env_above_user_config(tmp_path, monkeypatch):
+    from wearbench.hardware.bench import BenchError, load_bench, parse_bench, shipped_bench
+
+    text = shipped_bench("slider-crank").read_text()
+    path = tmp_path / "bench.toml"
+    path.write_text(text + '\n[compute]\nscheduler = "tcp://127.0.0.1:8791"\n')
+    bench = load_bench(path)
+    assert bench.scheduler == "tcp://127.0.0.1:8791"
+    cfg = tmp_path / "config.toml"
+    cfg.write_text('[compute]\nscheduler = "tcp://127.0.0.1:8786"\n')
+    monkeypatch.setenv("WEARBENCH_CONFIG", str(cfg))
+    assert compute.resolve_scheduler(bench=bench) == "tcp://127.0.0.1:8791"  # bench file over user config
+    assert compute.resolve_scheduler(bench=load_bench(shipped_bench("slider-crank"))) == "tcp://127.0.0.1:8786"
+    local = parse_bench(text + '\n[compute]\nscheduler = "local"\n', path)
+    assert compute.resolve_scheduler(bench=local) is None  # "local" in the bench file stops the search
+    monkeypatch.setenv("WEARBENCH_SCHEDULER", "tcp://127.0.0.1:9000")
+    assert compute.resolve_scheduler(bench=bench) == "tcp://127.0.0.1:9000"  # env over bench file
+    assert compute.resolve_scheduler("tcp://127.0.0.1:9001", bench=bench) == "tcp://127.0.0.1:9001"
+    # the bench's physics digest ignores where its batches run
+    from wearbench.validation.ensemble import physics_key
+
+    assert physics_key(bench) == physics_key(local) == physics_key(load_bench(shipped_bench("slider-crank")))
+    for table, key, value in (('scheduler = "10.0.0.5:8786"', "compute.scheduler", "'10.0.0.5:8786'"),
+                              ("scheduler = 8786", "compute.scheduler", "8786"),
+                              ("workers = 4", "compute.workers", "4")):
+        with pytest.raises(BenchError) as err:
+            parse_bench(text + f"\n[compute]\n{table}\n", path)
+        assert str(err.value).startswith(f"{path}: {key} = {value}: ") and "expected" in str(err.value)
 
 
 @pytest.fixture(scope="module")
