@@ -4,11 +4,15 @@ The batch: ``--tasks`` sweep runs of the nine-bar bench (the nominal bench and r
 within its tolerances, 0.3 mm clearance, ``--revolutions`` motor revolutions each), the kind of task
 theory ensembles and sweeps submit. Measured in one run:
 
-- wall time of the serial in-process loop (``workers=0``), of a 1-worker and a 2-worker LocalCluster
-  (cluster start-up, which includes the numba warm-up on each worker, timed apart);
+- wall time of the serial in-process loop (``workers=0``), of a 1-worker LocalCluster at Dask's
+  default settings and as wearbench configures it (``compute._LEAN_LOCAL``: fewer timers), and of a
+  2-worker LocalCluster (cluster start-up, which includes the numba warm-up on each worker, timed
+  apart);
 - speed-up 2 vs 1 worker (target >= 1.7x on 2 cores) and overhead of the 1-worker cluster against
   the serial loop (target < 5 %), in wall time and in CPU time (tasks + client + scheduler +
   worker bookkeeping; CPU time holds on a machine that other work keeps busy, wall time does not);
+- where the 1-worker cluster's CPU goes: its background CPU while idle (% of one core: client,
+  scheduler and nanny in this process, the worker) and the CPU per task of a batch of no-op tasks;
 - a rerun of the batch served from the result cache;
 - a projection of the wall time for N idle workers from the measured task CPU time and overhead
   (serial speed-up is the serial loop's task time over T(N), so it includes the start-up).
@@ -35,6 +39,11 @@ def timed_point(bench, seed, spec) -> dict:
     rows = run_point(bench, {"clearance": 3e-4}, seed, spec)
     return {"compute_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "pid": os.getpid(),
             "rows": len(rows)}
+
+
+def noop(i: int) -> int:
+    """A task that does nothing: what remains is the cluster's cost of one task."""
+    return i
 
 
 def _burn(n: int) -> float:
@@ -66,11 +75,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tasks", type=int, default=12)
     ap.add_argument("--revolutions", type=float, default=10.0)
+    ap.add_argument("--idle", type=float, default=5.0, help="seconds the idle 1-worker cluster is watched")
+    ap.add_argument("--noops", type=int, default=200, help="no-op tasks for the per-task cost")
     ap.add_argument("--project", type=int, default=800, help="batch size for the projection (4 states x 200)")
     args = ap.parse_args()
 
     os.environ["WEARBENCH_CACHE"] = tempfile.mkdtemp(prefix="wearbench-scale-out-")
     from wearbench.hardware.bench import load_bench, shipped_bench
+    from wearbench.model import compute
     from wearbench.model.compute import Task, compute_client, run_tasks, task_key, usable_cores
     from wearbench.model.compute import _warm_up as warm_up
     from wearbench.model.sweep import Axis, SweepSpec
@@ -82,12 +94,16 @@ def main() -> None:
                   f"seed={s}") for s in seeds]
     warm_up()  # the serial loop gets its kernels loaded too, like every worker
 
-    rows = []
+    rows, breakdown = [], []
 
     def worker_cpu(client) -> float:
         return sum(client.run(_process_cpu).values())
 
-    def measure(name: str, workers: int) -> dict:
+    def cluster_cpu(client) -> float:
+        """CPU (s) of this process (client, scheduler, nannies) and of every worker."""
+        return time.process_time() + worker_cpu(client)
+
+    def measure(name: str, workers: int, dask_defaults: bool = False) -> dict:
         t0 = time.perf_counter()
         if workers == 0:
             start, c0, w0 = 0.0, time.process_time(), 0.0
@@ -95,17 +111,30 @@ def main() -> None:
             out = run_tasks(tasks, workers=0, cache=False)
             t2, c1, w1 = time.perf_counter(), time.process_time(), 0.0
         else:
-            with compute_client(workers=workers) as client:
-                t1 = time.perf_counter()
-                start, c0, w0 = t1 - t0, time.process_time(), worker_cpu(client)
-                out = run_tasks(tasks, cache=False)
-                t2, c1, w1 = time.perf_counter(), time.process_time(), worker_cpu(client)
+            lean, compute._LEAN_LOCAL = compute._LEAN_LOCAL, ({} if dask_defaults else compute._LEAN_LOCAL)
+            try:
+                with compute_client(workers=workers) as client:
+                    t1 = time.perf_counter()
+                    start, c0, w0 = t1 - t0, time.process_time(), worker_cpu(client)
+                    out = run_tasks(tasks, cache=False)
+                    t2, c1, w1 = time.perf_counter(), time.process_time(), worker_cpu(client)
+                    if workers == 1:  # where the CPU goes: background while idle, and per no-op task
+                        a, ta = cluster_cpu(client), time.perf_counter()
+                        time.sleep(args.idle)
+                        idle = (cluster_cpu(client) - a) / (time.perf_counter() - ta)
+                        noops = [Task(noop, {"i": i}, task_key("noop", i), "noop") for i in range(args.noops)]
+                        a = cluster_cpu(client)
+                        run_tasks(noops, cache=False)
+                        per_task = (cluster_cpu(client) - a) / args.noops
+                        breakdown.append((name, idle, per_task))
+            finally:
+                compute._LEAN_LOCAL = lean
         failed = [r for r in out if not isinstance(r, dict)]
         if failed:
             raise SystemExit(f"{name}: {len(failed)} tasks failed: {failed[0]}")
         task_cpu = sum(r["cpu_s"] for r in out)
-        # CPU spent on anything but the tasks: this process (client, and the scheduler of a
-        # LocalCluster, which runs here) plus the workers' own bookkeeping
+        # CPU spent on anything but the tasks: this process (client, and the scheduler and nannies
+        # of a LocalCluster, which run here) plus the workers' own bookkeeping
         over_cpu = (c1 - c0) + (w1 - w0) - task_cpu
         row = {"name": name, "workers": workers, "start_s": start, "wall_s": t2 - t1,
                "compute_s": sum(r["compute_s"] for r in out), "cpu_s": task_cpu, "over_cpu_s": over_cpu,
@@ -115,9 +144,10 @@ def main() -> None:
 
     capacity = [machine_capacity()]
     serial = measure("serial loop (workers=0)", 0)
-    one = measure("LocalCluster, 1 worker", 1)
+    default = measure("1 worker, Dask defaults", 1, dask_defaults=True)
+    one = measure("1 worker (wearbench)", 1)
     capacity.append(machine_capacity())
-    two = measure("LocalCluster, 2 workers", 2)
+    two = measure("2 workers (wearbench)", 2)
     capacity.append(machine_capacity())
 
     # the result cache: fill, then rerun (nothing submitted)
@@ -129,18 +159,23 @@ def main() -> None:
     n = len(tasks)
     print(f"\nbatch: {n} sweep runs of {bench.name} ({args.revolutions:g} + 0.5 revolutions, realisations), "
           f"usable cores {usable_cores()}, load average {os.getloadavg()[0]:.1f}\n")
-    print(f"{'mode':<24} {'start-up s':>10} {'batch wall s':>12} {'task wall s':>11} {'task cpu s':>10} "
+    print(f"{'mode':<26} {'start-up s':>10} {'batch wall s':>12} {'task wall s':>11} {'task cpu s':>10} "
           f"{'other cpu s':>11} {'other cpu/task ms':>17} {'processes':>9}")
     for r in rows:
-        print(f"{r['name']:<24} {r['start_s']:>10.2f} {r['wall_s']:>12.2f} {r['compute_s']:>11.2f} "
+        print(f"{r['name']:<26} {r['start_s']:>10.2f} {r['wall_s']:>12.2f} {r['compute_s']:>11.2f} "
               f"{r['cpu_s']:>10.2f} {r['over_cpu_s']:>11.2f} {r['over_cpu_s'] / n * 1e3:>17.1f} {r['pids']:>9}")
     speedup = one["wall_s"] / two["wall_s"]
-    wall_over = (one["wall_s"] - serial["wall_s"]) / serial["wall_s"]
-    cpu_over = (one["cpu_s"] + one["over_cpu_s"]) / (serial["cpu_s"] + serial["over_cpu_s"]) - 1
     print(f"\nspeed-up 2 vs 1 worker (wall): {speedup:.2f}x (target >= 1.7x); the machine gave two plain "
           f"processes {min(capacity):.2f}-{max(capacity):.2f} cores around these runs (control, no Dask)")
-    print(f"1-worker batch vs serial loop: wall {wall_over * 100:+.1f} %, CPU {cpu_over * 100:+.1f} % "
-          "(target < 5 %)")
+    for r in (default, one):
+        wall_over = (r["wall_s"] - serial["wall_s"]) / serial["wall_s"]
+        cpu_over = (r["cpu_s"] + r["over_cpu_s"]) / (serial["cpu_s"] + serial["over_cpu_s"]) - 1
+        print(f"{r['name']} vs serial loop: wall {wall_over * 100:+.1f} %, CPU {cpu_over * 100:+.1f} % (target < 5 %); "
+              f"cluster CPU alone {r['over_cpu_s'] / serial['cpu_s'] * 100:+.1f} % of the tasks' CPU")
+    print("where a 1-worker cluster's CPU goes (client + scheduler + nanny + worker):")
+    for name, idle, per_task in breakdown:
+        print(f"  {name:<26} idle {idle * 100:.1f} % of a core; {per_task * 1e3:.1f} ms per no-op task "
+              f"({args.noops} tasks)")
     print(f"rerun from the result cache (2 workers asked, nothing submitted): {cached:.3f} s for {n} tasks")
     # projection from CPU: a task costs its CPU time on an idle core, plus the cluster's CPU per task
     t_task = serial["cpu_s"] / n
