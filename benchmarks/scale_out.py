@@ -10,7 +10,9 @@ theory ensembles and sweeps submit. Measured in one run:
   apart);
 - speed-up 2 vs 1 worker (target >= 1.7x on 2 cores) and overhead of the 1-worker cluster against
   the serial loop (target < 5 %), in wall time and in CPU time (tasks + client + scheduler +
-  worker bookkeeping; CPU time holds on a machine that other work keeps busy, wall time does not);
+  worker bookkeeping; CPU time holds on a machine that other work keeps busy, wall time does not).
+  The serial loop runs before and after the 1-worker runs: their mean is the reference, their
+  difference how much the machine drifted meanwhile;
 - where the 1-worker cluster's CPU goes: its background CPU while idle (% of one core: client,
   scheduler and nanny in this process, the worker) and the CPU per task of a batch of no-op tasks;
 - a rerun of the batch served from the result cache;
@@ -143,9 +145,11 @@ def main() -> None:
         return row
 
     capacity = [machine_capacity()]
-    serial = measure("serial loop (workers=0)", 0)
+    serials = [measure("serial loop (workers=0)", 0)]
     default = measure("1 worker, Dask defaults", 1, dask_defaults=True)
     one = measure("1 worker (wearbench)", 1)
+    serials.append(measure("serial loop, again", 0))  # brackets the 1-worker runs: drift of the load
+    serial = {k: (serials[0][k] + serials[1][k]) / 2 for k in ("wall_s", "cpu_s", "over_cpu_s")}
     capacity.append(machine_capacity())
     two = measure("2 workers (wearbench)", 2)
     capacity.append(machine_capacity())
@@ -167,10 +171,13 @@ def main() -> None:
     speedup = one["wall_s"] / two["wall_s"]
     print(f"\nspeed-up 2 vs 1 worker (wall): {speedup:.2f}x (target >= 1.7x); the machine gave two plain "
           f"processes {min(capacity):.2f}-{max(capacity):.2f} cores around these runs (control, no Dask)")
+    spread = abs(serials[1]["wall_s"] - serials[0]["wall_s"]) / serial["wall_s"]
+    print(f"against the mean of the two serial loops (which differ by {spread * 100:.1f} % in wall time, "
+          f"{abs(serials[1]['cpu_s'] - serials[0]['cpu_s']) / serial['cpu_s'] * 100:.1f} % in task CPU):")
     for r in (default, one):
         wall_over = (r["wall_s"] - serial["wall_s"]) / serial["wall_s"]
         cpu_over = (r["cpu_s"] + r["over_cpu_s"]) / (serial["cpu_s"] + serial["over_cpu_s"]) - 1
-        print(f"{r['name']} vs serial loop: wall {wall_over * 100:+.1f} %, CPU {cpu_over * 100:+.1f} % (target < 5 %); "
+        print(f"  {r['name']}: wall {wall_over * 100:+.1f} %, CPU {cpu_over * 100:+.1f} % (target < 5 %); "
               f"cluster CPU alone {r['over_cpu_s'] / serial['cpu_s'] * 100:+.1f} % of the tasks' CPU")
     print("where a 1-worker cluster's CPU goes (client + scheduler + nanny + worker):")
     for name, idle, per_task in breakdown:
