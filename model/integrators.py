@@ -26,10 +26,11 @@ from wearbench.model.contact import impact_speed
 __all__ = ["METHODS", "Accurate", "Dopri5", "Method", "RK4Paper", "get_method"]
 
 # loop status codes
-DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS = range(9)
+DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS, PAUSED = range(10)
 # stats slots
-S_STEPS, S_REJ, S_DRIFT_P, S_DRIFT_V, S_T, S_H, S_OUT, S_REC, S_DETAIL, S_NFEV, S_VALUE, S_PEAK_SEARCHES = range(12)
-NSTATS = 12
+(S_STEPS, S_REJ, S_DRIFT_P, S_DRIFT_V, S_T, S_H, S_OUT, S_REC, S_DETAIL, S_NFEV, S_VALUE, S_PEAK_SEARCHES,
+ S_ERR_OLD) = range(13)
+NSTATS = 13
 # peak tracking: a local maximum of an endpoint sequence above this fraction of the running peak is
 # searched for on the dense output of the two steps around it
 PEAK_SEARCH_FRACTION = 0.8
@@ -204,7 +205,8 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
     the running peak), the two steps around it are searched (:func:`_golden_max`). pk, pe, ps carry
     the previous step (its ends and f there, the end values, [t0, t1, steps known, mode changed])
     across calls; pst starts at zeros.
-    Returns a status code; stats[S_DETAIL] holds the joint or coordinate involved, stats[S_VALUE]
+    After ``max_steps`` accepted steps it returns PAUSED with its state saved (call again to go on:
+    the steps taken do not depend on the pauses). Returns a status code; stats[S_DETAIL] holds the joint or coordinate involved, stats[S_VALUE]
     the offending value.
     """
     N = y.shape[0]
@@ -222,7 +224,7 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
     irec = int(stats[S_REC])
     nsteps = 0
     factor_max = 5.0
-    err_old = 1e-4
+    err_old = stats[S_ERR_OLD] if stats[S_ERR_OLD] > 0.0 else 1e-4
     nq = nc + 1
     enew = np.empty(nq)
     vals = np.empty(nq)
@@ -237,10 +239,8 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
             stats[S_H] = h
             stats[S_OUT] = iout
             stats[S_REC] = irec
+            stats[S_ERR_OLD] = err_old
             return FULL
-        if nsteps >= max_steps:
-            stats[S_T] = t
-            return TOO_MANY_STEPS
         hh = min(h, t_end - t)
         last = hh >= t_end - t
         if kind == 0:
@@ -381,6 +381,13 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
             err_old = max(e, 1e-4)
             h = min(hmax, hh * min(factor_max, max(0.2, f)))
             factor_max = 5.0
+        if nsteps >= max_steps and t < t_end:  # back to Python now and then (Ctrl-C); call again to go on
+            stats[S_T] = t
+            stats[S_H] = h
+            stats[S_OUT] = iout
+            stats[S_REC] = irec
+            stats[S_ERR_OLD] = err_old
+            return PAUSED
     stats[S_T] = t
     stats[S_H] = h
     stats[S_OUT] = iout

@@ -27,7 +27,9 @@ DEFAULT_OUTPUT_RATE = 20_000.0  # samples/s of the table (20 points per ms)
 DRIFT_TOLERANCE = 1e-4  # m (or rad): largest position-constraint violation before we stop
 _PROJECTION_TOL = 1e-11  # m
 _STILL_STEP_CAP = 1e-3  # s, largest adaptive step when the motor does not turn
-_BLOW_UP = 0.05  # penetration above this fraction of the journal radius is a blow-up
+_BLOW_UP = 0.05
+_MAX_STEPS = 50_000_000  # accepted steps before a run gives up
+_STEPS_PER_CALL = 2_000  # accepted steps per call of the compiled loop (~0.1 s, worn surfaces ~1 s)  # penetration above this fraction of the journal radius is a blow-up
 CONTACT_COLUMNS = ("t", "dt", "fn", "vt", "omega_rel", "phi_bearing", "phi_journal", "pen")
 
 
@@ -319,12 +321,17 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     while True:
         status = I.run_loop(meth.kind, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
                             meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_,
-                            1e-13, hmax, 50_000_000, times, out_y, out_a, out_c, out_lam, rec, record_contacts,
+                            1e-13, hmax, _STEPS_PER_CALL, times, out_y, out_a, out_c, out_lam, rec, record_contacts,
                             blow, k, cout, stats, W, sensor, peaks, pk, pe, ps)
         if status == I.FULL:
             rec = np.concatenate([rec, np.zeros_like(rec)])
             h = float(stats[I.S_H])
             continue
+        if status == I.PAUSED:  # Python runs between calls: Ctrl-C acts within a call's time
+            h = float(stats[I.S_H])
+            if stats[I.S_STEPS] < _MAX_STEPS:
+                continue
+            status = I.TOO_MANY_STEPS
         if status != I.DONE:
             raise _fail(scene, status, stats, y, cout, speed, meth.name, drift_tolerance)
         break

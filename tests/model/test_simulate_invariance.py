@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
+import pandas as pd
 import pytest
 from wearbench.hardware.bench import load_bench, resolve_bench
 from wearbench.model import build_scene, simulate
@@ -45,3 +48,20 @@ def test_peaks_come_from_the_dense_output_not_the_grid(scene, half):
         assert dense - finer <= 1e-4 * dense  # and the fine grid comes within 0.01 % of it
     # the default grid alone misses the top of the impact by more than that
     assert max((d - c) / d for d, c, _ in pairs) > 1e-3
+
+
+def test_pausing_the_compiled_loop_changes_nothing(scene, half, monkeypatch):
+    # the loop returns to Python every few thousand steps (so Ctrl-C acts): pausing every 97 steps
+    # or never gives the same numbers
+    S = importlib.import_module("wearbench.model.simulate")  # the module (the package exports the function)
+
+    runs = []
+    for every in (97, 10**9):
+        monkeypatch.setattr(S, "_STEPS_PER_CALL", every)
+        runs.append(simulate(scene, revolutions=0.5, record_contacts=True))
+    paused, whole = runs
+    assert paused.summary["steps"] == whole.summary["steps"] > 10 * 97
+    for column in ("slider_acc", "A_fn", "B_fn"):
+        np.testing.assert_array_equal(paused.table[column], whole.table[column], err_msg=column)
+    assert paused.summary["peak_fn"] == whole.summary["peak_fn"]
+    pd.testing.assert_frame_equal(paused.contacts["A"], whole.contacts["A"])
