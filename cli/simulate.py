@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 from wearbench.cli.options import positive_number, positive_quantity
+from wearbench.cli.progress import note_compiling
 from wearbench.hardware.units import parse_quantity
 
 
@@ -60,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.model.surfaces import JointSurfaces
 
     bench = load_bench(resolve_bench(args.bench))
+    note_compiling()  # building the scene compiles already
     clearances = {j: (None if v.lower() == "ideal" else parse_quantity(v, "length", bare_unit="m"))
                   for j, v in _pairs(args.clearance, "clearance").items()}
     surfaces = {j: JointSurfaces.load(v) for j, v in _pairs(args.surfaces, "surfaces").items()} or None

@@ -45,9 +45,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from wearbench.cli.progress import note_compiling
     from wearbench.model.sweep import SweepSpec, axes_from, run_sweep, write_sweep
 
     bench = load_bench(resolve_bench(args.bench))
+    note_compiling()
     axes = axes_from(args.vary)
     clearance_names = [j.name for j in bench.clearance_joints]
     for a in axes:

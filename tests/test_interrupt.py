@@ -5,19 +5,22 @@ their file is finished)."""
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+from wearbench.cli.progress import COMPILING
+
 STOP_WITHIN = 3.0  # s: generous bound for a loaded machine; the watchdog ends a command after 0.5 s
 
 
-def _interrupt(args: list[str], after: float) -> tuple[int, str, float]:
+def _interrupt(args: list[str], after: float, env: dict | None = None) -> tuple[int, str, float]:
     """Start ``wearbench ARGS``, send SIGINT ``after`` seconds, return (exit code, stderr, seconds to stop)."""
     proc = subprocess.Popen([sys.executable, "-m", "wearbench.cli", *args], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, env=env)
     time.sleep(after)
     sent = time.monotonic()
     proc.send_signal(signal.SIGINT)
@@ -53,3 +56,10 @@ def test_compare_stops_at_once_wherever_it_is(tmp_path):
         if code == 0:  # finished before the signal: nothing to check
             continue
         _assert_one_line(code, err, took, "compare")
+
+
+def test_a_cold_start_says_it_compiles_and_stops_while_compiling(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # nothing compiled yet
+    code, err, took = _interrupt(["simulate", "slider-crank"], after=4.0, env=env)
+    assert err.splitlines()[0] == COMPILING
+    _assert_one_line(code, err, took, "simulate")
