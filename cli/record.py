@@ -68,7 +68,13 @@ def _option_value(text: str):
 def run(args: argparse.Namespace) -> int:
     from wearbench.acquisition.backends import open_rig
     from wearbench.acquisition.recorder import Recorder, SessionPlan
-    from wearbench.acquisition.session_writer import SessionWriter, check_free_space
+    from wearbench.acquisition.session_writer import (
+        SessionWriter,
+        check_free_space,
+        leftover_message,
+        lock_session_path,
+        unlock_session_path,
+    )
     from wearbench.cli.progress import progress
     from wearbench.hardware.bench import load_bench, resolve_bench
 
@@ -79,6 +85,10 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not args.force:
         raise FileExistsError(f"--out {out}: a file already exists there; choose another name, or pass --force "
                               "to replace it (the old file is kept until the new session is finished)")
+    leftover = out.with_name(out.name + ".new")
+    if args.force and out.exists() and leftover.exists():
+        unlock_session_path(out, lock_session_path(out))  # EBUSY if a recorder is writing it now
+        raise FileExistsError(leftover_message(leftover))
     missing = [k for k in ("encoder", "accelerometer") if k not in {s.kind for s in bench.sensors}]
     if missing:
         raise ValueError(f"{bench.path or bench.name}: no [[sensor]] of kind {' or '.join(missing)}; a session "
