@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
-from wearbench.cli.options import positive_number, positive_quantity
+from wearbench.cli.options import motor_speed, positive_number, positive_quantity
 from wearbench.hardware.units import parse_quantity
 
 
@@ -94,10 +93,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{bench.path or bench.name}: no [[sensor]] of kind {' or '.join(missing)}; a session "
                          "records an encoder (to count crank cycles) and an accelerometer (see "
                          "'wearbench bench show ninebar-testbed')")
-    speed = parse_quantity(args.speed, "angular_speed", bare_unit="rad/s") if args.speed else bench.speed
-    if not (math.isfinite(speed) and 0 < abs(speed) <= bench.motor.max_speed):
-        raise ValueError(f"--speed {args.speed}: {speed:.4g} rad/s; expected a non-zero speed of at most the "
-                         f"motor's max_speed {bench.motor.max_speed:.4g} rad/s ({bench.path})")
+    speed = (motor_speed(args.speed, max_speed=bench.motor.max_speed, source=str(bench.path or bench.name))
+             if args.speed else bench.speed)
     clearances = {j: parse_quantity(v, "length") for j, v in _pairs(args.clearance, "clearance").items()}
     known = {j.name for j in bench.clearance_joints}
     for j in (*clearances, *_pairs(args.wear, "wear")):
