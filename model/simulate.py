@@ -27,9 +27,9 @@ DEFAULT_OUTPUT_RATE = 20_000.0  # samples/s of the table (20 points per ms)
 DRIFT_TOLERANCE = 1e-4  # m (or rad): largest position-constraint violation before we stop
 _PROJECTION_TOL = 1e-11  # m
 _STILL_STEP_CAP = 1e-3  # s, largest adaptive step when the motor does not turn
-_BLOW_UP = 0.05
+_BLOW_UP = 0.05  # penetration above this fraction of the journal radius is a blow-up
 _MAX_STEPS = 50_000_000  # accepted steps before a run gives up
-_STEPS_PER_CALL = 2_000  # accepted steps per call of the compiled loop (~0.1 s, worn surfaces ~1 s)  # penetration above this fraction of the journal radius is a blow-up
+_STEPS_PER_CALL = 2_000  # accepted steps per call of the compiled loop (~0.1 s, worn surfaces ~1 s)
 CONTACT_COLUMNS = ("t", "dt", "fn", "vt", "omega_rel", "phi_bearing", "phi_journal", "pen")
 
 
