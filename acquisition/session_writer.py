@@ -52,7 +52,7 @@ from wearbench.acquisition.layout import (
 )
 
 __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
-           "SessionWriter", "ballast_bytes", "check_free_space", "lock_session_path",
+           "SessionWriter", "ballast_bytes", "check_free_space", "leftover_message", "lock_session_path",
            "unlock_session_path"]
 
 PROFILE = "wearbench-session"
@@ -104,6 +104,13 @@ def lock_session_path(path: str | Path) -> int:
         except FileNotFoundError:
             pass
         os.close(fd)
+
+
+def leftover_message(new: Path) -> str:
+    """Why a forced session does not start over ``NAME.new`` left by an earlier one that did not finish."""
+    return (f"{new} is left over from an earlier forced session that did not finish: it is not a session "
+            f"of this run, but may hold a recording (check it with 'wearbench inspect {new}', rescue it with "
+            "'wearbench recover'), so it is not replaced; move or delete it, then record again")
 
 
 def _lock_path(path: Path) -> Path:
@@ -217,10 +224,14 @@ class SessionWriter:
             self.path: Path | None = Path(out)
             free = check_free_space(self.path)
             self._lock = lock_session_path(self.path)
+            new = self.path.with_name(self.path.name + ".new")
+            if replace and self.path.exists() and new.exists():  # we hold the lock: its writer died
+                self._unlock()
+                raise FileExistsError(leftover_message(new))
             try:
                 if replace and self.path.exists():
-                    self._target, self.path = self.path, self.path.with_name(self.path.name + ".new")
-                    raw = open(self.path, "wb", buffering=0)  # noqa: SIM115 - closed by finish()
+                    self._target, self.path = self.path, new
+                    raw = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed by finish()
                 else:
                     raw = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed by finish()
             except FileExistsError:

@@ -13,6 +13,7 @@ the confusion matrix and a reliability table at the full session length, held-ou
 the earlier pointwise ISO ranking (one nominal simulation per state) on the same sessions.
 
     .venv/bin/python benchmarks/identify.py [--draws 5] [--cycles 20] [--realisations 32]
+    .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
 """
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None, help="compute workers (default: the machine's cores)")
     ap.add_argument("--cache", help="cache folder (default: a fresh one, so ensembles are built cold)")
     ap.add_argument("--seed", type=int, default=9000, help="first truth seed (9000)")
+    ap.add_argument("--bins", type=int, help="crank-angle bins of the features (default: FeatureSpec's)")
+    ap.add_argument("--bands", help="impact bands, e.g. 100-1000 or 50-150,150-400,400-1000 Hz "
+                    "(default: FeatureSpec's)")
     args = ap.parse_args()
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-identify-")
 
@@ -46,14 +50,19 @@ def main() -> None:
     from wearbench.validation import CompareOptions, load_session, rank_theories
     from wearbench.validation.assess import assess_sessions, session_features
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
-    from wearbench.validation.features import CycleFeatures
+    from wearbench.validation.features import CycleFeatures, FeatureSpec
     from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
     from wearbench.validation.theory import simulate_theory
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     states = bench.states
     names = [s.name for s in states]
-    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
+    spec = FeatureSpec()
+    if args.bins or args.bands:
+        bands = (tuple(tuple(float(v) for v in b.split("-")) for b in args.bands.split(",")) if args.bands
+                 else spec.bands)
+        spec = FeatureSpec(bins=args.bins or spec.bins, bands=bands)
+    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles, features=spec)
     out = Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
     with compute_client(workers=args.workers):
@@ -125,14 +134,19 @@ def main() -> None:
         if m.any():
             print(f"  [{lo:.2f}, {min(hi, 1):.2f})  {m.sum():5d}  {p[m].mean():.3f}  {ok[m].mean():.3f}")
 
-    print(f"\nwhich statistics (top-1 at {args.cycles} cycles; chosen: both blocks):")
-    bins = settings.features.bins
-    for label, cols in (("low-passed curve + impact energy", slice(None)), ("low-passed curve only", slice(0, bins)),
-                        ("impact energy only", slice(bins, None))):
+    spec = settings.features
+    print(f"\nwhich statistics (top-1 and named right at {args.cycles} cycles; chosen: all blocks; "
+          f"{spec.bins} crank-angle bins):")
+    blocks = [("low-passed curve + impact energy, all bands", slice(None)),
+              (f"low-passed curve ({spec.lowpass:g} Hz) only", slice(0, spec.bins)),
+              ("impact energy, all bands", slice(spec.bins, None))]
+    blocks += [(f"impact energy {lo:g}-{hi:g} Hz only", slice((i + 1) * spec.bins, (i + 2) * spec.bins))
+               for i, (lo, hi) in enumerate(spec.bands)]
+    for label, cols in blocks:
         sub_models = fit_states(ensembles, options, columns=cols)
-        tops = [max((r := identify_features(f, sub_models)).posterior, key=r.posterior.get) == t
-                for f, t in zip(feats, truth_names, strict=True)]
-        print(f"  {label:34s} {np.mean(tops):.2f}")
+        rs = [(identify_features(f, sub_models), t) for f, t in zip(feats, truth_names, strict=True)]
+        print(f"  {label:44s} top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
+              f"  named right {np.mean([r.verdict == t for r, t in rs]):.2f}")
 
     print(f"\nhow many realisations (top-1 and Brier at {args.cycles} cycles; default 32):")
     for m in sorted({8, 16, 24, args.realisations}):

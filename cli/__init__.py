@@ -8,9 +8,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import re
+import signal
 import sys
+import threading
 from importlib.metadata import version
+from types import FrameType
 
 __all__ = ["COMMANDS", "main"]
 
@@ -59,17 +63,95 @@ def _allow_negative_values(parser: argparse.ArgumentParser) -> None:
                 _allow_negative_values(child)
 
 
+INTERRUPT_GRACE = 0.5  # s: after Ctrl-C, time for the command to unwind before the process ends regardless
+
+
+class _Interrupt:
+    """Ctrl-C for the program: the first SIGINT raises KeyboardInterrupt (so a recording finishes its
+    file) and starts a watchdog that ends the process with exit 130 after INTERRUPT_GRACE if the
+    command has not unwound by then (an interrupt swallowed by a library callback, a slow shutdown)."""
+
+    command = "wearbench"
+    reported = False
+    timer: threading.Timer | None = None
+
+    @classmethod
+    def handler(cls, signum: int, frame: FrameType | None) -> None:
+        if cls.timer is None:
+            cls.timer = threading.Timer(INTERRUPT_GRACE, cls.force_exit)
+            cls.timer.daemon = True
+            cls.timer.start()
+        while frame is not None:  # not inside numba or LLVM (callbacks from C): an exception there is
+            name = frame.f_code.co_filename  # lost or can crash the process; the watchdog ends it
+            if "/numba/" in name or "/llvmlite/" in name:
+                return
+            frame = frame.f_back
+        raise KeyboardInterrupt
+
+    @staticmethod
+    def unraisable(info: object) -> None:
+        """sys.unraisablehook: a Ctrl-C that lands in a callback from C (numba's LLVM object cache) is
+        not a traceback for the user; the watchdog ends the process."""
+        if not isinstance(getattr(info, "exc_value", None), KeyboardInterrupt):
+            sys.__unraisablehook__(info)
+
+    @classmethod
+    def report(cls) -> None:
+        if not cls.reported:
+            cls.reported = True
+            print(f"{cls.command}: interrupted", file=sys.stderr)
+
+    @classmethod
+    def force_exit(cls) -> None:
+        cls.report()
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(130)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run the command line (``argv`` default: sys.argv). As the program itself (no ``argv``, main
+    thread) Ctrl-C ends any command within about a second with one line and exit 130."""
+    as_program = argv is None and threading.current_thread() is threading.main_thread()
+    if as_program:
+        signal.signal(signal.SIGINT, _Interrupt.handler)
+        sys.unraisablehook = _Interrupt.unraisable
+    command = "wearbench"
     try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        command = _Interrupt.command = f"wearbench {args.command}"
         return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        print("wearbench: interrupted", file=sys.stderr)
-        return 130
-    except (ValueError, OSError, RuntimeError) as exc:  # errors meant for the user: one clear line
-        print(f"wearbench {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except BaseException as exc:
+        if _interrupted(exc):  # Ctrl-C: one line, exit 130 (a recording has finished its file by now)
+            if as_program:
+                _Interrupt.report()
+            else:
+                print(f"{command}: interrupted", file=sys.stderr)
+            return 130
+        if isinstance(exc, (ValueError, OSError, RuntimeError)):  # errors meant for the user: one clear line
+            print(f"{command}: error: {exc}", file=sys.stderr)
+            return 2
+        raise
+    finally:
+        if as_program:  # the command is done: a Ctrl-C while the interpreter shuts down changes nothing
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """True if ``exc`` is a KeyboardInterrupt or was raised while handling one: a Ctrl-C landing in a
+    numba dispatcher surfaces as ``SystemError: CPUDispatcher(...) returned a result with an exception
+    set``, caused by the KeyboardInterrupt."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
@@ -55,10 +56,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def record_state(bench, state, seed: int | None, out: Path, *, backend: str, cycles: int, on_progress=None,
-                 **emulator):
+                 recorders: list | None = None, **emulator):
     """Record one session of the emulated ``bench`` whose hidden truth is ``state`` drawn with ``seed``
     (None: the nominal model, a twin) through the ``backend`` driver to ``out``; the SessionResult.
-    ``emulator``: top-level ``[emulator]`` keys (e.g. ``revolutions``) for ``emulator_config``."""
+    ``emulator``: top-level ``[emulator]`` keys (e.g. ``revolutions``) for ``emulator_config``;
+    ``recorders``: the Recorder is appended to it before it runs (so another thread can stop it)."""
     from wearbench.acquisition.backends import open_rig
     from wearbench.acquisition.recorder import Recorder, SessionPlan
     from wearbench.acquisition.session_writer import SessionWriter
@@ -80,8 +82,11 @@ def record_state(bench, state, seed: int | None, out: Path, *, backend: str, cyc
         rig = open_rig(bench.with_clearances(plan.clearances), backend, options)
         try:
             # the demo owns its sessions folder: a rerun replaces its own files (safely, on finish)
-            result = Recorder(rig, bench, plan, out, on_progress=on_progress,
-                              writer=SessionWriter(out, replace=True)).run()
+            recorder = Recorder(rig, bench, plan, out, on_progress=on_progress,
+                                writer=SessionWriter(out, replace=True))
+            if recorders is not None:
+                recorders.append(recorder)
+            result = recorder.run()
         finally:
             rig.close()
     finally:
@@ -127,20 +132,29 @@ def run(args: argparse.Namespace) -> int:
         failed = [r for r in run_tasks(tasks, cache=False, progress="emulator truths") if isinstance(r, TaskFailure)]
         if failed:
             raise RuntimeError(f"demo: the emulator's truth failed: {failed[0].error}")
-    paths = []
-    with progress() as bar:
-        task = bar.add_task("record", total=len(states), info="")
-        for state in states:
-            bar.update(task, description=f"record {state.name:20s}", info="")
+    # the sessions are recorded at once, each from its own emulator: recording runs in real time and
+    # costs the host about 1 % of a core, so four take the wall time of one
+    paths = [sessions_dir / f"{slug(s.name)}.mcap" for s in states]
+    with progress() as bar, ThreadPoolExecutor(len(states)) as pool:
+        def record(state, path) -> None:
+            task = bar.add_task(f"record {state.name:20s}", total=args.cycles, info="")
 
             def show(p) -> None:
                 dropped = f", dropped {p.dropped}" if p.dropped else ""
-                bar.update(task, info=f"{p.phase} {p.cycles:.1f}/{args.cycles}{dropped}")
+                bar.update(task, completed=min(p.cycles, args.cycles), info=f"{p.phase}{dropped}")
 
-            paths.append(sessions_dir / f"{slug(state.name)}.mcap")
-            record_state(bench, state, seeds[state.name], paths[-1], backend=backend, cycles=args.cycles,
-                         on_progress=show)
-            bar.advance(task)
+            record_state(bench, state, seeds[state.name], path, backend=backend, cycles=args.cycles,
+                         on_progress=show, recorders=recorders)
+
+        recorders: list = []
+        jobs = [pool.submit(record, s, p) for s, p in zip(states, paths, strict=True)]
+        try:
+            for job in jobs:
+                job.result()
+        except BaseException:  # Ctrl-C or a failed session: end the others cleanly (valid files)
+            for r in recorders:
+                r.stop("interrupted", "interrupt")
+            raise
     assessed = assess_sessions([load_session(p, label=s.name) for p, s in zip(paths, states, strict=True)],
                                ensembles=ensembles)
     report = write_assessment_report(assessed, report_dir, title=f"wearbench demo: {bench.name}, which state "

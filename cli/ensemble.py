@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import positive_int
+from wearbench.cli.options import motor_speed, positive_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,7 +33,6 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wearbench.hardware.bench import load_bench, load_states, resolve_bench
-    from wearbench.hardware.units import parse_quantity
     from wearbench.validation.ensemble import (
         EnsembleSettings,
         build_ensembles,
@@ -46,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
     states = load_states(args.candidates, bench) if args.candidates else bench.states
     if not states:
         raise ValueError(f"{bench.name}: no [[state]] tables; give --candidates STATES.toml")
-    speed = parse_quantity(args.speed, "angular_speed") if args.speed else bench.speed
+    speed = (motor_speed(args.speed, max_speed=bench.motor.max_speed, source=str(bench.path or bench.name))
+             if args.speed else bench.speed)
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.cycles)
     # built fresh (no shipped file is consulted), so --ship really refreshes it
     ensembles = build_ensembles(bench, states, speed=speed, settings=settings, shipped=False,

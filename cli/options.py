@@ -9,9 +9,10 @@ from __future__ import annotations
 import argparse
 import math
 
-from wearbench.hardware.units import parse_quantity
+from wearbench.hardware.units import QuantityError, parse_quantity
 
-__all__ = ["nonnegative_int", "nonnegative_number", "positive_int", "positive_number", "positive_quantity"]
+__all__ = ["check_motor_speed", "motor_speed", "nonnegative_int", "nonnegative_number", "positive_int", "positive_number",
+           "positive_quantity"]
 
 
 def _number(text: str) -> float:
@@ -72,3 +73,32 @@ def positive_quantity(text: str, dimension: str, option: str, *, bare_unit: str 
         raise ValueError(f"{option} {text!r}: expected a finite {dimension} {'>=' if allow_zero else '>'} 0")
     return value
 
+
+
+
+def motor_speed(text: str, option: str = "--speed", *, allow_zero: bool = False, max_speed: float | None = None,
+                source: str = "") -> float:
+    """A motor speed from the command line (rad/s), the one check every command uses: ``text`` as a
+    quantity ('-5pi' or '-5' rad/s, '150rpm', '2Hz'), then :func:`check_motor_speed`."""
+    try:
+        value = parse_quantity(text, "angular_speed", bare_unit="rad/s")
+    except QuantityError as exc:
+        raise ValueError(f"{option} {text!r}: {exc}; expected {_expected_speed(allow_zero)}") from None
+    return check_motor_speed(value, option, text, allow_zero=allow_zero, max_speed=max_speed, source=source)
+
+
+def check_motor_speed(value: float, option: str, text: str, *, allow_zero: bool = False,
+                      max_speed: float | None = None, source: str = "") -> float:
+    """``value`` (rad/s, given as ``text``) finite, not 0 unless ``allow_zero``, and at most ``max_speed``
+    (the motor's, from ``source``) in magnitude when given; ValueError naming the option, the value and
+    what was expected otherwise."""
+    if not math.isfinite(value) or (value == 0 and not allow_zero):
+        raise ValueError(f"{option} {text!r}: expected {_expected_speed(allow_zero)}")
+    if max_speed is not None and abs(value) > max_speed:
+        raise ValueError(f"{option} {text!r}: {value:.4g} rad/s; expected at most the motor's max_speed "
+                         f"{max_speed:.4g} rad/s in magnitude{f' ({source})' if source else ''}")
+    return value
+
+
+def _expected_speed(allow_zero: bool) -> str:
+    return "a finite motor speed" + ("" if allow_zero else " other than 0") + ", e.g. -5pi (rad/s) or 150rpm"

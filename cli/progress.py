@@ -1,4 +1,5 @@
-"""A progress bar for long work that stays quiet when output is not a terminal."""
+"""A progress bar for long work that stays quiet when output is not a terminal; the note that the
+model's kernels are compiling."""
 
 from __future__ import annotations
 
@@ -19,3 +20,17 @@ def progress(enabled: bool | None = None) -> Iterator[Progress]:
                    transient=False)
     with bar:
         yield bar
+
+
+COMPILING = "compiling the model's kernels (once per model version, about a minute)..."
+
+
+def note_compiling() -> bool:
+    """Say on stderr (one line) that the model's numba kernels are about to compile, if their on-disk
+    cache is cold (first run after installing or changing the model); True if it said so."""
+    from wearbench.model import jit_cache
+
+    if any(jit_cache.numba_cache_dir().rglob("integrators.run_loop-*.nbi")):
+        return False
+    print(COMPILING, file=sys.stderr, flush=True)
+    return True

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
-from wearbench.cli.options import positive_number, positive_quantity
+from wearbench.cli.options import motor_speed, positive_number, positive_quantity
 from wearbench.hardware.units import parse_quantity
 
 
@@ -68,7 +67,13 @@ def _option_value(text: str):
 def run(args: argparse.Namespace) -> int:
     from wearbench.acquisition.backends import open_rig
     from wearbench.acquisition.recorder import Recorder, SessionPlan
-    from wearbench.acquisition.session_writer import SessionWriter, check_free_space
+    from wearbench.acquisition.session_writer import (
+        SessionWriter,
+        check_free_space,
+        leftover_message,
+        lock_session_path,
+        unlock_session_path,
+    )
     from wearbench.cli.progress import progress
     from wearbench.hardware.bench import load_bench, resolve_bench
 
@@ -79,15 +84,17 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not args.force:
         raise FileExistsError(f"--out {out}: a file already exists there; choose another name, or pass --force "
                               "to replace it (the old file is kept until the new session is finished)")
+    leftover = out.with_name(out.name + ".new")
+    if args.force and out.exists() and leftover.exists():
+        unlock_session_path(out, lock_session_path(out))  # EBUSY if a recorder is writing it now
+        raise FileExistsError(leftover_message(leftover))
     missing = [k for k in ("encoder", "accelerometer") if k not in {s.kind for s in bench.sensors}]
     if missing:
         raise ValueError(f"{bench.path or bench.name}: no [[sensor]] of kind {' or '.join(missing)}; a session "
                          "records an encoder (to count crank cycles) and an accelerometer (see "
                          "'wearbench bench show ninebar-testbed')")
-    speed = parse_quantity(args.speed, "angular_speed", bare_unit="rad/s") if args.speed else bench.speed
-    if not (math.isfinite(speed) and 0 < abs(speed) <= bench.motor.max_speed):
-        raise ValueError(f"--speed {args.speed}: {speed:.4g} rad/s; expected a non-zero speed of at most the "
-                         f"motor's max_speed {bench.motor.max_speed:.4g} rad/s ({bench.path})")
+    speed = (motor_speed(args.speed, max_speed=bench.motor.max_speed, source=str(bench.path or bench.name))
+             if args.speed else bench.speed)
     clearances = {j: parse_quantity(v, "length") for j, v in _pairs(args.clearance, "clearance").items()}
     known = {j.name for j in bench.clearance_joints}
     for j in (*clearances, *_pairs(args.wear, "wear")):

@@ -7,7 +7,8 @@ import json
 import math
 from pathlib import Path
 
-from wearbench.cli.options import positive_number, positive_quantity
+from wearbench.cli.options import motor_speed, positive_number, positive_quantity
+from wearbench.cli.progress import note_compiling
 from wearbench.hardware.units import parse_quantity
 
 
@@ -60,10 +61,11 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.model.surfaces import JointSurfaces
 
     bench = load_bench(resolve_bench(args.bench))
+    note_compiling()  # building the scene compiles already
     clearances = {j: (None if v.lower() == "ideal" else parse_quantity(v, "length", bare_unit="m"))
                   for j, v in _pairs(args.clearance, "clearance").items()}
     surfaces = {j: JointSurfaces.load(v) for j, v in _pairs(args.surfaces, "surfaces").items()} or None
-    speed = parse_quantity(args.speed, "angular_speed", bare_unit="rad/s") if args.speed else None
+    speed = motor_speed(args.speed, allow_zero=True) if args.speed else None  # 0 with --t-end: a still motor
     try:
         scene = build_scene(bench, clearances=clearances or None, surfaces=surfaces)
     except KeyError as exc:  # an unknown joint name: a user error, one line

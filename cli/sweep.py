@@ -7,7 +7,13 @@ import json
 import sys
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import nonnegative_int, nonnegative_number, positive_int, positive_number
+from wearbench.cli.options import (
+    check_motor_speed,
+    nonnegative_int,
+    nonnegative_number,
+    positive_int,
+    positive_number,
+)
 from wearbench.cli.wear import add_plan_arguments, plan_from_args
 from wearbench.hardware.bench import load_bench, resolve_bench
 
@@ -45,10 +51,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from wearbench.cli.progress import note_compiling
     from wearbench.model.sweep import SweepSpec, axes_from, run_sweep, write_sweep
 
     bench = load_bench(resolve_bench(args.bench))
+    note_compiling()
     axes = axes_from(args.vary)
+    for a in axes:
+        if a.name == "speed":
+            for value in a.values:
+                check_motor_speed(value, "--vary speed", f"{value:.6g} rad/s")
     clearance_names = [j.name for j in bench.clearance_joints]
     for a in axes:
         if a.name.startswith("clearance") and not clearance_names:

@@ -7,7 +7,7 @@ import json
 import sys
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import nonnegative_int, positive_int, positive_number
+from wearbench.cli.options import motor_speed, nonnegative_int, positive_int, positive_number
 from wearbench.hardware.bench import Bench, load_bench, resolve_bench
 from wearbench.hardware.units import QuantityError, parse_quantity
 
@@ -34,12 +34,8 @@ def parse_clearances(text: str | None, bench: Bench) -> dict[str, float] | None:
 
 
 def parse_speed(text: str | None) -> float | None:
-    if text is None:
-        return None
-    try:
-        return parse_quantity(text, "angular_speed", bare_unit="rad/s")
-    except QuantityError as exc:
-        raise ValueError(f"--speed {text!r}: {exc}") from None
+    """``--speed`` of wear and study (None: the bench's)."""
+    return None if text is None else motor_speed(text)
 
 
 def add_plan_arguments(p: argparse.ArgumentParser) -> None:
@@ -114,12 +110,13 @@ def _coefficient(text: str | None) -> float | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.cli.progress import progress
+    from wearbench.cli.progress import note_compiling, progress
     from wearbench.model.surfaces import surfaces_from_bench
     from wearbench.model.wear_report import convergence_markdown, run_summary, write_run
     from wearbench.model.wear_stages import run_stages
 
     bench = load_bench(resolve_bench(args.bench))
+    note_compiling()
     clearances = parse_clearances(args.clearance, bench)
     speed = parse_speed(args.speed)
     plan = plan_from_args(args, bench, args.stages)

@@ -26,10 +26,15 @@ from wearbench.model.contact import impact_speed
 __all__ = ["METHODS", "Accurate", "Dopri5", "Method", "RK4Paper", "get_method"]
 
 # loop status codes
-DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS = range(9)
+DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS, PAUSED = range(10)
 # stats slots
-S_STEPS, S_REJ, S_DRIFT_P, S_DRIFT_V, S_T, S_H, S_OUT, S_REC, S_DETAIL, S_NFEV, S_VALUE = range(11)
-NSTATS = 11
+(S_STEPS, S_REJ, S_DRIFT_P, S_DRIFT_V, S_T, S_H, S_OUT, S_REC, S_DETAIL, S_NFEV, S_VALUE, S_PEAK_SEARCHES,
+ S_ERR_OLD) = range(13)
+NSTATS = 13
+# peak tracking: a local maximum of an endpoint sequence above this fraction of the running peak is
+# searched for on the dense output of the two steps around it
+PEAK_SEARCH_FRACTION = 0.8
+_GOLDEN_ITERATIONS = 24  # golden-section iterations per step searched: the bracket shrinks by 0.618**24
 NREC = 8  # t, dt, fn, vt, omega_rel, phi_bearing, phi_journal, pen
 
 
@@ -110,6 +115,61 @@ def _hermite(t0, y0, f0, t1, y1, f1, t, out):
 
 
 @njit(cache=True)
+def _sensor_acc(y, f, sensor):
+    """|acceleration| of the sensor point along its axis from the state y and f = (v, a); 0 without
+    a sensor. sensor = (body index or -1, x, y in the body, axis angle in the body)."""
+    b = int(sensor[0])
+    if b < 0:
+        return 0.0
+    n = y.shape[0] // 2
+    th, w, al = y[3 * b + 2], y[n + 3 * b + 2], f[n + 3 * b + 2]
+    c, s = math.cos(th), math.sin(th)
+    px, py = c * sensor[1] - s * sensor[2], s * sensor[1] + c * sensor[2]
+    ux, uy = math.cos(th + sensor[3]), math.sin(th + sensor[3])
+    return abs((f[n + 3 * b] - al * py - w * w * px) * ux + (f[n + 3 * b + 1] + al * px - w * w * py) * uy)
+
+
+@njit(cache=True)
+def _peak_values(t, y, speed, P, inc, v0i, f, lam, cout, W, sensor, vals):
+    """The tracked quantities at (t, y) without stabilisation, as the output table has them:
+    normal contact force per clearance joint, then |sensor acceleration|."""
+    _deriv(t, y, speed, P, 0.0, 0.0, inc, v0i, f, lam, cout, W)
+    nc = cout.shape[0]
+    for c in range(nc):
+        vals[c] = cout[c, K.CO_FN]
+    vals[nc] = _sensor_acc(y, f, sensor)
+
+
+@njit(cache=True)
+def _golden_max(j, t0, y0, f0, t1, y1, f1, speed, P, inc, v0i, yo, fo, lam, cout, W, sensor, vals):
+    """Largest value of tracked quantity j on the step's dense output (cubic Hermite on [t0, t1])
+    by golden-section search (one evaluation per iteration)."""
+    g = 0.6180339887498949
+    a, b = t0, t1
+    c, d = b - g * (b - a), a + g * (b - a)
+    _hermite(t0, y0, f0, t1, y1, f1, c, yo)
+    _peak_values(c, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+    fc = vals[j]
+    _hermite(t0, y0, f0, t1, y1, f1, d, yo)
+    _peak_values(d, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+    fd = vals[j]
+    for _ in range(_GOLDEN_ITERATIONS):
+        if fc > fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            _hermite(t0, y0, f0, t1, y1, f1, c, yo)
+            _peak_values(c, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+            fc = vals[j]
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            _hermite(t0, y0, f0, t1, y1, f1, d, yo)
+            _peak_values(d, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+            fd = vals[j]
+    return max(fc, fd)
+
+
+@njit(cache=True)
 def _update_modes(cout_old, cout_new, inc, v0i):
     """Contact onset/loss per clearance joint after an accepted step; True if a mode changed.
 
@@ -133,13 +193,20 @@ def _update_modes(cout_old, cout_new, inc, v0i):
 @njit(cache=True)
 def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do_project, proj_tol,
              drift_tol, atol, rtol, hmin, hmax, max_steps, out_t, out_y, out_a, out_c, out_lam,
-             rec, record, blow_pen, k, cout_old, stats, W):
+             rec, record, blow_pen, k, cout_old, stats, W, sensor, peaks, pk, pe, pst):
     """Integrate from t to t_end (in place on y, inc, v0i, stats). kind 0: DOPRI5, 1: RK4.
 
     Output samples out_t[stats[S_OUT]:] falling in each accepted step are filled by cubic Hermite
     interpolation of y, then f and the contact outputs are evaluated there. With ``record`` each
     accepted step appends one row per clearance joint to rec (stops with FULL when rec is full).
-    Returns a status code; stats[S_DETAIL] holds the joint or coordinate involved, stats[S_VALUE]
+    peaks (in/out): running maxima of the normal force per clearance joint and of |sensor
+    acceleration| (``sensor`` as in :func:`_sensor_acc`) over the dense output, not only the output
+    samples: where the values at the step ends have a local maximum (above PEAK_SEARCH_FRACTION of
+    the running peak), the two steps around it are searched (:func:`_golden_max`). pk, pe, ps carry
+    the previous step (its ends and f there, the end values, [t0, t1, steps known, mode changed])
+    across calls; pst starts at zeros.
+    After ``max_steps`` accepted steps it returns PAUSED with its state saved (call again to go on:
+    the steps taken do not depend on the pauses). Returns a status code; stats[S_DETAIL] holds the joint or coordinate involved, stats[S_VALUE]
     the offending value.
     """
     N = y.shape[0]
@@ -157,17 +224,23 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
     irec = int(stats[S_REC])
     nsteps = 0
     factor_max = 5.0
-    err_old = 1e-4
+    err_old = stats[S_ERR_OLD] if stats[S_ERR_OLD] > 0.0 else 1e-4
+    nq = nc + 1
+    enew = np.empty(nq)
+    vals = np.empty(nq)
+    if pst[2] == 0:  # values at the start
+        _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
+        for j in range(nq):
+            peaks[j] = max(peaks[j], pe[1, j])
+        pst[2] = 1
     while t < t_end:
         if record and irec >= rec.shape[0]:
             stats[S_T] = t
             stats[S_H] = h
             stats[S_OUT] = iout
             stats[S_REC] = irec
+            stats[S_ERR_OLD] = err_old
             return FULL
-        if nsteps >= max_steps:
-            stats[S_T] = t
-            return TOO_MANY_STEPS
         hh = min(h, t_end - t)
         last = hh >= t_end - t
         if kind == 0:
@@ -224,6 +297,40 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
                 stats[S_DETAIL] = c
                 stats[S_VALUE] = cnew[c, K.CO_PEN]
                 return BLOW_UP
+        # values at the step's end with its modes, without stabilisation (as the output samples)
+        if alpha == 0.0 and beta == 0.0:
+            for c in range(nc):
+                enew[c] = cnew[c, K.CO_FN]
+            enew[nc] = _sensor_acc(ynew, k[6], sensor)
+        else:
+            _peak_values(t_new, ynew, speed, P, inc, v0i, fo, lam, csamp, W, sensor, enew)
+            stats[S_NFEV] += 1
+        for j in range(nq):
+            peaks[j] = max(peaks[j], enew[j])
+            e = pe[1, j]
+            if (e > enew[j] and e > 0.0 and e >= PEAK_SEARCH_FRACTION * peaks[j]
+                    and (pst[2] < 2 or e >= pe[0, j])):
+                # a local maximum at t: the peak lies in this step or, modes unchanged, the previous one
+                v = _golden_max(j, t, y, k[0], t_new, ynew, k[6], speed, P, inc, v0i, yo, fo, lam, csamp,
+                                W, sensor, vals)
+                peaks[j] = max(peaks[j], v)
+                if pst[2] >= 2 and pst[3] == 0.0:
+                    v = _golden_max(j, pst[0], pk[0], pk[1], pst[1], pk[2], pk[3], speed, P, inc, v0i, yo, fo,
+                                    lam, csamp, W, sensor, vals)
+                    peaks[j] = max(peaks[j], v)
+                stats[S_NFEV] += 2 * _GOLDEN_ITERATIONS + 4
+                stats[S_PEAK_SEARCHES] += 1
+        for j in range(nq):
+            pe[0, j] = pe[1, j]
+            pe[1, j] = enew[j]
+        for i in range(N):
+            pk[0, i] = y[i]
+            pk[1, i] = k[0, i]
+            pk[2, i] = ynew[i]
+            pk[3, i] = k[6, i]
+        pst[0] = t
+        pst[1] = t_new
+        pst[2] = min(pst[2] + 1.0, 2.0)
         # dense output on (t, t_new] with the modes of the step
         while iout < out_t.shape[0] and out_t[iout] <= t_new:
             ts = out_t[iout]
@@ -239,10 +346,15 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
             out_y[iout] = yo
             out_a[iout] = fo[n:]
             out_c[iout] = csamp
+            for c in range(nc):
+                peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
+            peaks[nc] = max(peaks[nc], _sensor_acc(yo, fo, sensor))
             iout += 1
+        pst[3] = 0.0
         if _update_modes(cout_old, cnew, inc, v0i):
             _deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cnew, W)
             stats[S_NFEV] += 1
+            pst[3] = 1.0
         if record:
             for c in range(nc):
                 r = rec[irec, c]
@@ -269,6 +381,13 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
             err_old = max(e, 1e-4)
             h = min(hmax, hh * min(factor_max, max(0.2, f)))
             factor_max = 5.0
+        if nsteps >= max_steps and t < t_end:  # back to Python now and then (Ctrl-C); call again to go on
+            stats[S_T] = t
+            stats[S_H] = h
+            stats[S_OUT] = iout
+            stats[S_REC] = irec
+            stats[S_ERR_OLD] = err_old
+            return PAUSED
     stats[S_T] = t
     stats[S_H] = h
     stats[S_OUT] = iout

@@ -26,7 +26,10 @@ __all__ = ["DEFAULT_OUTPUT_RATE", "DRIFT_TOLERANCE", "SimulationError", "Simulat
 DEFAULT_OUTPUT_RATE = 20_000.0  # samples/s of the table (20 points per ms)
 DRIFT_TOLERANCE = 1e-4  # m (or rad): largest position-constraint violation before we stop
 _PROJECTION_TOL = 1e-11  # m
+_STILL_STEP_CAP = 1e-3  # s, largest adaptive step when the motor does not turn
 _BLOW_UP = 0.05  # penetration above this fraction of the journal radius is a blow-up
+_MAX_STEPS = 50_000_000  # accepted steps before a run gives up
+_STEPS_PER_CALL = 2_000  # accepted steps per call of the compiled loop (~0.1 s, worn surfaces ~1 s)
 CONTACT_COLUMNS = ("t", "dt", "fn", "vt", "omega_rel", "phi_bearing", "phi_journal", "pen")
 
 
@@ -190,7 +193,7 @@ def _profile(speed_profile, t_end: float) -> np.ndarray:
     """Rows (time, motor angle, speed) of a speed profile, the angle integrated exactly (trapezoid)."""
     if callable(speed_profile):
         count = max(2, math.ceil(t_end / 1e-4) + 2)  # one sample past t_end: no end effect
-        times = np.arange(count) * (t_end / (count - 2))
+        times = np.arange(count) * 1e-4  # a fixed grid: the same profile samples for any t_end
         speeds = np.asarray(speed_profile(times), dtype=float) * np.ones_like(times)
     else:
         times, speeds = (np.asarray(x, dtype=float) for x in speed_profile)
@@ -200,6 +203,15 @@ def _profile(speed_profile, t_end: float) -> np.ndarray:
         raise ValueError("speed_profile: times must increase strictly and speeds be finite")
     angles = np.concatenate([[0.0], np.cumsum(0.5 * (speeds[1:] + speeds[:-1]) * np.diff(times))])
     return np.column_stack([times, angles, speeds])
+
+
+def _step_cap(scene: Scene, speed: float, profiled: bool) -> float:
+    """Largest step of an adaptive method (s): 1/100 of a motor revolution at the run's speed (with a
+    speed profile: the faster of its initial speed and the bench's), 1 ms for a still motor. It
+    depends on the scene and speed only, never on the duration asked for, so a run's first
+    revolution is the same however long the run."""
+    top = max(abs(speed), abs(scene.bench.speed)) if profiled else abs(speed)
+    return 2 * math.pi / top / 100.0 if top > 0 else _STILL_STEP_CAP
 
 
 def _tolerances(scene: Scene, atol: float) -> np.ndarray:
@@ -295,21 +307,31 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         if cout[c, K.CO_PEN] > 0:
             inc[c] = 1
             v0i[c] = impact_speed(cout[c, K.CO_VN])
-    period = 2 * math.pi / abs(speed) if speed else t_end
     h = meth.step if meth.step is not None else 1e-6
-    hmax = (min(t_end, period) / 100.0) if meth.adaptive else h
+    hmax = _step_cap(scene, speed, speed_profile is not None) if meth.adaptive else h
     blow = np.array([_BLOW_UP * scene.clearance_params(j)["journal_radius"] for j in scene.clearance_joints])
     cap = 4096 if record_contacts else 1
     rec = np.zeros((cap, nc, I.NREC))
+    sensor = np.array([-1.0, 0.0, 0.0, 0.0])
+    if scene.sensor is not None:
+        b, (sx, sy), axis = scene.sensor
+        sensor[:] = (b, sx, sy, axis)
+    peaks = np.zeros(nc + 1)
+    pk, pe, ps = np.zeros((4, 2 * n)), np.zeros((2, nc + 1)), np.zeros(4)
     while True:
         status = I.run_loop(meth.kind, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
                             meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_,
-                            1e-13, hmax, 50_000_000, times, out_y, out_a, out_c, out_lam, rec, record_contacts,
-                            blow, k, cout, stats, W)
+                            1e-13, hmax, _STEPS_PER_CALL, times, out_y, out_a, out_c, out_lam, rec, record_contacts,
+                            blow, k, cout, stats, W, sensor, peaks, pk, pe, ps)
         if status == I.FULL:
             rec = np.concatenate([rec, np.zeros_like(rec)])
             h = float(stats[I.S_H])
             continue
+        if status == I.PAUSED:  # Python runs between calls: Ctrl-C acts within a call's time
+            h = float(stats[I.S_H])
+            if stats[I.S_STEPS] < _MAX_STEPS:
+                continue
+            status = I.TOO_MANY_STEPS
         if status != I.DONE:
             raise _fail(scene, status, stats, y, cout, speed, meth.name, drift_tolerance)
         break
@@ -319,8 +341,13 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         contacts = {j: pd.DataFrame(used[:, c, :], columns=list(CONTACT_COLUMNS))
                     for c, j in enumerate(scene.clearance_joints)}
     table = _table(scene, times, out_y, out_a, out_c, out_lam)
-    return SimulationResult(table, _summary(scene, meth.name, stats, table, wall0, speed), contacts, scene,
-                            (y[:n].copy(), y[n:].copy()))
+    summary = _summary(scene, meth.name, stats, table, wall0, speed)
+    # peaks from the dense output (the table's samples miss the tops of impacts by ~1 %)
+    summary["peak_fn"] = {j: float(peaks[c]) for c, j in enumerate(scene.clearance_joints)}
+    if scene.sensor is not None and math.isfinite(summary["peak_slider_acc"]):
+        summary["peak_slider_acc"] = float(peaks[nc])
+    summary["peak_searches"] = int(stats[I.S_PEAK_SEARCHES])
+    return SimulationResult(table, summary, contacts, scene, (y[:n].copy(), y[n:].copy()))
 
 
 def _summary(scene: Scene, method: str, stats: np.ndarray, table: pd.DataFrame, wall0: float,

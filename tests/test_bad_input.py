@@ -99,3 +99,26 @@ def test_bench_show_headers_keep_their_units(capsys):
     out = capsys.readouterr().out
     for header in ("mass [kg]", "inertia [kg m^2]", "clearance [mm]"):
         assert header in out
+
+
+@pytest.mark.parametrize("argv, value", [
+    (["simulate", "ninebar"], "fast"), (["simulate", "ninebar"], "1e400"),
+    (["wear", "ninebar", "--out", "w"], "0"), (["wear", "ninebar", "--out", "w"], "nan"),
+    (["ensemble", "ninebar-testbed", "--out", "e.npz"], "0"),
+    (["ensemble", "ninebar-testbed", "--out", "e.npz"], "1e6rpm"),  # beyond the motor's max_speed
+    ([*RECORD, "s.mcap", "--cycles", "1"], "1e6rpm"), ([*RECORD, "s.mcap", "--cycles", "1"], "0"),
+])
+def test_every_speed_goes_through_one_check(argv, value, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, "--speed", value]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--speed {value!r}" in err and "expected" in err, err
+    assert "motor speed" in err or "max_speed" in err, err
+    assert list(tmp_path.iterdir()) == []  # refused before any work
+
+
+def test_a_swept_speed_goes_through_the_same_check(tmp_path, capsys):
+    assert main(["sweep", "ninebar", "--vary", "speed=-1..1:3", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--vary speed '0 rad/s'" in err and "other than 0" in err, err
+    assert not (tmp_path / "s").exists()

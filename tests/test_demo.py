@@ -88,7 +88,7 @@ def test_every_figure_exists_and_is_in_the_report(demo):
     out, _ = demo
     report = out / "report"
     html = (report / "report.html").read_text()
-    expected = ["posteriors.png", "scores_table.png", "sessions_measured.png", "sessions_comparison.png"]
+    expected = ["posteriors.png", "sessions_measured.png", "sessions_comparison.png"]
     for case in CASES:
         slug = case.replace(" ", "_")
         expected += [f"band_{slug}.png", f"overlay_{slug}.png", f"angle_{slug}.png", f"spectrum_{slug}.png"]

@@ -191,8 +191,7 @@ def load_ensembles(path: str | Path, *, key: str | None = None) -> dict[str, Ens
         for i, name in enumerate(data["states"]):
             meta = json.loads(str(data[f"meta_{i}"]))
             st = meta["settings"]
-            settings = EnsembleSettings(**{**st, "features": FeatureSpec(**{**st["features"],
-                                                                            "band": tuple(st["features"]["band"])})})
+            settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
             out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"], data[f"curves_{i}"].astype(float),
                                       data[f"peaks_{i}"], float(meta["speed"]), tuple(meta["failures"]))
     return out

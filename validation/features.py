@@ -3,15 +3,20 @@
 Impacts in clearance joints are chaotic: two realisations of one state part within tens of
 milliseconds, so one trajectory is never compared sample by sample with another. What a state
 fixes is the statistics of each crank cycle at each crank angle. A cycle becomes a vector of
-two blocks over ``bins`` equal crank-angle bins (absolute crank angle of the encoder joint, so
-test and theory share the bins):
+blocks over ``bins`` equal crank-angle bins (absolute crank angle of the encoder joint, so test
+and theory share the bins):
 
 - ``curve``: the mean, in each bin, of the acceleration low-passed at ``lowpass`` Hz (zero-phase
   Butterworth): the kinematics and the slow dynamics, m/s^2.
-- ``energy``: log10 of the mean square, in each bin, of the acceleration band-passed to
-  ``band`` (Hz): how hard the joints impact there. Bands above about 1 kHz are left out on
-  purpose: a real accelerometer's mounting resonance changes them and the model knows nothing of
-  it. ``floor`` (m^2/s^4) keeps the logarithm finite in quiet bins.
+- ``energy``: one block per band of ``bands`` (Hz): log10 of the mean square, in each bin, of the
+  acceleration band-passed to that band: how hard the joints impact there, and with which
+  spectrum (worn, more conformal surfaces make longer, lower-pitched impacts). Bands above about
+  1 kHz are left out on purpose: a real accelerometer's mounting resonance changes them and the
+  model knows nothing of it. ``floor`` (m^2/s^4) keeps the logarithm finite in quiet bins.
+
+The defaults were chosen by measurement (``benchmarks/identify.py`` and the README's
+identification section): 20 degree bins and three impact bands separate the test bed's new and
+first-wear states where 10 degree bins of one 100-1000 Hz band did not.
 
 Pure numpy/scipy; imports only ``wearbench.validation.filters``.
 """
@@ -33,22 +38,38 @@ TWO_PI = 2.0 * np.pi
 class FeatureSpec:
     """What a cycle's feature vector holds (see the module docstring)."""
 
-    bins: int = 36                            # crank-angle bins per revolution (10 deg)
+    bins: int = 18                            # crank-angle bins per revolution (20 deg)
     lowpass: float = 50.0                     # Hz
-    band: tuple[float, float] = (100.0, 1000.0)  # Hz
+    bands: tuple[tuple[float, float], ...] = ((50.0, 150.0), (150.0, 400.0), (400.0, 1000.0))  # Hz
     floor: float = 1.0                        # m^2/s^4 added before the logarithm
+
+    def __post_init__(self) -> None:
+        bands = tuple((float(lo), float(hi)) for lo, hi in self.bands)
+        if self.bins < 1 or not bands or any(not 0 < lo < hi for lo, hi in bands):
+            raise ValueError(f"features: bins = {self.bins}, bands = {self.bands}: expected at least one bin "
+                             "and one band (lo, hi) Hz with 0 < lo < hi")
+        object.__setattr__(self, "bands", bands)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> FeatureSpec:
+        """The inverse of :meth:`as_dict` (lists from JSON back to tuples); a file of an earlier
+        version holds one ``band``."""
+        data = dict(data)
+        bands = data.pop("bands", None) or [data.pop("band")]
+        return cls(**{**data, "bands": tuple(tuple(b) for b in bands)})
 
     def as_dict(self) -> dict:
         return asdict(self)
 
     @property
     def size(self) -> int:
-        return 2 * self.bins
+        return (1 + len(self.bands)) * self.bins
 
 
 @dataclass(frozen=True)
 class CycleFeatures:
-    """Features of the complete cycles of one record: ``values`` (cycles, 2 bins) = [curve | energy]."""
+    """Features of the complete cycles of one record: ``values`` (cycles, size) = [curve | energy of
+    each band]."""
 
     spec: FeatureSpec
     values: np.ndarray
@@ -64,7 +85,8 @@ class CycleFeatures:
 
     @property
     def energy(self) -> np.ndarray:
-        return self.values[:, self.spec.bins:]
+        """(cycles, bands, bins) log10 band energies."""
+        return self.values[:, self.spec.bins:].reshape(self.cycles, len(self.spec.bands), self.spec.bins)
 
 
 def _band(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
@@ -110,7 +132,6 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
     # over whole cycles the slider acceleration averages to zero: what remains is sensor bias
     centred = acc - acc[keep].mean()
     curve = apply_filter(centred, fs, FilterSpec(kind="butter", cutoff=spec.lowpass, order=4, remove_bias=False))
-    power = _band(centred, fs, spec.band) ** 2
     k = cycle[keep] - first
     b = np.minimum((np.mod(u[keep], TWO_PI) * (spec.bins / TWO_PI)).astype(np.int64), spec.bins - 1)
     cells = k * spec.bins + b
@@ -119,10 +140,11 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
     if np.any(count == 0):
         raise ValueError(f"features: a {360 / spec.bins:g} deg crank-angle bin holds no sample at {fs:g} Hz; "
                          "the record is too coarse or the crank stood still")
-    mean_curve = np.bincount(cells, curve[keep], n_cells) / count
-    mean_power = np.bincount(cells, power[keep], n_cells) / count
-    values = np.hstack([mean_curve.reshape(-1, spec.bins),
-                        np.log10(mean_power.reshape(-1, spec.bins) + spec.floor)])
+    blocks = [(np.bincount(cells, curve[keep], n_cells) / count).reshape(-1, spec.bins)]
+    for band in spec.bands:
+        power = _band(centred, fs, band)[keep] ** 2
+        blocks.append(np.log10((np.bincount(cells, power, n_cells) / count).reshape(-1, spec.bins) + spec.floor))
+    values = np.hstack(blocks)
     clipped = np.zeros(last - first + 1, dtype=np.int64)
     if range_ is not None:
         hit = np.abs(acc[keep]) >= range_ * (1 - 1e-6)

@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy import optimize, special, stats
 from wearbench.validation.ensemble import Ensemble
-from wearbench.validation.features import CycleFeatures
+from wearbench.validation.features import CycleFeatures, FeatureSpec
 from wearbench.validation.statistics import StateStatistics
 
 __all__ = ["Identification", "IdentifyOptions", "StateModels", "fit_states", "identify_features"]
@@ -89,8 +89,9 @@ class Identification:
         return asdict(self)
 
 
-def _floor(spec_bins: int, options: IdentifyOptions) -> np.ndarray:
-    return np.concatenate([np.full(spec_bins, options.floor_curve ** 2), np.full(spec_bins, options.floor_energy ** 2)])
+def _floor(spec: FeatureSpec, options: IdentifyOptions) -> np.ndarray:
+    return np.concatenate([np.full(spec.bins, options.floor_curve ** 2),
+                           np.full(spec.size - spec.bins, options.floor_energy ** 2)])
 
 
 def _posterior(ll: np.ndarray, temperature: float) -> np.ndarray:
@@ -106,8 +107,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
     if len(ensembles) < 1:
         raise ValueError("identify: no candidate ensembles")
     names = tuple(ensembles)
-    bins = next(iter(ensembles.values())).settings.features.bins
-    floor = _floor(bins, options)[columns]
+    floor = _floor(next(iter(ensembles.values())).settings.features, options)[columns]
     features = {s: e.features[:, :, columns] for s, e in ensembles.items()}
     fitted = {s: StateStatistics.fit(f, floor) for s, f in features.items()}
     # held-out realisations: their distance to their own state (refit without them), and their
@@ -193,7 +193,7 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
                 break
     elif verdict != NONE:
         needed = n
-    bins = features.spec.bins
+    spec = features.spec
     inside, leaves = {}, {}
     for s in names:
         st = models.stats[s]
@@ -201,10 +201,12 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         d2 = np.einsum("ij,jk,ik->i", d, np.linalg.inv(st.covariance(1)), d)
         inside[s] = float(np.mean(d2 <= models.cycle_limit[s]))
         out = (x < models.lo[s]) | (x > models.hi[s])
-        often = np.zeros(features.spec.size, dtype=bool)
+        often = np.zeros(spec.size, dtype=bool)
         often[models.columns] = out.mean(axis=0) > 1 / 3
-        leaves[s] = ([f"curve {r}" for r in _ranges(often[:bins], bins)]
-                     + [f"impacts {r}" for r in _ranges(often[bins:], bins)])
+        blocks = often.reshape(-1, spec.bins)
+        leaves[s] = [f"curve {r}" for r in _ranges(blocks[0], spec.bins)] + [
+            f"impacts {lo:g}-{hi:g} Hz {r}" for (lo, hi), flags in zip(spec.bands, blocks[1:], strict=True)
+            for r in _ranges(flags, spec.bins)]
     notes = []
     clipped = int(features.clipped.sum())
     if clipped:

@@ -26,7 +26,8 @@ NOTES = (
     "chaotic, so a session is compared with the statistics of the ensemble's cycles, never with one "
     "simulated trajectory."),
     ("Posterior: Gaussian likelihood of the session's mean cycle features (low-passed 50 Hz curve and "
-    "100-1000 Hz impact energy in 10 deg crank-angle bins) under each state's hierarchical ensemble "
+    "impact energy in the 50-150, 150-400 and 400-1000 Hz bands, in 20 deg crank-angle bins) under each "
+    "state's hierarchical ensemble "
     "statistics, tempered by a factor calibrated on held-out realisations; uniform prior. A state is "
     "named only at p >= the threshold, else 'undecided'; 'none of the candidates' when no state passes "
     "the consistency test (p-value of the session's distance against held-out realisations)."),

@@ -181,21 +181,19 @@ def _side_by_side(comparisons: Sequence[SessionComparison], path: Path, *, with_
     return _save(fig, path)
 
 
-def _score_table(comparisons: Sequence[SessionComparison], path: Path) -> Path:
-    rows, labels = [], []
+def _score_table(comparisons: Sequence[SessionComparison]) -> str:
+    """Every score of every session (mean ± sd over its windows) as an HTML table."""
+    e = html.escape
     unique = len({c.label for c in comparisons}) == len(comparisons)
+    out = ["<table class='scores'><tr><th>session</th>" + "".join(f"<th>{e(n)}</th>" for _, n in TABLE_METRICS)
+           + "</tr>"]
     for c in comparisons:
         s = c.summary
-        rows.append([f"{s.loc[k, 'mean']:.3f} ± {s.loc[k, 'std']:.3f}" for k, _ in TABLE_METRICS])
-        labels.append(c.label if unique else f"{c.label} / {c.theory.label}")
-    fig, ax = _figure(figsize=(min(2 + 1.25 * len(TABLE_METRICS), 18), 0.5 + 0.4 * len(rows)))
-    ax.axis("off")
-    table = ax.table(cellText=rows, rowLabels=labels, colLabels=[name for _, name in TABLE_METRICS],
-                     loc="center", cellLoc="center")
-    table.auto_set_font_size(False)
-    table.set_fontsize(7)
-    table.scale(1, 1.3)
-    return _save(fig, path)
+        label = c.label if unique else f"{c.label} / {c.theory.label}"
+        out.append(f"<tr><td>{e(label)}</td>" + "".join(
+            f"<td>{s.loc[k, 'mean']:.3f} ± {s.loc[k, 'std']:.3f}</td>" for k, _ in TABLE_METRICS) + "</tr>")
+    out.append("</table>")
+    return "".join(out)
 
 
 def _ranking(rankings: Mapping[str, Sequence[TheoryRanking]], path: Path) -> Path:
@@ -282,10 +280,10 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
             out.append(f"<tr><td>{e(session)}</td><td>{e(ranks[0].label)}</td><td>{ranks[0].rating:.3f} ± "
                        f"{ranks[0].rating_std:.3f}</td><td>{others}</td></tr>")
         out.append("</table>")
-    for key, heading in (("ranking", "Every session against every theory"), ("sessions", "Sessions side by side"),
-                         ("table", "Scores (mean ± sd over windows)")):
+    for key, heading in (("ranking", "Every session against every theory"), ("sessions", "Sessions side by side")):
         if figures.get(key):
             out.append(f"<h2>{heading}</h2>" + "".join(_img(p) for p in figures[key]))
+    out.append("<h2>Scores (mean ± sd over windows)</h2>" + _score_table(comparisons))
     for i, c in enumerate(comparisons):
         out.append(f"<h2>{e(c.label)} against {e(c.theory.label)}</h2>")
         out.append("".join(_img(p) for p in figures.get(i, [])))
@@ -321,7 +319,7 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
         raise ValueError("report: no comparisons to write")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    figures: dict[int | str, list[Path]] = {}  # per comparison (index), "table", "sessions", "ranking"
+    figures: dict[int | str, list[Path]] = {}  # per comparison (index), "sessions", "ranking"
     used: set[str] = set()
     for i, c in enumerate(comparisons):
         slug = _slug(c.label)
@@ -330,7 +328,6 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
         used.add(slug)
         figures[i] = [_overlay(c, out / f"overlay_{slug}.png"), _by_angle(c, out / f"angle_{slug}.png"),
                       _spectrum(c, out / f"spectrum_{slug}.png")]
-    figures["table"] = [_score_table(comparisons, out / "scores_table.png")]
     if len(comparisons) > 1:
         figures["sessions"] = [_side_by_side(comparisons, out / "sessions_measured.png", with_theory=False),
                                _side_by_side(comparisons, out / "sessions_comparison.png", with_theory=True)]

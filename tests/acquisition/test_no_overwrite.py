@@ -59,6 +59,24 @@ def test_force_through_the_cli_replaces_with_a_finished_session(bench, tmp_path)
     assert read_session(out).metadata["result"]["completed"] == "True"
 
 
+def test_force_does_not_write_over_a_leftover_of_a_killed_forced_session(bench, tmp_path, capsys):
+    # a forced recorder killed mid-session leaves s.mcap.new: maybe the only copy of that recording
+    out, new = tmp_path / "s.mcap", tmp_path / "s.mcap.new"
+    out.write_bytes(OLD)
+    new.write_bytes(b"half a session from a killed forced run")
+    with pytest.raises(FileExistsError, match="left over") as info:
+        SessionWriter(out, replace=True)
+    assert str(new) in str(info.value)
+    assert main(_record_args(bench, out, tmp_path, "--force")) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(new) in err and "left over" in err and "recover" in err
+    assert out.read_bytes() == OLD and new.read_bytes() == b"half a session from a killed forced run"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["emulator.json", "s.mcap", "s.mcap.new"]  # no lock left
+    new.unlink()  # moved away: the forced session goes ahead
+    assert main(_record_args(bench, out, tmp_path, "--force")) == 0
+    assert read_session(out).finished
+
+
 def test_two_writers_on_one_path(tmp_path):
     out = tmp_path / "s.mcap"
     first = SessionWriter(out)

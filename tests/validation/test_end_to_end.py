@@ -73,7 +73,7 @@ def test_compare_cli(recorded, tmp_path, capsys):
                  "--theory", str(run), "--filter", "cfc600", "--windows", "random:1:3"])
     assert code == 0
     for name in ("report.html", "scores.json", "sessions_measured.png", "sessions_comparison.png",
-                 "overlay_ideal.png", "spectrum_0.3mm.png", "scores_table.png"):
+                 "overlay_ideal.png", "spectrum_0.3mm.png"):
         assert (out / name).is_file(), name
     scores = json.loads((out / "scores.json").read_text())
     assert [s["label"] for s in scores["sessions"]] == ["ideal", "0.3mm"]

@@ -2,6 +2,7 @@
 cycles from the encoder, crank-angle alignment, residual delay, windows, ranking, report files."""
 
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -132,8 +133,8 @@ def test_report_files(tmp_path):
                           options=CompareOptions(windows=parse_windows("random:1")))
     rep = write_report([a, b], tmp_path / "report", rankings={"0.6 mm": ranks})
     names = {p.name for p in rep.figures}
-    assert {"sessions_measured.png", "sessions_comparison.png", "scores_table.png",
-            "overlay_0.3_mm.png", "spectrum_0.6_mm.png"} <= names
+    assert {"sessions_measured.png", "sessions_comparison.png", "overlay_0.3_mm.png", "spectrum_0.6_mm.png"} <= names
+    assert "scores_table.png" not in names  # the scores are an HTML table (was an image with 7 px text)
     assert all(p.stat().st_size > 5000 for p in rep.figures)
     html = rep.html.read_text()
     assert html.count("data:image/png;base64,") == len(rep.figures) and "src=\"report" not in html
@@ -144,6 +145,15 @@ def test_report_files(tmp_path):
     assert np.isfinite(s0["windows"][0]["shift_s"]) and s0["peak_acc_measured"] > 0
     assert scores["rankings"]["0.6 mm"][0]["label"] == "double"
     assert "best theory" in html
+    table = re.search(r"<table class='scores'>(.*?)</table>", html).group(1)
+    rows = re.findall(r"<tr>(.*?)</tr>", table)
+    assert len(rows) == 3 and rows[0].count("<th>") == 13
+    for row, entry in zip(rows[1:], scores["sessions"]):
+        cells = re.findall(r"<td>(.*?)</td>", row)
+        assert cells[0] == entry["label"].replace("&", "&amp;")
+        mean, sd = (float(x) for x in cells[1].split(" ± "))  # ISO R, as scores.json has it
+        assert mean == pytest.approx(entry["summary"]["iso_rating"]["mean"], abs=5e-4)
+        assert sd == pytest.approx(entry["summary"]["iso_rating"]["std"], abs=5e-4)
 
 
 def test_windows_with_dropped_samples_are_skipped_not_scored():

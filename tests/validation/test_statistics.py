@@ -31,10 +31,19 @@ def test_curve_bins_are_bin_means_of_the_low_passed_signal():
 
 def test_energy_bins_see_the_band_and_only_where_it_is():
     t, theta, acc = record(tone=True)
-    f = cycle_features(t, theta, acc, FeatureSpec(bins=36, floor=1e-6))
-    power = 10 ** f.energy
+    f = cycle_features(t, theta, acc, FeatureSpec(bins=36, floor=1e-6, bands=((100, 1000),)))
+    power = 10 ** f.energy[:, 0]
     np.testing.assert_allclose(power[:, 9], 12.5, rtol=0.15)  # 5^2 / 2 in the 90-100 deg bin
     assert np.all(np.delete(power, [8, 9, 10], axis=1) < 0.05)  # kinematics (1 Hz) is outside 100-1000 Hz
+
+
+def test_each_band_sees_only_its_own_tone():
+    t, theta, acc = record(tone=True)  # the tone: 300 Hz
+    spec = FeatureSpec(bins=36, floor=1e-6, bands=((50, 150), (150, 400), (400, 1000)))
+    power = 10 ** cycle_features(t, theta, acc, spec).energy
+    assert power.shape == (5, 3, 36) and spec.size == 4 * 36
+    np.testing.assert_allclose(power[:, 1, 9], 12.5, rtol=0.15)
+    assert np.all(power[:, [0, 2], 9] < 0.05 * 12.5)  # 300 Hz is outside 50-150 and 400-1000 Hz
 
 
 def test_reverse_rotation_and_clipping():
@@ -47,7 +56,7 @@ def test_reverse_rotation_and_clipping():
 def test_too_coarse_a_record_is_refused():
     t = np.arange(0, 5, 0.05)
     with pytest.raises(ValueError, match="bin holds no sample"):
-        cycle_features(t, 2 * np.pi * t, np.cos(2 * np.pi * t), FeatureSpec(bins=36, lowpass=5, band=(6, 9)))
+        cycle_features(t, 2 * np.pi * t, np.cos(2 * np.pi * t), FeatureSpec(bins=36, lowpass=5, bands=((6, 9),)))
 
 
 def test_shrinkage_beats_the_sample_covariance_when_features_outnumber_samples():
@@ -86,6 +95,8 @@ def test_hierarchical_fit_recovers_between_and_within_covariances():
 
 
 def test_feature_container_blocks():
-    spec = FeatureSpec(bins=4)
-    f = CycleFeatures(spec, np.arange(16.0).reshape(2, 8), np.zeros(2, dtype=int))
-    assert f.curve.shape == f.energy.shape == (2, 4) and f.energy[0, 0] == 4.0
+    spec = FeatureSpec(bins=4, bands=((1, 2), (2, 3)))
+    f = CycleFeatures(spec, np.arange(24.0).reshape(2, 12), np.zeros(2, dtype=int))
+    assert f.curve.shape == (2, 4) and f.energy.shape == (2, 2, 4) and f.energy[0, 1, 0] == 8.0
+    with pytest.raises(ValueError, match="bands"):
+        FeatureSpec(bands=((400, 100),))

@@ -1,0 +1,65 @@
+"""Ctrl-C: every command ends within about a second, with one line on stderr and exit code 130.
+
+Real processes get a real SIGINT (recording commands are covered in tests/acquisition/test_failures.py:
+their file is finished)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from wearbench.cli.progress import COMPILING
+
+STOP_WITHIN = 3.0  # s: generous bound for a loaded machine; the watchdog ends a command after 0.5 s
+
+
+def _interrupt(args: list[str], after: float, env: dict | None = None) -> tuple[int, str, float]:
+    """Start ``wearbench ARGS``, send SIGINT ``after`` seconds, return (exit code, stderr, seconds to stop)."""
+    proc = subprocess.Popen([sys.executable, "-m", "wearbench.cli", *args], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    time.sleep(after)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise AssertionError("still running 60 s after Ctrl-C") from None
+    return proc.returncode, err, time.monotonic() - sent
+
+
+def _assert_one_line(code: int, err: str, took: float, command: str) -> None:
+    assert code == 130, err
+    assert "Traceback" not in err and "Error" not in err, err
+    lines = [x for x in err.splitlines() if not x.startswith("compiling")]  # a cold numba cache says so first
+    assert lines == [f"wearbench {command}: interrupted"], err
+    assert took < STOP_WITHIN, took
+
+
+def test_simulate_stops_at_once():
+    # 2000 revolutions take minutes; the compiled loop used to hold Ctrl-C until it was done
+    code, err, took = _interrupt(["simulate", "ninebar-testbed", "--clearance", "A=0.6mm,B=0.6mm",
+                                  "--revolutions", "2000"], after=6.0)
+    _assert_one_line(code, err, took, "simulate")
+
+
+def test_compare_stops_at_once_wherever_it_is(tmp_path):
+    # a Ctrl-C landing in a numba dispatcher used to print a 38-line SystemError traceback
+    session = Path(__file__).parent / "acquisition" / "data" / "session_layout1.mcap"  # 2 cycles
+    for after in (2.0, 4.0):
+        code, err, took = _interrupt(["compare", str(session), "--cycles", "1", "--out", str(tmp_path / f"r{after}")],
+                                     after)
+        if code == 0:  # finished before the signal: nothing to check
+            continue
+        _assert_one_line(code, err, took, "compare")
+
+
+def test_a_cold_start_says_it_compiles_and_stops_while_compiling(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # nothing compiled yet
+    code, err, took = _interrupt(["simulate", "slider-crank"], after=4.0, env=env)
+    assert err.splitlines()[0] == COMPILING
+    _assert_one_line(code, err, took, "simulate")
