@@ -105,8 +105,7 @@ def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys):
 
 
 def test_commands_on_a_bench_use_its_compute_scheduler_unless_told_otherwise(tmp_path, monkeypatch, capsys):
-    import wearbench.model.sweep as sweep
-    import wearbench.model.wear_stages as wear_stages
+    from wearbench.model import sweep, wear_stages
 
     bench = tmp_path / "bench.toml"
     bench.write_text(shipped_bench("slider-crank").read_text() + '\n[compute]\nscheduler = "tcp://127.0.0.1:8791"\n')
