@@ -335,7 +335,7 @@ def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
         return best, f, hb, hj, db, dj
     lo, hi = best - cell, best + cell
     psi = best
-    for _ in range(8):  # safeguarded Newton on f' = 0
+    for _ in range(24):  # safeguarded Newton on f' = 0 (bisects across a curvature jump)
         f, d1, d2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[:3]
         if d1 > 0.0:
             lo = psi
@@ -354,6 +354,137 @@ def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
     return psi, f, hb, hj, db, dj
 
 
+SECOND_ZONE_RATIO = 0.5  # a second zone counts once its overlap exceeds this fraction of the first's
+
+
+@njit(cache=True)
+def second_zone(sb, nb, sj, nj, emag, alpha, thi, thj, clear, psi1, f1):
+    """The second contact zone of a worn joint: the highest local maximum of the overlap f (see
+    :func:`_overlap`) other than the top one (psi1, f1), and the lowest overlap between the two.
+
+    Walks outward from psi1 over bearing-interval midpoints on both sides, through valleys and
+    over peaks, while |e| cos can still reach the floor clear + SECOND_ZONE_RATIO (f1 - clear),
+    skipping blocks of 8 intervals whose upper bound (|e| max cos - min node depths) cannot reach
+    the clearance; the highest peak above the floor is polished by safeguarded Newton (it may
+    equal f1: two zones of equal overlap). Returns (psi2, f2, s) with
+    f2 = -inf when there is no second zone above the floor; s is the lowest sampled overlap on the
+    way from psi1 to psi2 (the saddle, from the interval midpoints; continuous in the state, as a
+    minimum of continuous samples, and never below the true saddle).
+    """
+    floor = clear + SECOND_ZONE_RATIO * (f1 - clear)
+    if emag <= floor:
+        return psi1, -math.inf, -math.inf
+    cell = 2.0 * math.pi / nb
+    rj = nj / (2.0 * math.pi)
+    i1 = math.floor((psi1 - thi) / cell - 0.5)  # bearing interval holding psi1
+    best_psi, best_f, best_s = psi1, -math.inf, -math.inf
+    for sign in (-1, 1):
+        valley = f1
+        prev, prev_psi = f1, psi1
+        rising = False
+        i = i1 + sign
+        while abs(i - i1) <= nb // 2:
+            mid = (i + 1.0) * cell + thi
+            dm = abs((mid - alpha + math.pi) % (2.0 * math.pi) - math.pi)
+            if dm >= 0.5 * math.pi or emag * math.cos(max(0.0, dm - 8.0 * cell)) <= floor:
+                break
+            # block bound: can any of the next 8 intervals overlap at all? (if not, the saddle
+            # between zones on either side is below the clearance, which is all that matters)
+            j0 = i if sign > 0 else i - 7
+            lo_g = (j0 + 0.5) * cell + thi
+            if emag * math.cos(max(0.0, dm - 8.0 * cell)) - _node_min(sb, nb, j0, j0 + 8) - _node_min(
+                    sj, nj, (lo_g - thj) * rj - 0.5, (lo_g + 8 * cell - thj) * rj - 0.5) <= clear:
+                if rising and prev > best_f:  # the peak was the last sample before the gap
+                    best_psi, best_f, best_s = prev_psi, prev, valley
+                valley = min(valley, clear)
+                prev, prev_psi = -math.inf, mid
+                rising = False
+                i += 8 * sign
+                continue
+            f = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, mid)[0]
+            if f < prev:
+                if rising and prev > best_f:  # passed a peak at the previous sample
+                    best_psi, best_f, best_s = prev_psi, prev, valley
+                rising = False
+                valley = min(valley, f)
+            elif f > prev:
+                rising = True
+            prev, prev_psi = f, mid
+            i += sign
+        if rising and prev > best_f:
+            best_psi, best_f, best_s = prev_psi, prev, valley
+    if best_f <= floor:
+        return psi1, -math.inf, -math.inf
+    lo, hi = best_psi - cell, best_psi + cell
+    psi = best_psi
+    for _ in range(24):  # safeguarded Newton on f' = 0 (bisects across a curvature jump)
+        f, d1, d2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[:3]
+        if d1 > 0.0:
+            lo = psi
+        else:
+            hi = psi
+        nxt = psi - d1 / d2 if d2 < 0.0 else 0.5 * (lo + hi)
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - psi) < 1e-13:
+            break
+        psi = nxt
+    f = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[0]
+    if f < best_f:
+        psi, f = best_psi, best_f
+    if abs((psi - psi1 + math.pi) % (2.0 * math.pi) - math.pi) < cell:
+        return psi1, -math.inf, -math.inf  # climbed back into the top zone
+    return psi, f, min(best_s, f)
+
+
+@njit(cache=True)
+def zone_penetrations(f1, f2, sad, clear):
+    """Penetrations (m) of two contact zones with peak overlaps f1 >= f2 > clear and saddle
+    overlap ``sad`` between them, and the weight r in [0, 1] of the second zone's force.
+
+    The levels between the clearance c and S = max(sad, c), shared by both zones, are split in
+    proportion to their heights above S: pen_i = (f_i - S) + w_i (S - c), w_i = (f_i - S) /
+    (f1 + f2 - 2 S), symmetric when the zones trade places, pen2 -> 0 when the second peak merges
+    into the first (f2 -> sad). The second zone fades in (smoothstep r) as (f2 - c) / (f1 - c)
+    rises from SECOND_ZONE_RATIO to 1, and the first zone's penetration blends back to f1 - c as
+    r -> 0: every quantity is continuous in (f1, f2, sad)."""
+    x = ((f2 - clear) / (f1 - clear) - SECOND_ZONE_RATIO) / (1.0 - SECOND_ZONE_RATIO)
+    x = min(1.0, max(0.0, x))
+    r = x * x * (3.0 - 2.0 * x)
+    top = max(sad, clear)
+    a1, a2 = f1 - top, f2 - top
+    w2 = a2 / (a1 + a2) if a1 + a2 > 0.0 else 0.5
+    return f1 - clear - r * w2 * (top - clear), a2 + w2 * (top - clear), r
+
+
+@njit(cache=True)
+def _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi, pen, hb, hj, slope_b, slope_j,
+                inck, v0k, scale, g):
+    """Apply the normal and friction force of one contact zone (direction psi, penetration pen,
+    force scaled by ``scale`` in [0, 1]); returns (fn, ft, vn, vt)."""
+    nx, ny = math.cos(psi), math.sin(psi)
+    tx, ty = -ny, nx
+    qix, qiy = pix + (p[CLR_R1] + hb) * nx, piy + (p[CLR_R1] + hb) * ny
+    qjx, qjy = pjx + (p[CLR_R2] - hj) * nx, pjy + (p[CLR_R2] - hj) * ny
+    vix, viy = _vel(q, v, bi, qix, qiy)
+    vjx, vjy = _vel(q, v, bj, qjx, qjy)
+    cix, ciy = _vel(q, v, bi, pix, piy)
+    cjx, cjy = _vel(q, v, bj, pjx, pjy)
+    vn = nx * (cjx - cix) + ny * (cjy - ciy) + slope_b * wi + slope_j * wj
+    vt = (vjx - vix) * tx + (vjy - viy) * ty
+    fn = 0.0
+    ft = 0.0
+    if pen > 0.0 and scale > 0.0:
+        v0 = v0k if inck != 0 else impact_speed(vn)
+        fn = scale * normal_force(pen, vn, p[CLR_K], p[CLR_N], p[CLR_CE], v0, int(p[CLR_LAW]))
+        ft = friction_force(fn, vt, p[CLR_CF], p[CLR_FV0], p[CLR_FVM])
+        fx = -fn * nx + ft * tx
+        fy = -fn * ny + ft * ty
+        _apply(g, bj, fx, fy, qjx, qjy, q)
+        _apply(g, bi, -fx, -fy, qix, qiy, q)
+    return fn, ft, vn, vt
+
+
 @njit(cache=True)
 def clearance_forces(q, v, P, inc, v0i, g, cout):
     """Add the clearance contact forces to g; fill cout (nc, NCO).
@@ -362,6 +493,16 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
     d and the normal at the direction where the surfaces overlap most (:func:`worn_contact`); the
     flag ``CLR_WORN`` keeps new surfaces on the even-clearance code path (bit-identical results).
+    A worn joint may touch in two separate zones (a journal bridging a hollow on its two rims):
+    a second local maximum of the overlap (:func:`second_zone`) whose overlap f2 - c exceeds half
+    the first's carries load too, each zone with its own normal and the joint's contact law. So
+    the force stays continuous when two zones of nearly equal overlap trade places: the levels
+    between the clearance c and the saddle s shared by both zones are split between them in
+    proportion to their own heights above the saddle, pen_i = (f_i - S) + w_i (S - c),
+    S = max(s, c), w_i = (f_i - S) / (f_1 + f_2 - 2 S); the second zone fades in smoothly
+    (smoothstep) between overlap ratios 0.5 and 1 and the first zone's share blends with it.
+    The record (cout) keeps the top zone's direction, penetration and speeds, and the summed
+    normal and friction force magnitudes.
     ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while
     the flag is off the current normal speed stands in for the impact speed (contact onset).
     """
@@ -382,11 +523,6 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
             ux, uy = math.cos(thi), math.sin(thi)
         alpha = math.atan2(uy, ux)
         clear = p[CLR_R1] - p[CLR_R2]
-        hb = 0.0
-        hj = 0.0
-        nx, ny = ux, uy
-        slope_b = 0.0
-        slope_j = 0.0
         psi = alpha
         pen = emag - clear
         if p[CLR_WORN] > 0.0 and emag > 0.0:
@@ -394,33 +530,46 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
                 surf[k, 0], surf_n[k, 0], surf[k, 1], surf_n[k, 1], emag, alpha, thi, thj, clear,
                 cout[k, CO_ALPHA])
             pen = overlap - clear
-            nx, ny = math.cos(psi), math.sin(psi)
-        tx, ty = -ny, nx
-        # contact points on each body and their material velocities
-        qix, qiy = pix + (p[CLR_R1] + hb) * nx, piy + (p[CLR_R1] + hb) * ny
-        qjx, qjy = pjx + (p[CLR_R2] - hj) * nx, pjy + (p[CLR_R2] - hj) * ny
-        vix, viy = _vel(q, v, bi, qix, qiy)
-        vjx, vjy = _vel(q, v, bj, qjx, qjy)
-        # centre velocities give the rate of the penetration (rolling terms are tangential)
-        cix, ciy = _vel(q, v, bi, pix, piy)
-        cjx, cjy = _vel(q, v, bj, pjx, pjy)
-        dex, dey = cjx - cix, cjy - ciy
-        if p[CLR_WORN] > 0.0:
-            # envelope theorem: d pen/dt = e' . n + h_b'(psi*) w_b + h_j'(psi*) w_j at fixed psi*
-            vn = nx * dex + ny * dey + slope_b * wi + slope_j * wj
+            pen1 = pen
+            fn2 = 0.0
+            ft2 = 0.0
+            if pen > 0.0:
+                psi2, f2, sad = second_zone(surf[k, 0], surf_n[k, 0], surf[k, 1], surf_n[k, 1], emag,
+                                            alpha, thi, thj, clear, psi, overlap)
+                if f2 > -math.inf:
+                    pen1, pen2, r = zone_penetrations(overlap, f2, sad, clear)
+                    _, _, _, hb2, hj2, sb2, sj2 = _overlap(surf[k, 0], surf_n[k, 0], surf[k, 1],
+                                                           surf_n[k, 1], emag, alpha, thi, thj, psi2)
+                    fn2, ft2, _, _ = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi2,
+                                                 pen2, hb2, hj2, sb2, sj2, inc[k], v0i[k], r, g)
+            fn, ft, vn, vt = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi, pen1, hb,
+                                         hj, slope_b, slope_j, inc[k], v0i[k], 1.0, g)
+            fn += fn2
+            ft += ft2
         else:
+            nx, ny = ux, uy
+            tx, ty = -ny, nx
+            # contact points on each body and their material velocities
+            qix, qiy = pix + p[CLR_R1] * nx, piy + p[CLR_R1] * ny
+            qjx, qjy = pjx + p[CLR_R2] * nx, pjy + p[CLR_R2] * ny
+            vix, viy = _vel(q, v, bi, qix, qiy)
+            vjx, vjy = _vel(q, v, bj, qjx, qjy)
+            # centre velocities give the rate of the penetration (rolling terms are tangential)
+            cix, ciy = _vel(q, v, bi, pix, piy)
+            cjx, cjy = _vel(q, v, bj, pjx, pjy)
+            dex, dey = cjx - cix, cjy - ciy
             vn = ux * dex + uy * dey
-        vt = (vjx - vix) * tx + (vjy - viy) * ty
-        fn = 0.0
-        ft = 0.0
-        if pen > 0.0:
-            v0 = v0i[k] if inc[k] != 0 else impact_speed(vn)
-            fn = normal_force(pen, vn, p[CLR_K], p[CLR_N], p[CLR_CE], v0, int(p[CLR_LAW]))
-            ft = friction_force(fn, vt, p[CLR_CF], p[CLR_FV0], p[CLR_FVM])
-            fx = -fn * nx + ft * tx
-            fy = -fn * ny + ft * ty
-            _apply(g, bj, fx, fy, qjx, qjy, q)
-            _apply(g, bi, -fx, -fy, qix, qiy, q)
+            vt = (vjx - vix) * tx + (vjy - viy) * ty
+            fn = 0.0
+            ft = 0.0
+            if pen > 0.0:
+                v0 = v0i[k] if inc[k] != 0 else impact_speed(vn)
+                fn = normal_force(pen, vn, p[CLR_K], p[CLR_N], p[CLR_CE], v0, int(p[CLR_LAW]))
+                ft = friction_force(fn, vt, p[CLR_CF], p[CLR_FV0], p[CLR_FVM])
+                fx = -fn * nx + ft * tx
+                fy = -fn * ny + ft * ty
+                _apply(g, bj, fx, fy, qjx, qjy, q)
+                _apply(g, bi, -fx, -fy, qix, qiy, q)
         c = cout[k]
         c[CO_EX] = ex
         c[CO_EY] = ey

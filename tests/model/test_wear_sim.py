@@ -61,6 +61,84 @@ def test_circular_journal_rests_on_the_rims_of_a_narrow_pit(bench):
         assert f - c < emag - c  # less penetration than a circle without the pit would have
 
 
+def _rims(n=1000):
+    """A bearing pit 3 deg wide and 100 um deep around region 500, and its centre (rad)."""
+    pit = np.zeros(n)
+    pit[495:505] = 100e-6 * np.hanning(12)[1:-1]
+    return pit, 2 * np.pi * 500 / n
+
+
+def test_second_zone_is_the_other_rim_of_a_bridged_pit():
+    """A journal bridging a narrow pit touches both rims: the second zone is the other local
+    maximum of the overlap, with the saddle between them, as a brute-force grid finds them."""
+    from wearbench.model.kernel import second_zone, worn_contact
+    from wearbench.model.surfaces import depth_at
+
+    pit, centre = _rims()
+    n, c = pit.size, 0.6e-3
+    phi = np.linspace(centre - 0.5, centre + 0.5, 200_001)
+    for emag, alpha in ((c + 5e-6, centre + 1e-4), (c + 20e-6, centre - 0.002)):
+        psi1, f1, *_ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, 0.0)
+        psi2, f2, sad = second_zone(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, psi1, f1)
+        f = emag * np.cos(phi - alpha) - depth_at(pit, phi)
+        peaks = np.flatnonzero((f[1:-1] > f[:-2]) & (f[1:-1] >= f[2:])) + 1
+        top2 = peaks[np.argsort(f[peaks])[-2:]]
+        assert sorted([psi1, psi2]) == pytest.approx(sorted(phi[top2]), abs=1e-3)  # flat tops
+        assert f2 == pytest.approx(f[top2].min(), abs=1e-10) and f2 <= f1
+        lo, hi = sorted(top2)
+        # the saddle is sampled at interval midpoints: never below the true one, here below the
+        # clearance as the true one is (the journal does not touch the pit's bottom)
+        assert f[lo:hi + 1].min() <= sad < c
+        assert (psi1 - centre) * (psi2 - centre) < 0  # one on each rim
+
+
+def test_two_zone_force_is_continuous_when_the_zones_trade_places():
+    """Sweeping the journal across the pit centre, the two rims trade places as the top zone.
+    One force at the top zone jumps by the rims' angle there; the two-zone force (each rim its
+    own normal, shared levels split) changes by no more than its smooth neighbours do."""
+    from wearbench.model.kernel import second_zone, worn_contact, zone_penetrations
+
+    pit, centre = _rims()
+    n, c = pit.size, 0.6e-3
+    emag = c + 10e-6
+    one, two = [], []
+    for alpha in centre + np.linspace(-2e-3, 2e-3, 401):
+        psi1, f1, *_ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, 0.0)
+        psi2, f2, sad = second_zone(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, psi1, f1)
+        u1, u2 = np.array([np.cos(psi1), np.sin(psi1)]), np.array([np.cos(psi2), np.sin(psi2)])
+        one.append((f1 - c) ** 1.5 * u1)
+        if np.isfinite(f2):
+            p1, p2, r = zone_penetrations(f1, f2, sad, c)
+            two.append(p1 ** 1.5 * u1 + r * p2 ** 1.5 * u2)
+        else:
+            two.append(one[-1])
+    one, two = np.array(one), np.array(two)
+    jump_one = np.linalg.norm(np.diff(one, axis=0), axis=1).max()
+    jump_two = np.linalg.norm(np.diff(two, axis=0), axis=1).max()
+    assert jump_one > 0.03 * np.linalg.norm(one, axis=1).max()  # the rims are 3 deg apart
+    assert jump_two < 0.002 * np.linalg.norm(two, axis=1).max()
+
+
+def test_zone_penetrations_are_continuous_at_merge_swap_and_fade():
+    from wearbench.model.kernel import zone_penetrations
+
+    c = 0.6e-3
+    f1 = c + 4e-6
+    # merge: the second peak sinks into the saddle, the first takes the whole overlap
+    p1, p2, _ = zone_penetrations(f1, c + 3e-6, c + 3e-6, c)
+    assert p2 == 0.0 and p1 == pytest.approx(4e-6, abs=1e-18)
+    # swap: equal peaks share equally
+    p1, p2, r = zone_penetrations(f1, f1, c + 1e-6, c)
+    assert p1 == pytest.approx(p2, abs=1e-18) and r == 1.0
+    assert p1 + p2 == pytest.approx(2 * 3e-6 + 1e-6, abs=1e-18)  # own heights + the shared level
+    # fade: at half the first's overlap the second zone has no weight and the first has it all
+    p1, p2, r = zone_penetrations(f1, c + 2e-6, c + 1e-6, c)
+    assert r == pytest.approx(0.0, abs=1e-12) and p1 == pytest.approx(4e-6, abs=1e-17)
+    # separate zones (saddle below the clearance): each its own overlap
+    p1, p2, r = zone_penetrations(f1, c + 3.5e-6, c - 1e-6, c)
+    assert (p1, p2) == pytest.approx((4e-6, 3.5e-6), abs=1e-18) and 0.0 < r < 1.0
+
+
 def test_sharp_steps_neither_stall_nor_explode(bench):
     # 40 um deep pockets with vertical walls every 10 regions on both surfaces of both joints
     step = np.where((np.arange(1000) // 10) % 2 == 0, 40e-6, 0.0)
