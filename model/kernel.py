@@ -249,6 +249,26 @@ def _node_min(depths, n, x0, x1):
     return lo
 
 
+@njit(cache=True, inline="always")
+def _polish_peak(sb, nb, sj, nj, emag, alpha, thi, thj, psi, cell):
+    """The local maximum of the overlap within ``cell`` of ``psi``: safeguarded Newton on f' = 0
+    (bisects across a curvature jump)."""
+    lo, hi = psi - cell, psi + cell
+    for _ in range(24):
+        d1, d2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[1:3]
+        if d1 > 0.0:
+            lo = psi
+        else:
+            hi = psi
+        nxt = psi - d1 / d2 if d2 < 0.0 else 0.5 * (lo + hi)
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - psi) < 1e-13:
+            break
+        psi = nxt
+    return psi
+
+
 @njit(cache=True)
 def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
     """Contact direction of a worn journal in a worn bearing: where the two surfaces overlap most.
@@ -333,20 +353,7 @@ def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
     if fbest < clear - 1e-6:  # no contact by a wide margin: its exact place does not matter
         f, _, _, hb, hj, db, dj = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, best)
         return best, f, hb, hj, db, dj
-    lo, hi = best - cell, best + cell
-    psi = best
-    for _ in range(24):  # safeguarded Newton on f' = 0 (bisects across a curvature jump)
-        f, d1, d2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[:3]
-        if d1 > 0.0:
-            lo = psi
-        else:
-            hi = psi
-        nxt = psi - d1 / d2 if d2 < 0.0 else 0.5 * (lo + hi)
-        if not lo < nxt < hi:
-            nxt = 0.5 * (lo + hi)
-        if abs(nxt - psi) < 1e-13:
-            break
-        psi = nxt
+    psi = _polish_peak(sb, nb, sj, nj, emag, alpha, thi, thj, best, cell)
     f, _, _, hb, hj, db, dj = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)
     if f < fbest:  # Newton left the best sample's value behind (flat cell): keep the sample
         psi = best
@@ -415,20 +422,7 @@ def second_zone(sb, nb, sj, nj, emag, alpha, thi, thj, clear, psi1, f1):
             best_psi, best_f, best_s = prev_psi, prev, valley
     if best_f <= floor:
         return psi1, -math.inf, -math.inf
-    lo, hi = best_psi - cell, best_psi + cell
-    psi = best_psi
-    for _ in range(24):  # safeguarded Newton on f' = 0 (bisects across a curvature jump)
-        f, d1, d2 = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[:3]
-        if d1 > 0.0:
-            lo = psi
-        else:
-            hi = psi
-        nxt = psi - d1 / d2 if d2 < 0.0 else 0.5 * (lo + hi)
-        if not lo < nxt < hi:
-            nxt = 0.5 * (lo + hi)
-        if abs(nxt - psi) < 1e-13:
-            break
-        psi = nxt
+    psi = _polish_peak(sb, nb, sj, nj, emag, alpha, thi, thj, best_psi, cell)
     f = _overlap(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[0]
     if f < best_f:
         psi, f = best_psi, best_f
