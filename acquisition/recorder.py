@@ -36,7 +36,7 @@ from wearbench.acquisition.drivers import (
 from wearbench.acquisition.layout import Command, CrankAngle, clip_level, count_clipped
 from wearbench.acquisition.session_file import BENCH_ATTACHMENT, surface_attachment
 from wearbench.acquisition.session_writer import SessionWriter
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 
 __all__ = ["Progress", "Recorder", "SessionPlan", "SessionResult", "record_session"]
 

@@ -35,7 +35,8 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from wearbench.acquisition import layout, layout1
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
 from wearbench.acquisition.layout import SCHEMAS, TOPICS, clip_level
-from wearbench.hardware.bench import Bench, BenchError, parse_bench
+from wearbench.bench.load import parse_bench
+from wearbench.bench.schema import Bench, BenchError
 
 __all__ = [
     "BENCH_ATTACHMENT",

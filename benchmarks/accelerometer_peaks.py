@@ -15,7 +15,7 @@ import math
 import sys
 
 import numpy as np
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.hardware.emulators.config import emulator_config
 from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, ManualClock
 

@@ -18,7 +18,7 @@ import sys
 import time
 
 import can
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.hardware.emulators.can_server import CanEmulator
 from wearbench.hardware.emulators.config import EmulatorConfig, emulator_config
 from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, ManualClock

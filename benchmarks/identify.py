@@ -44,8 +44,8 @@ def main() -> None:
     args = ap.parse_args()
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-identify-")
 
+    from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.cli.demo import prepare_truth, record_state, slug
-    from wearbench.hardware.bench import load_bench, shipped_bench
     from wearbench.model.compute import Task, compute_client, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
     from wearbench.validation import CompareOptions, load_session, rank_theories

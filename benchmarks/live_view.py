@@ -28,8 +28,8 @@ from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.live import LiveView
 from wearbench.acquisition.recorder import Recorder, SessionPlan
 from wearbench.acquisition.session_writer import SessionWriter
-from wearbench.hardware.bench import parse_bench, shipped_bench
-from wearbench.hardware.units import parse_quantity
+from wearbench.bench.load import parse_bench, shipped_bench
+from wearbench.bench.units import parse_quantity
 
 
 async def _viewer(url: str, stop: threading.Event, counts: dict, name: str, pause: float) -> None:

@@ -25,8 +25,8 @@ from pathlib import Path
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.recorder import Recorder, SessionPlan
 from wearbench.acquisition.session_file import scan_mcap
-from wearbench.hardware.bench import parse_bench, shipped_bench
-from wearbench.hardware.units import parse_quantity
+from wearbench.bench.load import parse_bench, shipped_bench
+from wearbench.bench.units import parse_quantity
 
 
 def _metered(device, names, spent: list[float]) -> None:

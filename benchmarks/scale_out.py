@@ -84,7 +84,7 @@ def main() -> None:
     args = ap.parse_args()
 
     os.environ["WEARBENCH_CACHE"] = tempfile.mkdtemp(prefix="wearbench-scale-out-")
-    from wearbench.hardware.bench import load_bench, shipped_bench
+    from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.model import compute
     from wearbench.model.compute import Task, compute_client, run_tasks, task_key, usable_cores
     from wearbench.model.compute import _warm_up as warm_up

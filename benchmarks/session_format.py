@@ -28,8 +28,8 @@ from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.backends.sim import blocks_from_device
 from wearbench.acquisition.drivers import ACCELERATION, Block
 from wearbench.acquisition.layout import SCHEMAS, CrankAngle, encode_block
-from wearbench.hardware.bench import parse_bench, shipped_bench
-from wearbench.hardware.units import parse_quantity
+from wearbench.bench.load import parse_bench, shipped_bench
+from wearbench.bench.units import parse_quantity
 
 
 def capture(rate: float, seconds: float) -> list[Block]:

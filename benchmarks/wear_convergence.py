@@ -22,7 +22,7 @@ import math
 import time
 from pathlib import Path
 
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.surfaces import JointSurfaces
 from wearbench.model.wear_report import convergence_markdown, write_run
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages

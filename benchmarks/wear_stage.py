@@ -17,7 +17,7 @@ import math
 import time
 from pathlib import Path
 
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model import build_scene, simulate
 from wearbench.model.surfaces import JointSurfaces
 from wearbench.model.wear import WearLaw, accumulate_wear

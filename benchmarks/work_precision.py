@@ -21,7 +21,7 @@ import argparse
 import time
 
 import numpy as np
-from wearbench.hardware.bench import load_bench, parse_bench, shipped_bench
+from wearbench.bench.load import load_bench, parse_bench, shipped_bench
 from wearbench.model import SimulationError, build_scene, simulate
 
 

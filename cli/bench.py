@@ -8,7 +8,8 @@ import math
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
-from wearbench.hardware.bench import BENCH_DIR, Bench, load_bench, resolve_bench
+from wearbench.bench.load import BENCH_DIR, load_bench, resolve_bench
+from wearbench.bench.schema import Bench
 
 
 def register(sub: argparse._SubParsersAction) -> None:

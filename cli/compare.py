@@ -51,8 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
+    from wearbench.bench.units import parse_quantity
     from wearbench.cli.progress import note_compiling, progress
-    from wearbench.hardware.units import parse_quantity
     from wearbench.validation.compare import CompareOptions, compare_session
     from wearbench.validation.cycles import parse_windows
     from wearbench.validation.filters import parse_filter

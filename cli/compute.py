@@ -6,7 +6,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from wearbench.hardware.bench import Bench
+    from wearbench.bench.schema import Bench
 
 
 def add_compute_arguments(p: argparse.ArgumentParser) -> None:

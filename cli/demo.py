@@ -108,8 +108,8 @@ def prepare_truth(bench, state, seed: int | None, **emulator) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.cli.progress import progress
-    from wearbench.hardware.bench import load_bench, shipped_bench
     from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.validation import load_session
     from wearbench.validation.assess import assess_sessions, write_assessment_report

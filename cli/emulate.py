@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.hardware.bench import load_bench, resolve_bench
+    from wearbench.bench.load import load_bench, resolve_bench
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.hardware.emulators.serial_server import serve
 

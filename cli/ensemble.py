@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from wearbench.hardware.bench import load_bench, load_states, resolve_bench
+    from wearbench.bench.load import load_bench, load_states, resolve_bench
     from wearbench.validation.ensemble import (
         EnsembleSettings,
         build_ensembles,

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from wearbench.hardware.units import QuantityError, parse_quantity
+from wearbench.bench.units import QuantityError, parse_quantity
 
 __all__ = ["check_motor_speed", "motor_speed", "nonnegative_int", "nonnegative_number", "positive_int", "positive_number",
            "positive_quantity"]

@@ -6,8 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from wearbench.bench.units import parse_quantity
 from wearbench.cli.options import motor_speed, positive_number, positive_quantity
-from wearbench.hardware.units import parse_quantity
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -74,8 +74,8 @@ def run(args: argparse.Namespace) -> int:
         lock_session_path,
         unlock_session_path,
     )
+    from wearbench.bench.load import load_bench, resolve_bench
     from wearbench.cli.progress import progress
-    from wearbench.hardware.bench import load_bench, resolve_bench
 
     bench = load_bench(resolve_bench(args.bench))
     out = Path(args.out)

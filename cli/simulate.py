@@ -7,9 +7,9 @@ import json
 import math
 from pathlib import Path
 
+from wearbench.bench.units import parse_quantity
 from wearbench.cli.options import motor_speed, positive_number, positive_quantity
 from wearbench.cli.progress import note_compiling
-from wearbench.hardware.units import parse_quantity
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -56,7 +56,7 @@ def _pairs(text: str, what: str) -> dict[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.hardware.bench import load_bench, resolve_bench
+    from wearbench.bench.load import load_bench, resolve_bench
     from wearbench.model import build_scene, simulate
     from wearbench.model.surfaces import JointSurfaces
 

@@ -7,10 +7,10 @@ import json
 import sys
 from pathlib import Path
 
+from wearbench.bench.load import load_bench, resolve_bench
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import positive_number
 from wearbench.cli.wear import add_plan_arguments, plan_from_args
-from wearbench.hardware.bench import load_bench, resolve_bench
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from wearbench.bench.load import load_bench, resolve_bench
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import (
     check_motor_speed,
@@ -15,7 +16,6 @@ from wearbench.cli.options import (
     positive_number,
 )
 from wearbench.cli.wear import add_plan_arguments, plan_from_args
-from wearbench.hardware.bench import load_bench, resolve_bench
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -6,10 +6,11 @@ import argparse
 import json
 import sys
 
+from wearbench.bench.load import load_bench, resolve_bench
+from wearbench.bench.schema import Bench
+from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import motor_speed, nonnegative_int, positive_int, positive_number
-from wearbench.hardware.bench import Bench, load_bench, resolve_bench
-from wearbench.hardware.units import QuantityError, parse_quantity
 
 
 def parse_clearances(text: str | None, bench: Bench) -> dict[str, float] | None:

@@ -42,7 +42,7 @@ from wearbench.model.digest import model_source_digest
 
 if TYPE_CHECKING:
     from distributed import Client
-    from wearbench.hardware.bench import Bench
+    from wearbench.bench.schema import Bench
 
 __all__ = ["LAYOUT_VERSION", "Task", "TaskFailure", "cache_dir", "compute_client", "resolve_scheduler",
            "run_tasks", "task_key", "usable_cores"]
@@ -285,7 +285,7 @@ def resolve_scheduler(scheduler: str | None = None, *, bench: Bench | None = Non
 
 def _warm_up() -> None:
     """Load (or compile) the model's numba kernels once in this process: a tiny clearance run."""
-    from wearbench.hardware.bench import load_bench, shipped_bench
+    from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.model import build_scene, simulate
 
     scene = build_scene(load_bench(shipped_bench("slider-crank")))

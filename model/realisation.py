@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
-from wearbench.hardware.bench import Bench, ContactLaw, Tolerances, WearState
+from wearbench.bench.schema import Bench, ContactLaw, Tolerances, WearState
 from wearbench.model.scene import Scene, build_scene
 from wearbench.model.simulate import SimulationResult, simulate
 from wearbench.model.surfaces import JointSurfaces

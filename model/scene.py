@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from wearbench.hardware.bench import GROUND, Bench, BenchError, Joint
+from wearbench.bench.schema import GROUND, Bench, BenchError, Joint
 from wearbench.model import kernel as K
 from wearbench.model.contact import LAWS, contact_stiffness
 from wearbench.model.surfaces import JointSurfaces, surfaces_from_bench

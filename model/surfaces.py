@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from wearbench.hardware.bench import Bench
+    from wearbench.bench.schema import Bench
 
 __all__ = ["JointSurfaces", "SurfaceError", "depth_at", "reachable_depth", "region_of", "surfaces_from_bench"]
 

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from wearbench.hardware.units import QuantityError, parse_quantity
+from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan
 
@@ -33,7 +33,7 @@ __all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "Swee
 
 @dataclass(frozen=True)
 class Parameter:
-    """A sweepable parameter: its dimension (hardware/units.py), printed unit and table column."""
+    """A sweepable parameter: its dimension (bench/units.py), printed unit and table column."""
 
     dimension: str
     unit: str        # printed (plots, reports)
@@ -248,7 +248,7 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
 
 def _format(name: str, si: float) -> str:
     p = parameter(name)
-    from wearbench.hardware.units import UNITS
+    from wearbench.bench.units import UNITS
 
     return f"{si / UNITS[p.dimension][p.unit]:.4g}{p.unit}"
 
@@ -260,7 +260,7 @@ def plot_sweep(result: SweepResult, spec: SweepSpec, out: str | Path) -> list[Pa
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from wearbench.hardware.units import UNITS
+    from wearbench.bench.units import UNITS
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -144,7 +144,7 @@ class WearLaw:
 
     @classmethod
     def from_bench(cls, bench, joint: str, **overrides) -> WearLaw:
-        """The law for clearance joint ``joint`` of a :class:`~wearbench.hardware.bench.Bench`."""
+        """The law for clearance joint ``joint`` of a :class:`~wearbench.bench.schema.Bench`."""
         c = bench.joint(joint).clearance
         if c is None:
             raise ValueError(f"{bench.name}: joint {joint} has no clearance, so no wear")

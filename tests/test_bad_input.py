@@ -4,8 +4,8 @@ look like negative quantities are values; shipped bench names work in every comm
 from __future__ import annotations
 
 import pytest
+from wearbench.bench.load import BENCH_DIR, shipped_bench
 from wearbench.cli import build_parser, main
-from wearbench.hardware.bench import BENCH_DIR, shipped_bench
 
 RECORD = ["record", "ninebar-testbed", "--backend", "sim", "--out"]
 
@@ -64,7 +64,7 @@ def test_a_bench_that_cannot_record(tmp_path, capsys):
 
 
 def test_resolve_bench(tmp_path, monkeypatch):
-    from wearbench.hardware.bench import resolve_bench
+    from wearbench.bench.load import resolve_bench
 
     monkeypatch.chdir(tmp_path)
     assert resolve_bench("ninebar-testbed") == BENCH_DIR / "ninebar-testbed.toml"

@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from wearbench.hardware.bench import BENCH_DIR, BenchError, load_bench, parse_bench, shipped_bench
+from wearbench.bench.load import BENCH_DIR, load_bench, parse_bench, shipped_bench
+from wearbench.bench.schema import BenchError
 
 NINEBAR = shipped_bench("ninebar")
 SHIPPED = sorted(BENCH_DIR.glob("*.toml"))

@@ -6,8 +6,8 @@ import subprocess
 import sys
 
 import pytest
+from wearbench.bench.load import shipped_bench
 from wearbench.cli import COMMANDS, main
-from wearbench.hardware.bench import shipped_bench
 
 
 def test_help_lists_every_subcommand(capsys):

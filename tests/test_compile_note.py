@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from wearbench.bench.load import load_bench, resolve_bench
 from wearbench.cli.progress import COMPILING, note_compiling
-from wearbench.hardware.bench import load_bench, resolve_bench
 from wearbench.model import build_scene, jit_cache, simulate
 
 

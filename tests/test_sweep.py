@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
-from wearbench.hardware.bench import load_bench, shipped_bench
 from wearbench.model.sweep import Axis, SweepSpec, parse_axis, run_point, run_sweep
 
 

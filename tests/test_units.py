@@ -7,7 +7,7 @@ import math
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from wearbench.hardware.units import UNITS, QuantityError, format_quantity, parse_quantity
+from wearbench.bench.units import UNITS, QuantityError, format_quantity, parse_quantity
 
 
 @pytest.mark.parametrize(

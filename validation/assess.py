@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from wearbench.hardware.bench import WearState, load_states
+from wearbench.bench.load import load_states
+from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands, ensemble_theory
 from wearbench.validation.compare import (
     CompareOptions,

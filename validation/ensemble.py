@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from wearbench.hardware.bench import Bench, WearState
+from wearbench.bench.schema import Bench, WearState
 from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
 
@@ -114,7 +114,7 @@ def ensembles_key(bench: Bench, states: Sequence[WearState], speed: float, setti
 
 def shipped_ensembles_path(bench: Bench) -> Path:
     """Where precomputed ensembles of a shipped bench live (``hardware/benches/ensembles/NAME.npz``)."""
-    from wearbench.hardware.bench import BENCH_DIR
+    from wearbench.bench.load import BENCH_DIR
 
     return BENCH_DIR / "ensembles" / f"{bench.name}.npz"
 

@@ -30,7 +30,7 @@ class MeasuredSession:
     label: str
     acceleration: pd.DataFrame
     encoder: pd.DataFrame
-    bench: Any = None  # wearbench.hardware.bench.Bench or None
+    bench: Any = None  # wearbench.bench.schema.Bench or None
     clearances: dict[str, float] = field(default_factory=dict)
     wear_state: dict[str, str] = field(default_factory=dict)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from wearbench.acquisition.drivers import Rig
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol.messages import FaultCode
 
 __all__ = ["BACKEND_MODULES", "fault_name", "open_rig"]

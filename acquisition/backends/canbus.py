@@ -40,7 +40,7 @@ from wearbench.acquisition.drivers import (
     Rig,
     StreamInfo,
 )
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode
 

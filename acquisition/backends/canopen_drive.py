@@ -38,7 +38,7 @@ from wearbench.acquisition.drivers import (
     MotorState,
     Rig,
 )
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol.can_frames import EDS_PATH
 
 __all__ = ["Cia402Drive", "open_rig"]

@@ -30,7 +30,7 @@ from wearbench.acquisition.drivers import (
     Rig,
     StreamInfo,
 )
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 
 __all__ = ["DaqSource", "OnlyStreams", "import_nidaqmx", "open_rig"]
 

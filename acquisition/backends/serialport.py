@@ -33,7 +33,7 @@ from wearbench.acquisition.drivers import (
     Rig,
     StreamInfo,
 )
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol import messages as m
 from wearbench.hardware.protocol.frames import FrameParser
 

@@ -33,7 +33,7 @@ from wearbench.acquisition.drivers import (
     Rig,
     StreamInfo,
 )
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import EmulatorConfig
 from wearbench.hardware.emulators.device import BenchDevice, DeviceError
 

@@ -23,7 +23,7 @@ import can
 import canopen
 import numpy as np
 from canopen.sdo.exceptions import SdoAbortedError
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import EmulatorConfig
 from wearbench.hardware.emulators.device import (
     AccelBlock,

@@ -1,7 +1,7 @@
 """The ``[emulator]`` table of a bench file: imperfections, hidden truth and fault injection.
 
 :class:`EmulatorConfig` is what :class:`~wearbench.hardware.emulators.device.BenchDevice` runs
-with. Every value is validated; a mistake raises :class:`~wearbench.hardware.bench.BenchError`
+with. Every value is validated; a mistake raises :class:`~wearbench.bench.schema.BenchError`
 naming the file, the key, the value and what was expected. Every imperfection can be switched off
 (0, "0 ppm", false, or leaving the key out: the defaults are a clean device). Fault times count
 from the first START_STREAM. Imports only the bench module.
@@ -53,7 +53,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from wearbench.hardware.bench import Bench, WearState, _Reader
+from wearbench.bench.load import _Reader
+from wearbench.bench.schema import Bench, WearState
 
 __all__ = [
     "AA_FILTERS",

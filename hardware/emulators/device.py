@@ -31,7 +31,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from wearbench.hardware.bench import Bench, Sensor
+from wearbench.bench.schema import Bench, Sensor
 from wearbench.hardware.emulators.config import EmulatorConfig
 from wearbench.hardware.emulators.sensor import SensorChain
 from wearbench.hardware.emulators.signal import SignalTable, signal_table

@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
-from wearbench.hardware.bench import Bench, load_bench
+from wearbench.bench.load import load_bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import EmulatorConfig
 from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, DeviceError, EncoderBlock
 from wearbench.hardware.protocol import messages as m

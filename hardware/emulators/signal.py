@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from wearbench.hardware.bench import Bench
+from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import Truth
 
 __all__ = ["FADE", "SignalTable", "bench_content", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.session_file import blocks, scan_mcap
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.hardware.protocol import messages
 from wearbench.hardware.protocol.frames import FrameParser
 

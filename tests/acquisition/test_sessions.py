@@ -156,7 +156,7 @@ def test_clipped_samples_are_flagged(bench, tmp_path):
     samples at or beyond the range (within one LSB), a warning is logged when clipping starts, and
     read_session flags the samples."""
     from wearbench.acquisition.layout import log_level
-    from wearbench.hardware.bench import parse_bench
+    from wearbench.bench.load import parse_bench
 
     small = parse_bench(re.sub(r'\nrange = "[^"]*"', '\nrange = "10 g"', bench.source), bench.path)
     full_scale = small.sensor("accelerometer").range

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.hardware.emulators.config import EmulatorConfig
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from scipy import signal as sps
-from wearbench.hardware.bench import BenchError
+from wearbench.bench.schema import BenchError
 from wearbench.hardware.emulators.config import EmulatorConfig
 from wearbench.hardware.emulators.device import (
     AccelBlock,

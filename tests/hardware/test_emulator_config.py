@@ -4,7 +4,7 @@ was expected; the programmatic builder for (bench, state, seed, sensor chain).""
 from __future__ import annotations
 
 import pytest
-from wearbench.hardware.bench import BenchError
+from wearbench.bench.schema import BenchError
 from wearbench.hardware.emulators.config import EmulatorConfig, emulator_config
 
 
@@ -73,8 +73,8 @@ def test_config_builder_names_a_state_and_round_trips(testbed):
 ])
 def test_emulate_command_sets_the_truth(monkeypatch, argv, seed, stage):
     import wearbench.hardware.emulators.serial_server as server
+    from wearbench.bench.load import shipped_bench
     from wearbench.cli import main
-    from wearbench.hardware.bench import shipped_bench
 
     served = []
     monkeypatch.setattr(server, "serve", lambda bench, config, **kw: served.append(config) or 0)

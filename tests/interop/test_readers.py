@@ -18,7 +18,7 @@ from wearbench.acquisition.recorder import Recorder, SessionPlan
 from wearbench.acquisition.recover import recover
 from wearbench.acquisition.session_file import blocks, read_session, scan_mcap
 from wearbench.acquisition.session_writer import SessionWriter
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 
 LAYOUT1 = Path(__file__).parents[1] / "acquisition" / "data" / "session_layout1.mcap"
 PLOTTED = {"/acceleration": {"acceleration": "array", "clipped": "number", "device_time": "number"},

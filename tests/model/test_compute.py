@@ -120,7 +120,8 @@ def test_scheduler_from_argument_env_and_user_config(tmp_path, monkeypatch):
 
 
 def test_a_bench_files_scheduler_ranks_below_argument_and_env_above_user_config(tmp_path, monkeypatch):
-    from wearbench.hardware.bench import BenchError, load_bench, parse_bench, shipped_bench
+    from wearbench.bench.load import load_bench, parse_bench, shipped_bench
+    from wearbench.bench.schema import BenchError
 
     text = shipped_bench("slider-crank").read_text()
     path = tmp_path / "bench.toml"

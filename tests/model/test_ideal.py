@@ -6,7 +6,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from wearbench.hardware.bench import BenchError, load_bench, parse_bench, shipped_bench
+from wearbench.bench.load import load_bench, parse_bench, shipped_bench
+from wearbench.bench.schema import BenchError
 from wearbench.model import SimulationError, Spring, Torque, build_scene, simulate
 from wearbench.model.integrators import RK4Paper
 

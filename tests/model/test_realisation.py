@@ -5,7 +5,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from wearbench.hardware.bench import Tolerances, load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
+from wearbench.bench.schema import Tolerances
 from wearbench.model import build_scene, simulate
 from wearbench.model.realisation import draw_realisation, simulate_state
 

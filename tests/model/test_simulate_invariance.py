@@ -7,7 +7,7 @@ import importlib
 import numpy as np
 import pandas as pd
 import pytest
-from wearbench.hardware.bench import load_bench, resolve_bench
+from wearbench.bench.load import load_bench, resolve_bench
 from wearbench.model import build_scene, simulate
 
 

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import PchipInterpolator
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.contact import depth_eval
 from wearbench.model.surfaces import (
     JointSurfaces,

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.wear import (
     WearLaw,
     _deposit,

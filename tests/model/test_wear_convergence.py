@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.wear_stages import StagePlan, convergence, run_stages
 
 # Short case (20,000 cycles, 8 um deep): each update samples one revolution of a chaotic motion, so

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
-from wearbench.hardware.bench import load_bench, shipped_bench
 from wearbench.model import build_scene, simulate
 from wearbench.model.surfaces import JointSurfaces
 from wearbench.model.wear_stages import StagePlan, run_stages

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from wearbench import model
-from wearbench.hardware.bench import load_bench, shipped_bench
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.wear import WearLaw
 from wearbench.model.wear_report import load_states, run_summary, write_run
 from wearbench.model.wear_stages import StagePlan, convergence, run_stages, stage_label, wear_zones

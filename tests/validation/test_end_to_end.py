@@ -8,8 +8,8 @@ import re
 import pytest
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.recorder import SessionPlan, record_session
+from wearbench.bench.load import load_bench, parse_bench, shipped_bench
 from wearbench.cli import main
-from wearbench.hardware.bench import load_bench, parse_bench, shipped_bench
 from wearbench.hardware.emulators.device import table_speed
 from wearbench.validation import CompareOptions, rank_theories
 from wearbench.validation.theory import simulate_theory

@@ -10,8 +10,8 @@ sessions keep this to about a minute; ``benchmarks/identify.py`` runs the full-s
 from __future__ import annotations
 
 import pytest
+from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli.demo import prepare_truth, record_state, slug
-from wearbench.hardware.bench import load_bench, shipped_bench
 from wearbench.model.compute import Task, compute_client, run_tasks, task_key
 from wearbench.validation.assess import assess_sessions
 from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
