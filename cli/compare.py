@@ -1,6 +1,6 @@
 """`wearbench compare`: score recorded sessions against theory and write a report.
 
-Thin front of ``wearbench.validation.compare.compare_sessions``; prints the summary table.
+Thin front of ``wearbench.validation.report.compare_sessions``; prints the summary table.
 """
 
 from __future__ import annotations

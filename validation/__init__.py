@@ -14,13 +14,13 @@ from wearbench.validation.compare import (
                                           TheoryRanking,
                                           WindowResult,
                                           compare_session,
-                                          compare_sessions,
                                           rank_theories,
 )
 from wearbench.validation.cycles import WindowSpec, parse_windows
 from wearbench.validation.filters import FilterSpec, parse_filter
 from wearbench.validation.measured import MeasuredSession, load_session
 from wearbench.validation.metrics import WindowScores, iso18571, score_window
+from wearbench.validation.report import compare_sessions
 
 __all__ = ["CompareOptions", "FilterSpec", "MeasuredSession", "SessionComparison", "TheoryRanking",
            "WindowResult", "WindowScores", "WindowSpec", "compare_session", "compare_sessions", "iso18571",

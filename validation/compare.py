@@ -20,7 +20,7 @@ to it. Imports model (lazily, for simulating) and acquisition (lazily, for readi
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -35,7 +35,7 @@ from wearbench.validation.metrics import WindowScores, aggregate, score_window
 from wearbench.validation.theory import TheoryCurve, load_theory, resolve_surfaces, simulate_theory
 
 __all__ = ["CompareOptions", "SessionComparison", "TheoryRanking", "WindowResult", "compare_session",
-           "compare_sessions", "motor_speed", "rank_theories", "theory_curve"]
+           "motor_speed", "rank_theories", "theory_curve"]
 
 
 @dataclass(frozen=True)
@@ -266,22 +266,3 @@ def rank_theories(session: MeasuredSession | str | Path, candidates: Mapping[str
         r = np.array([w.scores.iso_rating for w in c.windows])
         out.append(TheoryRanking(name, float(r.mean()), float(r.std(ddof=1)) if r.size > 1 else 0.0, c))
     return sorted(out, key=lambda x: -x.rating)
-
-
-def compare_sessions(paths: Sequence[str | Path | MeasuredSession], out_dir: str | Path, *,
-                     theories: Sequence[Any] | Any = None, options: CompareOptions = CompareOptions(),
-                     labels: Sequence[str] | None = None, title: str = "wearbench: measurement against theory"):
-    """Compare each session with its theory and write ``report.html``, ``scores.json`` and figures
-    to ``out_dir``. ``theories``: one for all sessions, one per session, or None (simulate each).
-    Returns the ``validation.report.ComparisonReport``."""
-    from wearbench.validation.report import write_report
-
-    if not isinstance(theories, (list, tuple)):
-        theories = [theories] * len(paths)
-    if len(theories) != len(paths):
-        raise ValueError(f"compare: {len(theories)} theories for {len(paths)} sessions; give one, or one per session")
-    comparisons = []
-    for i, (p, th) in enumerate(zip(paths, theories)):
-        lab = labels[i] if labels else None
-        comparisons.append(compare_session(p, th, options=options, label=lab))
-    return write_report(comparisons, out_dir, title=title)

@@ -1,9 +1,9 @@
 """The comparison report on disk: PNG figures, ``scores.json`` and a self-contained ``report.html``.
 
-Holds ``write_report`` and ``ComparisonReport``. Figures follow the paper: test and theory overlaid
+Holds ``write_report``, ``ComparisonReport`` and ``compare_sessions`` (compare, then write). Figures follow the paper: test and theory overlaid
 over five cycles with the residual (its figs. 37, 39), measured windows of several sessions side by
 side (figs. 36, 38), plus amplitude spectra and the score table. Matplotlib (object API, no pyplot); imports
-validation.compare for types and the metrics for grading.
+validation.compare (the comparisons) and the metrics for grading; compare never imports it.
 """
 
 from __future__ import annotations
@@ -17,16 +17,23 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
-from wearbench.validation.compare import SessionComparison, TheoryRanking
+from wearbench.validation.compare import (
+    CompareOptions,
+    SessionComparison,
+    TheoryRanking,
+    compare_session,
+)
 from wearbench.validation.identify_report import NOTES as IDENTIFY_NOTES
 from wearbench.validation.identify_report import IdentifiedSession, identification_section
+from wearbench.validation.measured import MeasuredSession
 from wearbench.validation.metrics import grade
 
-__all__ = ["ComparisonReport", "write_report"]
+__all__ = ["ComparisonReport", "compare_sessions", "write_report"]
 
 TEST_STYLE = {"color": "black", "lw": 0.8, "label": "test"}
 THEORY_STYLE = {"color": "tab:red", "lw": 0.8, "label": "theory", "alpha": 0.85}
@@ -351,3 +358,21 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
     html_path.write_text(_html(comparisons, figures, title, scores, rankings or {}, section), encoding="utf-8")
     files = [p for ps in figures.values() for p in ps]
     return ComparisonReport(list(comparisons), out, html_path, scores_path, files)
+
+
+def compare_sessions(paths: Sequence[str | Path | MeasuredSession], out_dir: str | Path, *,
+                     theories: Sequence[Any] | Any = None, options: CompareOptions | None = None,
+                     labels: Sequence[str] | None = None, title: str = "wearbench: measurement against theory"):
+    """Compare each session with its theory and write ``report.html``, ``scores.json`` and figures
+    to ``out_dir``. ``theories``: one for all sessions, one per session, or None (simulate each).
+    Returns the :class:`ComparisonReport`."""
+    options = options or CompareOptions()
+    if not isinstance(theories, (list, tuple)):
+        theories = [theories] * len(paths)
+    if len(theories) != len(paths):
+        raise ValueError(f"compare: {len(theories)} theories for {len(paths)} sessions; give one, or one per session")
+    comparisons = []
+    for i, (p, th) in enumerate(zip(paths, theories)):
+        lab = labels[i] if labels else None
+        comparisons.append(compare_session(p, th, options=options, label=lab))
+    return write_report(comparisons, out_dir, title=title)

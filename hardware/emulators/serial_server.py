@@ -1,8 +1,8 @@
 """The serial emulator: a :class:`BenchDevice` speaking the framed protocol on a pseudo-terminal.
 
-:func:`serve` runs in its own process (``wearbench emulate BENCH.toml --serial``); it prints the
-port path and answers until SIGTERM/SIGINT or an injected disconnect. :func:`start_serial_emulator`
-starts that process from Python and returns (process, port path). Injected faults: late replies
+:func:`serve` answers on a new pty until SIGTERM/SIGINT or an injected disconnect (``wearbench
+emulate BENCH.toml --serial`` runs it and prints the port path). :func:`start_serial_emulator` runs
+it in its own process from Python (multiprocessing, no command line) and returns (process, port path). Injected faults: late replies
 (``reply_delay``), corrupted frames (``corrupt_rate``: one byte of the frame flipped), dropped blocks
 (by the device), a disconnect ``disconnect_after`` s into streaming (the pty closes, the process
 exits with code 3), a stalled motor (EVENT frame). ``sent_log`` receives every byte written, so a
@@ -12,11 +12,11 @@ test can parse exactly what was sent. Imports the device, config and the protoco
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import select
 import shutil
 import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -33,7 +33,7 @@ from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, DeviceE
 from wearbench.hardware.protocol import messages as m
 from wearbench.hardware.protocol.frames import FrameParser
 
-__all__ = ["DISCONNECT_EXIT", "SerialEmulator", "serve", "start_serial_emulator"]
+__all__ = ["DISCONNECT_EXIT", "EmulatorProcess", "SerialEmulator", "serve", "start_serial_emulator"]
 
 DISCONNECT_EXIT = 3
 _OUT_LIMIT = 8 << 20  # bytes queued for a host that does not read before the device overruns
@@ -203,14 +203,64 @@ def serve(bench: Bench, config: EmulatorConfig | None = None, *, announce=print,
         os.close(slave)
 
 
+class EmulatorProcess:
+    """A serial emulator running in its own process (see :func:`start_serial_emulator`).
+
+    ``port`` is the pty path; ``terminate``/``kill`` stop it, ``wait`` returns its exit code
+    (0 when stopped, :data:`DISCONNECT_EXIT` after an injected disconnect)."""
+
+    def __init__(self, process: multiprocessing.process.BaseProcess, port: str):
+        self._process, self.port = process, port
+
+    @property
+    def pid(self) -> int | None:
+        return self._process.pid
+
+    @property
+    def returncode(self) -> int | None:
+        return self._process.exitcode
+
+    def poll(self) -> int | None:
+        return self._process.exitcode
+
+    def terminate(self) -> None:
+        self._process.terminate()
+
+    def kill(self) -> None:
+        self._process.kill()
+
+    def wait(self, timeout: float | None = None) -> int:
+        self._process.join(timeout)
+        if self._process.exitcode is None:
+            raise TimeoutError(f"serial emulator (pid {self.pid}) still running after {timeout} s")
+        return self._process.exitcode
+
+
+def _serve_from_file(bench_path: str, table: dict | None, sent_log: str | None, conn) -> None:
+    """Child process: read the bench file, build the device, serve; the port path goes to ``conn``."""
+    bench = load_bench(bench_path)
+    config = (EmulatorConfig.from_table(table, bench=bench, source="start_serial_emulator")
+              if table is not None else EmulatorConfig.from_bench(bench))
+
+    def announce(path: str) -> None:
+        conn.send(path)
+        conn.close()
+
+    if sent_log is None:
+        sys.exit(serve(bench, config, announce=announce))
+    with open(sent_log, "ab") as log:
+        sys.exit(serve(bench, config, announce=announce, sent_log=log))
+
+
 def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None = None, *,
                           sent_log: str | Path | None = None, timeout: float = 120.0
-                          ) -> tuple[subprocess.Popen, str]:
-    """Start ``wearbench emulate BENCH --serial`` in its own process; returns (process, port path).
+                          ) -> tuple[EmulatorProcess, str]:
+    """Run :func:`serve` for ``bench`` in its own process; returns (process, port path).
 
     ``config`` (an :class:`EmulatorConfig` or a raw ``[emulator]`` table) replaces the bench file's
     table. The caller terminates the process (``proc.terminate(); proc.wait()``). ``timeout`` covers
-    the first model signal table, which may be computed at start-up.
+    the first model signal table, which may be computed at start-up. The process reads the bench
+    from its file, so a bench changed in memory is refused (its file would not hold the change).
     """
     if bench.path is not None:
         from wearbench.hardware.emulators.signal import bench_content
@@ -227,32 +277,28 @@ def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None 
     bench_path = bench.path if bench.path is not None else tmp / f"{bench.name}.toml"
     if bench.path is None:
         bench_path.write_text(bench.source)
-    cmd = [sys.executable, "-m", "wearbench.cli", "emulate", str(bench_path), "--serial"]
-    if config is not None:
-        table = config.to_table() if isinstance(config, EmulatorConfig) else dict(config)
-        cfg_path = tmp / "emulator.json"
-        cfg_path.write_text(json.dumps(table))
-        cmd += ["--config", str(cfg_path)]
-    if sent_log is not None:
-        cmd += ["--sent-log", str(sent_log)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    deadline = time.monotonic() + timeout
-    line = ""
+    table = None
+    if config is not None:  # as a JSON file would carry it
+        table = json.loads(json.dumps(config.to_table() if isinstance(config, EmulatorConfig) else dict(config)))
+    # spawn, not fork: the caller may hold threads (a recorder per session, a compute client)
+    context = multiprocessing.get_context("spawn")
+    receive, send = context.Pipe(duplex=False)
+    process = context.Process(target=_serve_from_file, name=f"wearbench-emulator-{bench.name}", daemon=True,
+                              args=(str(bench_path), table, None if sent_log is None else str(sent_log), send))
+    process.start()
+    send.close()
+    port = ""
     try:
-        while time.monotonic() < deadline:
-            r, _, _ = select.select([proc.stdout], [], [], 0.1)
-            if r:
-                line = proc.stdout.readline().strip()
-                break
-            if proc.poll() is not None:
-                break
+        if receive.poll(timeout):
+            port = receive.recv()
+    except EOFError:  # the child ended before it announced a port
+        pass
     finally:
-        if line.startswith("/dev/") or proc.poll() is not None:
-            shutil.rmtree(tmp, ignore_errors=True)  # read at start-up only
-    if not line.startswith("/dev/"):
-        proc.kill()
-        proc.wait(timeout=10)
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise RuntimeError(f"serial emulator for {bench.name} did not start within {timeout:g} s "
-                           f"(exit code {proc.returncode}); run the command to see why: {' '.join(cmd)}")
-    return proc, line
+        receive.close()
+        shutil.rmtree(tmp, ignore_errors=True)  # read at start-up only
+    if not port.startswith("/dev/"):
+        process.kill()
+        process.join(10)
+        raise RuntimeError(f"serial emulator for {bench.name} did not start within {timeout:g} s (exit code "
+                           f"{process.exitcode}); run `wearbench emulate {bench_path} --serial` to see why")
+    return EmulatorProcess(process, port), port
