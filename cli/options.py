@@ -1,5 +1,5 @@
 """Checks of command-line values at the edge: argparse ``type=`` functions for counts and numbers,
-a quantity check.
+a quantity check, the motor speed, and values per joint (``--clearance A=0.3mm,B=0.3mm``).
 
 Every bad value ends as one line naming the option, the value and what was expected, exit 2.
 """
@@ -8,11 +8,22 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Sequence
 
+from wearbench.bench.schema import Bench
 from wearbench.bench.units import QuantityError, parse_quantity
 
-__all__ = ["check_motor_speed", "motor_speed", "nonnegative_int", "nonnegative_number", "positive_int", "positive_number",
-           "positive_quantity"]
+__all__ = [
+    "check_motor_speed",
+    "joint_values",
+    "motor_speed",
+    "nonnegative_int",
+    "nonnegative_number",
+    "parse_clearances",
+    "positive_int",
+    "positive_number",
+    "positive_quantity",
+]
 
 
 def _number(text: str) -> float:
@@ -102,3 +113,36 @@ def check_motor_speed(value: float, option: str, text: str, *, allow_zero: bool 
 
 def _expected_speed(allow_zero: bool) -> str:
     return "a finite motor speed" + ("" if allow_zero else " other than 0") + ", e.g. -5pi (rad/s) or 150rpm"
+
+
+def joint_values(text: str | None, option: str, joints: Sequence[str], *, every: bool = False) -> dict[str, str]:
+    """``"A=0.3mm,B=new"`` -> {joint: value text}, every name one of ``joints``; with ``every``, a bare
+    value (``"0.6mm"``) goes to every joint. The one parser of per-joint options."""
+    out: dict[str, str] = {}
+    if every and text and "=" not in text:
+        return dict.fromkeys(joints, text.strip())
+    for item in filter(None, (x.strip() for x in (text or "").split(","))):
+        key, sep, value = (x.strip() for x in item.partition("="))
+        if not sep or not key or not value:
+            raise ValueError(f"{option} {text!r}: expected JOINT=VALUE[,JOINT=VALUE...], e.g. A=0.6mm, got {item!r}")
+        if key not in joints:
+            raise ValueError(f"{option} {text!r}: no clearance joint {key!r}; expected one of {list(joints)}")
+        out[key] = value
+    return out
+
+
+def parse_clearances(text: str | None, bench: Bench, option: str = "--clearance", *,
+               ideal: bool = False) -> dict[str, float | None]:
+    """Radial clearances (m) by joint from ``"0.6mm"`` (every clearance joint) or ``"A=0.6mm,B=0.3mm"``;
+    with ``ideal``, ``J=ideal`` makes a joint an ideal pin (None). Empty text: {} (the bench's)."""
+    values = joint_values(text, option, [j.name for j in bench.clearance_joints], every=True)
+    out: dict[str, float | None] = {}
+    for joint, value in values.items():
+        if ideal and value.lower() == "ideal":
+            out[joint] = None
+            continue
+        try:
+            out[joint] = parse_quantity(value, "length", bare_unit="m")
+        except QuantityError as exc:
+            raise ValueError(f"{option} {text!r}: {exc}") from None
+    return out

@@ -6,8 +6,13 @@ import argparse
 import sys
 from pathlib import Path
 
-from wearbench.bench.units import parse_quantity
-from wearbench.cli.options import motor_speed, positive_number, positive_quantity
+from wearbench.cli.options import (
+    joint_values,
+    motor_speed,
+    parse_clearances,
+    positive_number,
+    positive_quantity,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,16 +48,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(open it in Foxglove: Open connection, Foxglove WebSocket; default 127.0.0.1:8765); "
                    "a slow or lost viewer never costs the recording a sample")
     p.set_defaults(func=run)
-
-
-def _pairs(text: str, what: str) -> dict[str, str]:
-    out = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip() or not value.strip():
-            raise ValueError(f"--{what} {text!r}: expected JOINT=VALUE[,JOINT=VALUE...], got {item!r}")
-        out[key.strip()] = value.strip()
-    return out
 
 
 def _option_value(text: str):
@@ -95,13 +90,9 @@ def run(args: argparse.Namespace) -> int:
                          "'wearbench bench show ninebar-testbed')")
     speed = (motor_speed(args.speed, max_speed=bench.motor.max_speed, source=str(bench.path or bench.name))
              if args.speed else bench.speed)
-    clearances = {j: parse_quantity(v, "length") for j, v in _pairs(args.clearance, "clearance").items()}
-    known = {j.name for j in bench.clearance_joints}
-    for j in (*clearances, *_pairs(args.wear, "wear")):
-        if j not in known:
-            raise ValueError(f"--clearance/--wear: {bench.name} has no clearance joint {j!r}; "
-                             f"expected one of {sorted(known)}")
-    for joint, state in _pairs(args.wear, "wear").items():  # a file it names travels in the session
+    clearances = parse_clearances(args.clearance, bench)
+    wear = joint_values(args.wear, "--wear", [j.name for j in bench.clearance_joints])
+    for joint, state in wear.items():  # a file it names travels in the session
         if Path(state).suffix == ".npz" or "/" in state:
             from wearbench.model.surfaces import JointSurfaces
 
@@ -113,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,
-        clearances=clearances, wear=_pairs(args.wear, "wear"), operator=args.operator,
+        clearances=clearances, wear=wear, operator=args.operator,
         settle=positive_quantity(args.settle, "time", "--settle", bare_unit="s", allow_zero=True))
     options = {}
     for item in args.option:

@@ -7,8 +7,13 @@ import json
 import math
 from pathlib import Path
 
-from wearbench.bench.units import parse_quantity
-from wearbench.cli.options import motor_speed, positive_number, positive_quantity
+from wearbench.cli.options import (
+    joint_values,
+    motor_speed,
+    parse_clearances,
+    positive_number,
+    positive_quantity,
+)
 from wearbench.cli.progress import note_compiling
 
 
@@ -45,16 +50,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _pairs(text: str, what: str) -> dict[str, str]:
-    out = {}
-    for item in filter(None, (x.strip() for x in text.split(","))):
-        if "=" not in item:
-            raise ValueError(f"--{what} {item!r}: expected JOINT=VALUE, e.g. A=0.6mm")
-        k, v = item.split("=", 1)
-        out[k.strip()] = v.strip()
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     from wearbench.bench.load import load_bench, resolve_bench
     from wearbench.model import build_scene, simulate
@@ -62,9 +57,9 @@ def run(args: argparse.Namespace) -> int:
 
     bench = load_bench(resolve_bench(args.bench))
     note_compiling()  # building the scene compiles already
-    clearances = {j: (None if v.lower() == "ideal" else parse_quantity(v, "length", bare_unit="m"))
-                  for j, v in _pairs(args.clearance, "clearance").items()}
-    surfaces = {j: JointSurfaces.load(v) for j, v in _pairs(args.surfaces, "surfaces").items()} or None
+    clearances = parse_clearances(args.clearance, bench, ideal=True)
+    joints = [j.name for j in bench.clearance_joints]
+    surfaces = {j: JointSurfaces.load(v) for j, v in joint_values(args.surfaces, "--surfaces", joints).items()} or None
     speed = motor_speed(args.speed, allow_zero=True) if args.speed else None  # 0 with --t-end: a still motor
     try:
         scene = build_scene(bench, clearances=clearances or None, surfaces=surfaces)

@@ -10,28 +10,13 @@ from wearbench.bench.load import load_bench, resolve_bench
 from wearbench.bench.schema import Bench
 from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import motor_speed, nonnegative_int, positive_int, positive_number
-
-
-def parse_clearances(text: str | None, bench: Bench) -> dict[str, float] | None:
-    """``"0.6mm"`` (every clearance joint) or ``"A=0.6mm,B=0.3mm"`` -> {joint: m}; None keeps the bench's."""
-    if not text:
-        return None
-    names = [j.name for j in bench.clearance_joints]
-    try:
-        if "=" not in text:
-            value = parse_quantity(text, "length")
-            return dict.fromkeys(names, value)
-        out = {}
-        for part in text.split(","):
-            name, _, value = part.partition("=")
-            if name.strip() not in names:
-                raise ValueError(f"--clearance {text!r}: no clearance joint {name.strip()!r}; "
-                                 f"{bench.name} has {names}")
-            out[name.strip()] = parse_quantity(value.strip(), "length")
-        return out
-    except QuantityError as exc:
-        raise ValueError(f"--clearance {text!r}: {exc}") from None
+from wearbench.cli.options import (
+    motor_speed,
+    nonnegative_int,
+    parse_clearances,
+    positive_int,
+    positive_number,
+)
 
 
 def parse_speed(text: str | None) -> float | None:
@@ -118,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
 
     bench = load_bench(resolve_bench(args.bench))
     note_compiling()
-    clearances = parse_clearances(args.clearance, bench)
+    clearances = parse_clearances(args.clearance, bench) or None
     speed = parse_speed(args.speed)
     plan = plan_from_args(args, bench, args.stages)
     compute = compute_options(args, bench) if args.convergence else {}  # a bad scheduler fails now, not after the run
