@@ -1,11 +1,12 @@
 """Contact and friction laws of a revolute clearance joint: small pure functions on scalars.
 
-Holds the contact stiffness (eq. 10 and the conformal form), the normal force laws
+Holds the contact geometry (effective modulus and conformal radius), the contact stiffness (eq. 10
+and the conformal form), the normal force laws
 (Lankarani-Nikravesh eq. 7-11, Flores et al. 2011, Hertz), the modified Coulomb friction
 (eq. 12-13) and the worn-surface depth interpolation (periodic PCHIP, C1). Equation numbers are the paper's
 ("Dynamic characteristics and test research of multibody system considering uneven wear
 clearances"). Every function is numba-compiled (``@njit``) so the integrator kernel calls the same
-code the tests call from Python. Imports numpy, numba and math only.
+code the tests call from Python. Imports numpy, numba, math and the bench's vocabulary of laws.
 
 Units: SI (m, N, Pa, s, rad).
 """
@@ -16,24 +17,48 @@ import math
 
 import numpy as np
 from numba import njit
+from wearbench.bench.schema import CONTACT_LAWS, STIFFNESS_FORMS
 
 __all__ = [
     "LAWS",
     "MIN_IMPACT_SPEED",
     "STIFFNESS_FORMS",
+    "conformal_radius",
     "contact_stiffness",
     "depth_at",
     "depth_eval",
     "depth_slope",
+    "effective_modulus",
     "friction_factor",
     "friction_force",
     "impact_speed",
     "normal_force",
 ]
 
-LAWS = {"lankarani-nikravesh": 0, "flores": 1, "hertz": 2}
-STIFFNESS_FORMS = ("conformal", "paper")
+LAWS = {name: code for code, name in enumerate(CONTACT_LAWS)}  # the kernel's law codes
 MIN_IMPACT_SPEED = 1e-3  # m/s: floor of the impact speed in the hysteresis damping (see impact_speed)
+
+
+def _compliance(e1: float, nu1: float, e2: float, nu2: float) -> float:
+    return (1.0 - nu1 ** 2) / e1 + (1.0 - nu2 ** 2) / e2
+
+
+def effective_modulus(e1: float, nu1: float, e2: float, nu2: float) -> float:
+    """Contact modulus E* (Pa): 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2.
+
+    Johnson, *Contact Mechanics* (1985), eq. 4.22 / 5.39 (plane strain, two elastic bodies).
+    """
+    return 1.0 / _compliance(e1, nu1, e2, nu2)
+
+
+def conformal_radius(r1: float, r2: float) -> float:
+    """Effective radius R* (m) of a journal of radius ``r2`` inside a bearing of radius ``r1``.
+
+    Internal (conformal) contact: 1/R* = 1/R2 - 1/R1, i.e. R* = R1 R2/(R1 - R2) (Johnson 1985, 4.2).
+    """
+    if not r1 > r2 > 0:
+        raise ValueError(f"conformal radius: expected bearing radius {r1} m > journal radius {r2} m > 0")
+    return r1 * r2 / (r1 - r2)
 
 
 def contact_stiffness(e1: float, nu1: float, e2: float, nu2: float, r1: float, r2: float,
@@ -49,9 +74,9 @@ def contact_stiffness(e1: float, nu1: float, e2: float, nu2: float, r1: float, r
     - ``"paper"``: R = r1 r2 / (r1 + r2), the paper's eq. 10 as printed (external contact of two
       convex cylinders), kept to reproduce the paper's numbers.
     """
-    s = (1.0 - nu1 ** 2) / e1 + (1.0 - nu2 ** 2) / e2
+    s = _compliance(e1, nu1, e2, nu2)
     if form == "conformal":
-        radius = r1 * r2 / (r1 - r2)
+        radius = conformal_radius(r1, r2)
     elif form == "paper":
         radius = r1 * r2 / (r1 + r2)
     else:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from numba import njit
-from wearbench.model.contact import depth_eval
+from wearbench.model.contact import conformal_radius, depth_eval, effective_modulus
 from wearbench.model.surfaces import JointSurfaces
 
 __all__ = [
@@ -34,9 +34,7 @@ __all__ = [
     "SLIDING",
     "WearLaw",
     "accumulate_wear",
-    "conformal_radius",
     "contact_pressure",
-    "effective_modulus",
     "hertz_half_width",
     "sliding_distance",
     "worn_volume",
@@ -44,24 +42,6 @@ __all__ = [
 
 SLIDING = ("rotation", "tangential")
 FOOTPRINTS = ("pressure", "hertz", "region")
-
-
-def effective_modulus(e1: float, nu1: float, e2: float, nu2: float) -> float:
-    """Contact modulus E* (Pa): 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2.
-
-    Johnson, *Contact Mechanics* (1985), eq. 4.22 / 5.39 (plane strain, two elastic bodies).
-    """
-    return 1.0 / ((1 - nu1**2) / e1 + (1 - nu2**2) / e2)
-
-
-def conformal_radius(r1: float, r2: float) -> float:
-    """Effective radius R* (m) of a journal of radius ``r2`` inside a bearing of radius ``r1``.
-
-    Internal (conformal) contact: 1/R* = 1/R2 - 1/R1, i.e. R* = R1 R2/(R1 - R2) (Johnson 1985, 4.2).
-    """
-    if not r1 > r2 > 0:
-        raise ValueError(f"conformal radius: expected bearing radius {r1} m > journal radius {r2} m > 0")
-    return r1 * r2 / (r1 - r2)
 
 
 def hertz_half_width(fn: np.ndarray | float, r_eff: float, e_eff: float, length: float) -> np.ndarray | float:

@@ -10,11 +10,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from wearbench.bench.load import load_bench, shipped_bench
+from wearbench.model.contact import effective_modulus
 from wearbench.model.wear import (
     WearLaw,
     _deposit,
     accumulate_wear,
-    effective_modulus,
     worn_volume,
 )
 
