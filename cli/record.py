@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from wearbench.bench.schema import BACKENDS
 from wearbench.cli.options import (
     joint_values,
     motor_speed,
@@ -33,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     what.add_argument("--cycles", type=positive_number,
                       help="complete crank cycles (index to index) to record")
     what.add_argument("--duration", help="time to record, e.g. 30s, 2min")
-    p.add_argument("--backend", choices=["sim", "serial", "can", "canopen", "nidaqmx"],
+    p.add_argument("--backend", choices=BACKENDS,
                    help="hardware backend (default: the bench file's [hardware] backend)")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="backend option overriding the bench file's [hardware.<backend>] table "

@@ -1,4 +1,5 @@
-"""Backends by name: each module here has ``open_rig(bench, options) -> Rig``.
+"""Backends by name: the module of each name in the bench vocabulary ``BACKENDS`` (bench/schema.py)
+has ``open_rig(bench, options) -> Rig``; adding a backend is adding its name there and its module here.
 
 ``sim`` (the hardware emulator in-process), ``serial`` (pyserial + the framed protocol), ``can``
 (python-can + the DBC), ``canopen`` (a CiA 402 drive via the canopen library, acceleration from
@@ -13,13 +14,10 @@ from collections.abc import Mapping
 from typing import Any
 
 from wearbench.acquisition.drivers import Rig
-from wearbench.bench.schema import Bench
+from wearbench.bench.schema import BACKENDS, Bench
 from wearbench.hardware.protocol.messages import FaultCode
 
-__all__ = ["BACKEND_MODULES", "fault_name", "open_rig"]
-
-BACKEND_MODULES = {"sim": "sim", "serial": "serialport", "can": "canbus", "canopen": "canopen_drive",
-                   "nidaqmx": "daqmx"}
+__all__ = ["fault_name", "open_rig"]
 
 
 def fault_name(code: int) -> str | None:
@@ -38,7 +36,7 @@ def open_rig(bench: Bench, backend: str | None = None, options: Mapping[str, Any
     ``options`` override the bench file's ``[hardware.<backend>]`` table.
     """
     name = backend or bench.hardware.backend
-    if name not in BACKEND_MODULES:
-        raise ValueError(f"backend {name!r}: expected one of {sorted(BACKEND_MODULES)}")
-    module = importlib.import_module(f"wearbench.acquisition.backends.{BACKEND_MODULES[name]}")
+    if name not in BACKENDS:
+        raise ValueError(f"backend {name!r}: expected one of {sorted(BACKENDS)}")
+    module = importlib.import_module(f"wearbench.acquisition.backends.{name}")
     return module.open_rig(bench, {**bench.hardware.options.get(name, {}), **(options or {})})

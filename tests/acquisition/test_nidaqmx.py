@@ -103,7 +103,7 @@ def _source(monkeypatch, signal, devices=("Dev1",)):
     monkeypatch.setitem(sys.modules, "nidaqmx", fake)
     for name in ("constants", "errors", "stream_readers", "system"):
         monkeypatch.setitem(sys.modules, f"nidaqmx.{name}", getattr(fake, name))
-    from wearbench.acquisition.backends.daqmx import DaqSource
+    from wearbench.acquisition.backends.nidaqmx import DaqSource
 
     return DaqSource("Dev1/ai0", sensitivity=0.0102, block=100), calls
 

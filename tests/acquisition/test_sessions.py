@@ -105,7 +105,7 @@ def test_can_session_equals_emulator(bench, tmp_path, backend):
     assert_same_blocks(out, sent_from_can(emulator))
     _check_session(out, bench)
     # the session's raw frames, replayed into a fresh decoder, give the recorded blocks again
-    from wearbench.acquisition.backends.canbus import replay
+    from wearbench.acquisition.backends.can import replay
 
     s = read_session(out)
     replayed = {ACCELERATION: {}, ENCODER: {}}
@@ -183,7 +183,7 @@ def test_clipped_samples_are_flagged(bench, tmp_path):
 
 
 def test_frame_log_option():
-    from wearbench.acquisition.backends.canbus import FrameLog, frame_log
+    from wearbench.acquisition.backends.can import FrameLog, frame_log
 
     assert isinstance(frame_log({}), FrameLog) and isinstance(frame_log({"log_frames": "true"}), FrameLog)
     assert frame_log({"log_frames": False}) is None and frame_log({"log_frames": "false"}) is None

@@ -21,7 +21,7 @@ from typing import Any
 import can
 import canopen
 from canopen.profiles.p402 import BaseNode402, State402
-from wearbench.acquisition.backends.canbus import (
+from wearbench.acquisition.backends.can import (
     BUS_OPTIONS,
     BenchFrames,
     CanSource,
