@@ -32,7 +32,9 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
 
 __all__ = [
+    "BENCH_ATTACHMENT",
     "ENCODING",
+    "METADATA",
     "SCHEMAS",
     "TOPICS",
     "Command",
@@ -52,7 +54,33 @@ __all__ = [
     "log_level",
     "ns",
     "publish_time",
+    "surface_attachment",
+    "surface_joint",
 ]
+
+# metadata records of a session file, by name: what each holds (every value a string)
+METADATA = {
+    "session": "bench, bench_sha256, bench_path, operator, software, backend, speed_rad_s, started_at, target",
+    "clearance": "radial clearance (m, repr) per clearance joint as mounted",
+    "wear": "wear state per clearance joint: a label or the worn-surface file",
+    "calibration": "sensor names and rates, accelerometer range/axis/sensitivity/mount, encoder joint, "
+                   "counts_per_rev and angle_offset, and each stream's description",
+    "hardware": "backend and what the rig reports of itself",
+    "result": "how the session ended: reason, completed, cycles, duration_s, counts per stream",
+    "recovery": "written by `wearbench recover`: the broken source and what was restored",
+}
+BENCH_ATTACHMENT = "bench.toml"  # the bench file as recorded (application/toml)
+
+
+def surface_attachment(joint: str) -> str:
+    """Attachment name of the worn-surface file (.npz) a session's wear state names for ``joint``."""
+    return f"wear/{joint}.npz"
+
+
+def surface_joint(name: str) -> str | None:
+    """The joint of a worn-surface attachment ``name`` (None for another attachment)."""
+    return name[5:-4] if name.startswith("wear/") and name.endswith(".npz") else None
+
 
 TOPICS = {ACCELERATION: "/acceleration", ENCODER: "/encoder", "state": "/motor/state",
           "command": "/motor/command", "events": "/events", "frames": "/can/frames"}

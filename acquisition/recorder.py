@@ -33,8 +33,15 @@ from wearbench.acquisition.drivers import (
     MotorState,
     Rig,
 )
-from wearbench.acquisition.layout import Command, CrankAngle, clip_level, count_clipped
-from wearbench.acquisition.session_file import BENCH_ATTACHMENT, surface_attachment
+from wearbench.acquisition.layout import (
+    BENCH_ATTACHMENT,
+    Command,
+    CrankAngle,
+    clip_level,
+    count_clipped,
+    surface_attachment,
+)
+from wearbench.acquisition.sequence import SequenceCheck
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.schema import Bench
 
@@ -104,33 +111,6 @@ class SessionResult:
     reader_cpu: float = 0.0  # s of CPU used by the reader threads
 
 
-class _SequenceCheck:
-    """Dropped and repeated block sequence numbers of one stream, counted, never hidden."""
-
-    def __init__(self) -> None:
-        self.last: int | None = None
-        self.block_size = 0
-        self.blocks = self.samples = self.dropped = self.dropped_samples = self.repeated = 0
-
-    def check(self, block: Block) -> str | None:
-        n = len(block.samples)
-        self.blocks += 1
-        self.samples += n
-        self.block_size = max(self.block_size, n)
-        note = None
-        if self.last is not None:
-            gap = block.sequence - self.last - 1
-            if gap > 0:
-                self.dropped += gap
-                self.dropped_samples += gap * self.block_size
-                note = f"{block.stream}: {gap} block(s) missing before sequence {block.sequence}"
-            elif gap < 0:
-                self.repeated += 1
-                note = f"{block.stream}: sequence {block.sequence} repeated or out of order (after {self.last})"
-        self.last = block.sequence if self.last is None else max(self.last, block.sequence)
-        return note
-
-
 def _failure_reason(exc: Exception, what: str) -> str:
     """The stop reason recorded when `exc` ends a session inside `what`."""
     if isinstance(exc, DeviceDisconnected):
@@ -162,7 +142,7 @@ class Recorder:
         self._reason_lock = threading.Lock()
         self._recording = threading.Event()
         self._writer_done = threading.Event()
-        self._checks = {ACCELERATION: _SequenceCheck(), ENCODER: _SequenceCheck()}
+        self._checks = {ACCELERATION: SequenceCheck(), ENCODER: SequenceCheck()}
         self._malformed = 0
         self._events = 0
         self._cpu: dict[str, float] = {}
@@ -266,7 +246,7 @@ class Recorder:
         is handed over before the first such error is raised."""
         w = self.writer
         if isinstance(item, Block):
-            note = self._checks[item.stream].check(item)
+            note = self._checks[item.stream].check(item.stream, item.sequence, len(item.samples))
             events = [self._clip_check(item) if item.stream == ACCELERATION else None]
             if note:
                 self._events += 1

@@ -34,12 +34,18 @@ from mcap.records import (
 from mcap.stream_reader import StreamReader, breakup_chunk
 from wearbench.acquisition import layout, layout1
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
-from wearbench.acquisition.layout import SCHEMAS, TOPICS, clip_level
+from wearbench.acquisition.layout import (
+    BENCH_ATTACHMENT,
+    SCHEMAS,
+    TOPICS,
+    clip_level,
+    surface_joint,
+)
+from wearbench.acquisition.sequence import SequenceCheck
 from wearbench.bench.load import parse_bench
 from wearbench.bench.schema import Bench, BenchError
 
 __all__ = [
-    "BENCH_ATTACHMENT",
     "Scan",
     "Session",
     "blocks",
@@ -48,18 +54,10 @@ __all__ = [
     "read_session",
     "scan_mcap",
     "states",
-    "surface_attachment",
 ]
-
-BENCH_ATTACHMENT = "bench.toml"
-
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"  # the first bytes of every MCAP file
 
-
-def surface_attachment(joint: str) -> str:
-    """Attachment name of the worn-surface file (.npz) a session's wear state names for ``joint``."""
-    return f"wear/{joint}.npz"
 
 @dataclass
 class Scan:
@@ -203,17 +201,14 @@ def frames(scan: Scan) -> list[BusFrame]:
 
 def _dedupe(blocks, stream: str, quality: dict) -> list:
     """Sorted by sequence, repeated sequence numbers kept once; counts gaps and repeats."""
-    blocks = sorted(blocks, key=lambda b: b.sequence)
-    kept, dropped, repeated = [], 0, 0
-    for b in blocks:
-        if kept and b.sequence == kept[-1].sequence:
-            repeated += 1
-            continue
-        if kept:
-            dropped += b.sequence - kept[-1].sequence - 1
-        kept.append(b)
+    check, kept = SequenceCheck(), []
+    for b in sorted(blocks, key=lambda b: b.sequence):
+        repeated = check.repeated
+        check.check(stream, b.sequence, len(b.samples))
+        if check.repeated == repeated:
+            kept.append(b)
     quality[stream] = {"blocks": len(kept), "samples": int(sum(len(b.samples) for b in kept)),
-                       "dropped": dropped, "repeated": repeated}
+                       "dropped": check.dropped, "repeated": check.repeated}
     return kept
 
 
@@ -331,5 +326,5 @@ def read_session(path: str | Path) -> Session:
                    acceleration=acceleration, encoder=encoder, events=event_frame, motor=motor,
                    finished=scan.finished, problem=problem, quality=quality, origin=origin,
                    host_origin=host_origin,
-                   surface_files={a.name[5:-4]: a.data for a in scan.attachments
-                                  if a.name.startswith("wear/") and a.name.endswith(".npz")})
+                   surface_files={surface_joint(a.name): a.data for a in scan.attachments
+                                  if surface_joint(a.name)})

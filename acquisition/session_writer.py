@@ -38,6 +38,7 @@ from mcap.writer import CompressionType, IndexType, Writer
 from wearbench.acquisition.drivers import Block, BusFrame, Event, MotorState
 from wearbench.acquisition.layout import (
     ENCODING,
+    METADATA,
     SCHEMAS,
     TOPICS,
     Command,
@@ -297,6 +298,8 @@ class SessionWriter:
         return self._channels[key]
 
     def add_metadata(self, name: str, record: dict[str, str]) -> None:
+        if name not in METADATA:
+            raise ValueError(f"metadata record {name!r}: expected one of the session layout's {sorted(METADATA)}")
         self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
         self._raise()
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.layout import TOPICS
+from wearbench.acquisition.sequence import SequenceCheck
 from wearbench.acquisition.session_file import blocks, events, scan_mcap
 
 __all__ = ["SessionSummary", "StreamSummary", "format_summary", "summarize"]
@@ -49,10 +50,10 @@ def _block_stream(topic: str, blocks) -> StreamSummary:
     if not blocks:
         return s
     blocks = sorted(blocks, key=lambda b: (b.sequence, b.device_time))
-    seq = np.array([b.sequence for b in blocks])
-    steps = np.diff(seq)
-    s.dropped_blocks = int(np.sum(np.clip(steps - 1, 0, None)))
-    s.repeated_blocks = int(np.sum(steps <= 0))
+    check = SequenceCheck()
+    for b in blocks:
+        check.check(topic, b.sequence, len(b.samples))
+    s.dropped_blocks, s.repeated_blocks = check.dropped, check.repeated
     s.samples = int(sum(len(b.samples) for b in blocks))
     s.clipped = int(sum(b.clipped for b in blocks))
     start = np.array([b.device_time for b in blocks])
