@@ -48,8 +48,6 @@ __all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "FrameLog", "f
            "replay"]
 
 BUS_OPTIONS = {"interface", "channel", "bitrate", "data_bitrate", "fd", "reply_timeout", "log_frames"}
-_MOTOR = {"ENABLE": 1, "DISABLE": 2, "SET_SPEED": 3, "STOP": 4, "CLEAR_FAULT": 5, "GET_STATUS": 6}
-_STREAM = {"STOP": 0, "START": 1, "CONFIGURE": 2}
 
 
 def open_bus(options: Mapping[str, Any]) -> can.BusABC:
@@ -239,7 +237,8 @@ class CanSource(AccelerationSource):
         f = self.frames
         count = f.stream_count
         f.request(lambda: _send(self.bus, "StreamControl", {
-            "Command": _STREAM[command], "Mask": values.get("Mask", 3), "Range": values.get("Range", 0.0),
+            "Command": command,  # by its DBC name (the DBC holds the codes)
+            "Mask": values.get("Mask", 3), "Range": values.get("Range", 0.0),
             "SampleRate": values.get("SampleRate", 0)}),
             lambda: f.stream_count > count, self.reply_timeout, f"StreamStatus reply to {command}")
         reply = f.stream_status
@@ -299,7 +298,7 @@ class CanDrive(MotorDrive):
             self._counter = (self._counter + 1) & 0xF
             counter, count = self._counter, f.status_count
             f.request(lambda: _send(self.bus, "MotorCommand", {
-                "Command": _MOTOR[command], "Counter": counter, "TargetSpeed": speed,
+                "Command": command, "Counter": counter, "TargetSpeed": speed,
                 "Acceleration": acceleration}),
                 lambda: f.status_count > count and f.status["AckCounter"] == counter,
                 self.reply_timeout, f"MotorStatus acknowledging {command}")

@@ -226,23 +226,23 @@ class CanEmulator:
     def _on_motor_command(self, can_id: int, data: bytearray, timestamp: float) -> None:
         if self._off():
             return
-        values = cf.load_dbc().get_message_by_frame_id(can_id).decode(bytes(data), decode_choices=False)
-        cmd, counter = int(values["Command"]), int(values["Counter"])
+        values = cf.load_dbc().get_message_by_frame_id(can_id).decode(bytes(data))  # commands by DBC name
+        cmd, counter = str(values["Command"]), int(values["Counter"])
         d = self.device
         error = ErrorCode.OK
         with self._lock:
             try:
-                if cmd == 1:
+                if cmd == "ENABLE":
                     d.enable()
-                elif cmd == 2:
+                elif cmd == "DISABLE":
                     d.disable()
-                elif cmd == 3:
+                elif cmd == "SET_SPEED":
                     d.set_speed(float(values["TargetSpeed"]), float(values["Acceleration"]) or None)
-                elif cmd == 4:
+                elif cmd == "STOP":
                     d.stop()
-                elif cmd == 5:
+                elif cmd == "CLEAR_FAULT":
                     d.clear_fault()
-                elif cmd not in (0, 6):
+                elif cmd not in ("NONE", "GET_STATUS"):
                     error = ErrorCode.UNKNOWN_COMMAND
             except DeviceError as exc:
                 error = exc.code
@@ -256,16 +256,16 @@ class CanEmulator:
     def _on_stream_control(self, can_id: int, data: bytearray, timestamp: float) -> None:
         if self._off():
             return
-        values = cf.load_dbc().get_message_by_frame_id(can_id).decode(bytes(data), decode_choices=False)
-        cmd, mask = int(values["Command"]), int(values["Mask"])
+        values = cf.load_dbc().get_message_by_frame_id(can_id).decode(bytes(data))  # commands by DBC name
+        cmd, mask = str(values["Command"]), int(values["Mask"])
         error = ErrorCode.OK
         with self._lock:
             try:
-                if cmd == 0:
+                if cmd == "STOP":
                     self.device.stop_stream()
-                elif cmd == 1:
+                elif cmd == "START":
                     self.device.start_stream(accel=bool(mask & 1), encoder=bool(mask & 2))
-                elif cmd == 2:
+                elif cmd == "CONFIGURE":
                     self.device.configure_accelerometer(float(values["Range"]), float(values["SampleRate"]))
                 else:
                     error = ErrorCode.UNKNOWN_COMMAND
