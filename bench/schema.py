@@ -197,7 +197,7 @@ class Bench:
     tolerances: Tolerances = field(default_factory=Tolerances)
     states: tuple[WearState, ...] = ()  # named candidate states ([[state]] tables)
     # [compute] scheduler: where batches on this bench run ("local" or "tcp://HOST:PORT"); not physics,
-    # so left out of the repr (validation.ensemble.physics_key digests the repr)
+    # so not part of the bench's content (bench/content.py)
     scheduler: str | None = field(default=None, repr=False)
 
     def body(self, name: str) -> Body:

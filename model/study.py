@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
+from wearbench.bench.content import bench_key
 from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages
 
@@ -104,11 +105,6 @@ def run_case(bench, case: Case, config: StudyConfig) -> CaseResult:
     return CaseResult(case, run, dynamics, summaries, time.perf_counter() - t0)
 
 
-def _bench_part(bench):
-    """The bench as content for a task key (where its file lies does not change a result)."""
-    return replace(bench, path=None)
-
-
 def _raise_failures(results: list, what: str) -> None:
     failed = [r for r in results if isinstance(r, TaskFailure)]
     if failed:
@@ -137,7 +133,7 @@ def staging_convergence(bench, ks: list[float], total_cycles: float, plan: Stage
     order = sorted(plans, reverse=True)  # longest first: balanced workers
     tasks = [Task(_wear_only, {"bench": bench, "plan": plans[k], "clearances": clearances, "speed": speed,
                                "initial": initial},
-                  task_key("wear-stages", _bench_part(bench), plans[k], clearances, speed, initial), f"k={k:g}")
+                  task_key("wear-stages", bench_key(bench), plans[k], clearances, speed, initial), f"k={k:g}")
              for k in order]
     if tasks:
         done = run_tasks(tasks, workers=workers, scheduler=scheduler, progress="wear convergence")
@@ -231,7 +227,7 @@ def run_study(bench, out: str | Path, config: StudyConfig, *, on_case=None) -> d
     cases = [config.wear_case, *config.clearance_cases]
     t0 = time.perf_counter()
     tasks = [Task(run_case, {"bench": bench, "case": c, "config": config},
-                  task_key("study-case", _bench_part(bench), c, replace(config, workers=None, scheduler=None)),
+                  task_key("study-case", bench_key(bench), c, replace(config, workers=None, scheduler=None)),
                   c.name) for c in cases]
 
     def finished(i: int, r) -> None:

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from wearbench.bench.content import bench_key
 from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan
@@ -222,7 +223,7 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
     (-1: nominal), state, statistic, value, unit. Failed runs are listed, never hiding the others.
     """
     t0 = time.perf_counter()
-    part = replace(bench, path=None)  # where the file lies does not change a result
+    part = bench_key(bench)  # what the bench is, not where its file lies
     how = {f.name: getattr(spec, f.name) for f in fields(spec) if f.name not in ("axes", "realisations", "seed")}
     runs, tasks = [], []
     for point in spec.points():

@@ -11,19 +11,19 @@ tolerances, seed, settings and the model's source digest.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+from wearbench.bench.content import bench_key, file_digest
 from wearbench.bench.schema import Bench, WearState
 from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
 
-__all__ = ["Ensemble", "EnsembleSettings", "build_ensembles", "ensembles_key", "load_ensembles", "physics_key",
+__all__ = ["Ensemble", "EnsembleSettings", "build_ensembles", "ensembles_key", "load_ensembles", 
            "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
 
 @dataclass(frozen=True)
@@ -71,23 +71,9 @@ class Ensemble:
         return tuple(np.percentile(flat, [lo, 50.0, hi], axis=0))
 
 
-def _file_digest(path) -> str:
-    return hashlib.sha256(open(path, "rb").read()).hexdigest()
-
-
-def physics_key(bench: Bench) -> str:
-    """Digest of what a bench's physics depends on (not its file name, text or hardware table)."""
-    joints = tuple(replace(j, clearance=replace(j.clearance, surfaces=_file_digest(j.clearance.surfaces)
-                                                if j.clearance.surfaces else None))
-                   if j.clearance is not None else j for j in bench.joints)
-    physics = replace(bench, name="", path=None, source="", sha256="", description="", joints=joints, emulator={},
-                      hardware=None, states=())
-    return hashlib.sha256(repr(physics).encode()).hexdigest()
-
-
 def _state_key(state: WearState) -> dict:
     return {"name": state.name, "clearances": {j: round(c, 12) for j, c in sorted(state.clearances.items())},
-            "surfaces": {j: _file_digest(p) for j, p in sorted(state.surfaces.items())}}
+            "surfaces": {j: file_digest(p) for j, p in sorted(state.surfaces.items())}}
 
 
 def realisation_summary(bench: Bench, state: WearState, seed: int, *, speed: float,
@@ -108,7 +94,7 @@ def ensembles_key(bench: Bench, states: Sequence[WearState], speed: float, setti
     """Content address of a set of ensembles (also keys shipped precomputed ones)."""
     from wearbench.model.compute import task_key
 
-    return task_key("ensembles", physics_key(bench), asdict(bench.tolerances), [_state_key(s) for s in states],
+    return task_key("ensembles", bench_key(bench), asdict(bench.tolerances), [_state_key(s) for s in states],
                     round(speed, 9), asdict(settings))
 
 
@@ -139,7 +125,7 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
         found = load_ensembles(shipped_ensembles_path(bench), key=ensembles_key(bench, states, speed, settings))
         if found is not None:
             return found
-    physics = physics_key(bench)
+    physics = bench_key(bench)
     tasks, owners = [], []
     for state in states:
         for i in range(settings.realisations):

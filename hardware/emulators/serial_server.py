@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
+from wearbench.bench.content import bench_key
 from wearbench.bench.load import load_bench
 from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import EmulatorConfig
@@ -263,14 +264,12 @@ def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None 
     from its file, so a bench changed in memory is refused (its file would not hold the change).
     """
     if bench.path is not None:
-        from wearbench.hardware.emulators.signal import bench_content
-
         file_bench = load_bench(bench.path)
         on_file = {j.name: j.clearance for j in file_bench.clearance_joints}
         if on_file != {j.name: j.clearance for j in bench.clearance_joints}:
             raise ValueError(f"{bench.path}: the bench was changed in memory (clearances); the emulator process "
                              "reads the file, so give the device its clearances with [emulator.truth] instead")
-        if bench_content(file_bench) != bench_content(bench):
+        if bench_key(file_bench) != bench_key(bench):
             raise ValueError(f"{bench.path}: the bench was changed in memory (masses, geometry, contact or "
                              "tolerances); the emulator process reads the file: save the bench to a file first")
     tmp = Path(tempfile.mkdtemp(prefix="wearbench-emu-"))

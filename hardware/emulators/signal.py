@@ -27,25 +27,21 @@ import hashlib
 import json
 import math
 import os
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
+from wearbench.bench.content import canonical
 from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import Truth
 
-__all__ = ["FADE", "SignalTable", "bench_content", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
+__all__ = ["FADE", "SignalTable", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
            "table_key"]
 
 TWO_PI = 2 * np.pi
 FADE = 0.25 * TWO_PI  # rad of motor angle: the crossfade before a long run wraps to its start
 _MODEL_TABLE_VERSION = "2"
 # fields that do not change the model's acceleration (the emulator's own table, the host side)
-_NOT_PHYSICS = {"path", "source", "description", "emulator", "hardware", "states", "motor", "tolerances",
-                "range", "sensitivity", "sample_rate"}
-
 
 @dataclass(frozen=True, eq=False)
 class SignalTable:
@@ -87,37 +83,6 @@ def harmonic_table(speed: float, points: int = 4096) -> SignalTable:
     return SignalTable(speed, acc, "harmonic test pattern")
 
 
-def _file_sha(path: str | Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def _content(x: Any) -> Any:
-    """A JSON-able canonical form of ``x``: dataclasses by field (minus what is not physics), floats
-    exactly (hex), files by the SHA-256 of what they hold, arrays by their bytes."""
-    if dataclasses.is_dataclass(x) and not isinstance(x, type):
-        return {f.name: _content(getattr(x, f.name)) for f in dataclasses.fields(x) if f.name not in _NOT_PHYSICS}
-    if isinstance(x, Mapping):
-        return {str(k): _content(v) for k, v in sorted(x.items(), key=lambda kv: str(kv[0]))}
-    if isinstance(x, (list, tuple)):
-        return [_content(v) for v in x]
-    if isinstance(x, bool) or x is None or isinstance(x, (str, int)):
-        return x
-    if isinstance(x, float):
-        return float(x).hex()
-    if isinstance(x, Path):
-        return {"sha256": _file_sha(x)}
-    if isinstance(x, np.ndarray):
-        return {"array": hashlib.sha256(np.ascontiguousarray(x).tobytes()).hexdigest(), "shape": list(x.shape)}
-    raise TypeError(f"table_key: cannot key a {type(x).__name__}")
-
-
-def bench_content(bench: Bench) -> str:
-    """SHA-256 of everything in ``bench`` that the model's acceleration depends on (or its draws:
-    the tolerances); not its name, text, emulator table or host-side settings."""
-    content = {"bench": _content(bench), "tolerances": _content(dataclasses.asdict(bench.tolerances))}
-    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
-
-
 def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolutions: int, settle: float,
               rate: float) -> str:
     """SHA-256 over everything a model table depends on: the bench as drawn for the truth's seed
@@ -129,11 +94,11 @@ def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolution
     from wearbench.model.realisation import draw_realisation
 
     real = draw_realisation(bench, truth.seed)
-    key = {"v": _MODEL_TABLE_VERSION, "kind": kind, "model": model_source_digest(), "bench": _content(real.bench),
-           "draw": _content(real.describe()), "clearances": _content(dict(truth.clearances)),
-           "wear": _content({j: Path(p) for j, p in truth.wear.items()}), "seed": truth.seed,
-           "speed": _content(float(speed)), "revolutions": revolutions, "settle": _content(float(settle)),
-           "rate": _content(float(rate))}
+    key = {"v": _MODEL_TABLE_VERSION, "kind": kind, "model": model_source_digest(), "bench": canonical(real.bench),
+           "draw": canonical(real.describe()), "clearances": canonical(dict(truth.clearances)),
+           "wear": canonical({j: Path(p) for j, p in truth.wear.items()}), "seed": truth.seed,
+           "speed": canonical(float(speed)), "revolutions": revolutions, "settle": canonical(float(settle)),
+           "rate": canonical(float(rate))}
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
 
 

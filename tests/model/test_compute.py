@@ -139,9 +139,9 @@ def test_a_bench_files_scheduler_ranks_below_argument_and_env_above_user_config(
     assert compute.resolve_scheduler(bench=bench) == "tcp://127.0.0.1:9000"  # env over bench file
     assert compute.resolve_scheduler("tcp://127.0.0.1:9001", bench=bench) == "tcp://127.0.0.1:9001"
     # the bench's physics digest ignores where its batches run
-    from wearbench.validation.ensemble import physics_key
+    from wearbench.bench.content import bench_key
 
-    assert physics_key(bench) == physics_key(local) == physics_key(load_bench(shipped_bench("slider-crank")))
+    assert bench_key(bench) == bench_key(local) == bench_key(load_bench(shipped_bench("slider-crank")))
     for table, key, value in (('scheduler = "10.0.0.5:8786"', "compute.scheduler", "'10.0.0.5:8786'"),
                               ("scheduler = 8786", "compute.scheduler", "8786"),
                               ("workers = 4", "compute.workers", "4")):

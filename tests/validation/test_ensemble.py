@@ -4,13 +4,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from wearbench.bench.content import bench_key
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.validation.ensemble import (
     EnsembleSettings,
     build_ensembles,
     ensembles_key,
     load_ensembles,
-    physics_key,
     save_ensembles,
     shipped_ensembles_path,
 )
@@ -18,12 +18,14 @@ from wearbench.validation.ensemble import (
 BENCH = load_bench(shipped_bench("ninebar-testbed"))
 
 
-def test_physics_key_follows_physics_not_names_or_paths():
-    key = physics_key(BENCH)
-    assert physics_key(replace(BENCH, name="other", description="x", source="# moved")) == key
+def test_bench_key_follows_physics_not_names_or_paths():
+    key = bench_key(BENCH)
+    assert bench_key(replace(BENCH, name="other", description="x", source="# moved", path=None, sha256="")) == key
+    ranged = replace(BENCH, sensors=tuple(replace(s, range=2 * s.range) if s.range else s for s in BENCH.sensors))
+    assert bench_key(ranged) == key  # what a sensor records is not the motion
     heavier = replace(BENCH, bodies=(replace(BENCH.bodies[0], mass=BENCH.bodies[0].mass * 1.01),) + BENCH.bodies[1:])
-    assert physics_key(heavier) != key
-    assert physics_key(BENCH.with_clearances({"A": 0.4e-3})) != key
+    assert bench_key(heavier) != key
+    assert bench_key(BENCH.with_clearances({"A": 0.4e-3})) != key
 
 
 def test_settings_are_validated():
