@@ -406,12 +406,8 @@ class Recorder:
         return out
 
     def _crank_ratio(self) -> float:
-        """Speed ratio of the encoder's crank to the motor (1 without an encoder driver)."""
-        try:
-            joint = self.bench.sensor("encoder").joint
-        except KeyError:
-            return 1.0
-        return next((d.ratio for d in self.bench.drivers if d.joint == joint), 1.0)
+        """Speed ratio of the encoder's crank to the motor."""
+        return self.bench.encoder_driver.ratio
 
     def _run(self, prog: Progress) -> None:
         p, rig = self.plan, self.rig

@@ -138,7 +138,7 @@ def scan_mcap(path: str | Path) -> Scan:
 
 @dataclass
 class Session:
-    """A recorded session (see the contract in COMMON.md); times in s, SI values."""
+    """A recorded session as read back (the layout is `acquisition/layout.py`); times in s, SI values."""
 
     path: Path
     bench: Bench | None

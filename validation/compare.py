@@ -138,10 +138,8 @@ def motor_speed(session: MeasuredSession) -> float:
     crank = session.steady_speed
     if session.bench is None:
         return crank
-    for d in session.bench.drivers:
-        if d.joint == session.encoder_joint and d.ratio:
-            return crank / d.ratio
-    return crank
+    ratio = session.bench.encoder_driver.ratio
+    return crank / ratio if ratio else crank
 
 
 def theory_curve(session: MeasuredSession, theory: Any = None, *, options: CompareOptions = CompareOptions(),

@@ -79,8 +79,9 @@ class MeasuredSession:
         return float(2 * np.pi * len(steady) / (steady["t_end"] - steady["t_start"]).sum()) * self.direction
 
     @property
-    def encoder_joint(self) -> str:
-        return "O1" if self.bench is None else self.bench.encoder_driver.joint
+    def encoder_joint(self) -> str | None:
+        """The joint of the crank the encoder reads (the bench's); None for a session without a bench."""
+        return None if self.bench is None else self.bench.encoder_driver.joint
 
 
 def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSession:

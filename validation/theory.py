@@ -42,9 +42,16 @@ class TheoryCurve:
     periodic: bool = True
 
     @classmethod
-    def from_table(cls, table: pd.DataFrame, joint: str, label: str = "theory", *,
+    def from_table(cls, table: pd.DataFrame, joint: str | None, label: str = "theory", *,
                    periodic: bool = True) -> TheoryCurve:
-        """``table`` with columns t, theta_<joint>, slider_acc (the model's result table)."""
+        """``table`` with columns t, theta_<joint>, slider_acc (the model's result table); ``joint``
+        None (a session without its bench): the table's one crank-angle column."""
+        if joint is None:
+            cranks = [c.removeprefix("theta_") for c in table.columns if c.startswith("theta_")]
+            if len(cranks) != 1:
+                raise ValueError(f"theory {label!r}: the session names no encoder crank (no bench) and the table "
+                                 f"has crank angles {cranks}; expected exactly one theta_<joint> column")
+            joint = cranks[0]
         col = f"theta_{joint}"
         missing = [c for c in ("t", col, "slider_acc") if c not in table.columns]
         if missing:

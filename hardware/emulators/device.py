@@ -156,7 +156,7 @@ def _sensor(bench: Bench, kind: str, default: Sensor) -> Sensor:
 
 
 class BenchDevice:
-    """The emulated bench (see module docstring and the contract in helpers/COMMON.md)."""
+    """The emulated bench (see the module docstring; the wire contract is hardware/protocol/SERIAL.md and CAN.md)."""
 
     def __init__(self, bench: Bench, config: EmulatorConfig | None = None, clock=None):
         self.bench = bench
