@@ -39,7 +39,7 @@ NREC = 8  # t, dt, fn, vt, omega_rel, phi_bearing, phi_journal, pen
 
 
 @njit(cache=True)
-def _deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
+def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
     n = y.shape[0] // 2
     q = y[:n]
     v = y[n:]
@@ -72,7 +72,7 @@ def dopri5_try(t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cou
             for r in range(s):
                 acc += _A[s, r] * k[r, i]
             ytmp[i] = y[i] + h * acc
-        st = _deriv(t + _C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
+        st = deriv(t + _C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
         if st != 0:
             return st, 0.0
     err = 0.0
@@ -93,12 +93,12 @@ def rk4_try(t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cout, 
     for s, c in ((1, 0.5), (2, 0.5), (3, 1.0)):
         for i in range(N):
             ytmp[i] = y[i] + c * h * k[s - 1, i]
-        st = _deriv(t + c * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
+        st = deriv(t + c * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
         if st != 0:
             return st, 0.0
     for i in range(N):
         ynew[i] = y[i] + h / 6.0 * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i])
-    st = _deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cout, W)
+    st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cout, W)
     return st, 0.0
 
 
@@ -133,7 +133,7 @@ def _sensor_acc(y, f, sensor):
 def _peak_values(t, y, speed, P, inc, v0i, f, lam, cout, W, sensor, vals):
     """The tracked quantities at (t, y) without stabilisation, as the output table has them:
     normal contact force per clearance joint, then |sensor acceleration|."""
-    _deriv(t, y, speed, P, 0.0, 0.0, inc, v0i, f, lam, cout, W)
+    deriv(t, y, speed, P, 0.0, 0.0, inc, v0i, f, lam, cout, W)
     nc = cout.shape[0]
     for c in range(nc):
         vals[c] = cout[c, K.CO_FN]
@@ -279,7 +279,7 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
             if ps != 0:
                 stats[S_T] = t_new
                 return NO_PROJECTION if ps == K.NO_CONVERGENCE else SINGULAR
-            st = _deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cnew, W)
+            st = deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cnew, W)
             stats[S_NFEV] += 1
             if st != 0:
                 stats[S_T] = t_new
@@ -342,7 +342,7 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
                     yo[i] = ynew[i]
             else:
                 _hermite(t, y, k[0], t_new, ynew, k[6], ts, yo)
-            _deriv(ts, yo, speed, P, 0.0, 0.0, inc, v0i, fo, out_lam[iout], csamp, W)
+            deriv(ts, yo, speed, P, 0.0, 0.0, inc, v0i, fo, out_lam[iout], csamp, W)
             out_y[iout] = yo
             out_a[iout] = fo[n:]
             out_c[iout] = csamp
@@ -352,7 +352,7 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
             iout += 1
         pst[3] = 0.0
         if _update_modes(cout_old, cnew, inc, v0i):
-            _deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cnew, W)
+            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cnew, W)
             stats[S_NFEV] += 1
             pst[3] = 1.0
         if record:

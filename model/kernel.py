@@ -1,7 +1,7 @@
 """Compiled core of the planar multibody model: constraints, forces, accelerations, projection.
 
 Holds numba-compiled (``@njit(cache=True)``) functions on flat arrays; the scene (``scene.py``)
-packs a mechanism into the tuple ``P`` described below and the integrators (``integrators.py``)
+packs a mechanism into the named record ``P`` (:class:`Params`) described below and the integrators (``integrators.py``)
 call :func:`accel` and :func:`project`. Imports numpy, numba and ``wearbench.model.contact`` only.
 
 Coordinates: q = (x, y, theta) of each moving body's centre of mass (absolute coordinates), v = dq/dt.
@@ -11,8 +11,8 @@ solved through the Schur complement S = Phi_q M^-1 Phi_q^T (Cholesky, m x m). Ea
 touches at most two bodies, so Phi_q is stored compactly: body index ``Jb[k, s]`` (-1 = none) and
 the three entries ``Jv[k, s, :]`` per slot s.
 
-P = (minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, surf, surf_n,
-     spr_b, spr_p, trq_b, trq_p, jb, body_rows, body_nrows, profile)
+P = Params(minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, surf, surf_n,
+           spr_b, spr_p, trq_b, trq_p, jb, body_rows, body_nrows, profile), a named tuple numba compiles:
 - minv (n,): inverse masses/inertias; fext (n,): constant generalised forces (gravity).
 - rev_b (nr, 2), rev_s (nr, 4): ideal pin pairs: bodies (-1 = frame) and local points
   (x_i, y_i, x_j, y_j); constraint r_i + A_i s_i - r_j - A_j s_j = 0 (2 rows).
@@ -34,6 +34,7 @@ Status codes returned by kernels: 0 ok, 1 singular constraint Jacobian (singular
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -43,6 +44,9 @@ from wearbench.model.contact import (
     impact_speed,
     normal_force,
 )
+
+Params = namedtuple("Params", "minv fext rev_b rev_s pri_b pri_s drv_b drv_p clr_b clr_p surf surf_n "
+                               "spr_b spr_p trq_b trq_p jb body_rows body_nrows profile")
 
 # clearance parameter columns
 CLR_SIX, CLR_SIY, CLR_SJX, CLR_SJY, CLR_R1, CLR_R2, CLR_K, CLR_N, CLR_CE, CLR_LAW, CLR_CF, \
@@ -126,7 +130,7 @@ def motor_angle(t, speed, profile):
 @njit(cache=True)
 def constraints(t, q, v, speed, P, phi, Jv, gam, nu):
     """Fill Phi (m), compact Phi_q values Jv (m, 2, 3), gamma (m) and nu = -Phi_t (m)."""
-    rev_b, rev_s, pri_b, pri_s, drv_b, drv_p = P[2], P[3], P[4], P[5], P[6], P[7]
+    rev_b, rev_s, pri_b, pri_s, drv_b, drv_p = P.rev_b, P.rev_s, P.pri_b, P.pri_s, P.drv_b, P.drv_p
     nb = q.shape[0] // 3
     cs = np.empty(nb)
     sn = np.empty(nb)
@@ -193,7 +197,7 @@ def constraints(t, q, v, speed, P, phi, Jv, gam, nu):
         gam[k + 1] = 0.0
         nu[k + 1] = 0.0
         k += 2
-    th_m, w_m, a_m = motor_angle(t, speed, P[19])
+    th_m, w_m, a_m = motor_angle(t, speed, P.profile)
     for r in range(drv_b.shape[0]):
         b = drv_b[r]
         phi[k] = q[3 * b + 2] - (drv_p[r, 0] * th_m + drv_p[r, 1])
@@ -500,7 +504,7 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
     ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while
     the flag is off the current normal speed stands in for the impact speed (contact onset).
     """
-    clr_b, clr_p, surf, surf_n = P[8], P[9], P[10], P[11]
+    clr_b, clr_p, surf, surf_n = P.clr_b, P.clr_p, P.surf, P.surf_n
     for k in range(clr_b.shape[0]):
         bi, bj = clr_b[k, 0], clr_b[k, 1]
         p = clr_p[k]
@@ -581,7 +585,7 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
 @njit(cache=True)
 def element_forces(q, v, P, g):
     """Generalised forces of gravity, spring-dampers and applied torques (N, N m) into g."""
-    fext, spr_b, spr_p, trq_b, trq_p = P[1], P[12], P[13], P[14], P[15]
+    fext, spr_b, spr_p, trq_b, trq_p = P.fext, P.spr_b, P.spr_p, P.trq_b, P.trq_p
     g[:] = fext
     for k in range(spr_b.shape[0]):
         bi, bj = spr_b[k, 0], spr_b[k, 1]
@@ -607,7 +611,7 @@ def element_forces(q, v, P, g):
 @njit(cache=True)
 def _schur(P, Jv, S):
     """S = Phi_q M^-1 Phi_q^T from the compact Jacobian."""
-    minv, body_rows, body_nrows = P[0], P[17], P[18]
+    minv, body_rows, body_nrows = P.minv, P.body_rows, P.body_nrows
     S[:] = 0.0
     for b in range(body_nrows.shape[0]):
         mx, my, mt = minv[3 * b], minv[3 * b + 1], minv[3 * b + 2]
@@ -660,7 +664,7 @@ def _cholesky_solve(S, rhs, x):
 @njit(cache=True, inline="always")
 def _jt_times(P, Jv, lam, out):
     """out = Phi_q^T lam."""
-    jb = P[16]
+    jb = P.jb
     out[:] = 0.0
     for k in range(jb.shape[0]):
         for s in range(2):
@@ -674,7 +678,7 @@ def _jt_times(P, Jv, lam, out):
 @njit(cache=True, inline="always")
 def _j_times(P, Jv, x, k):
     """(Phi_q x)_k."""
-    jb = P[16]
+    jb = P.jb
     s_ = 0.0
     for s in range(2):
         b = jb[k, s]
@@ -690,7 +694,7 @@ def accel(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
     alpha, beta: Baumgarte coefficients (0, 0 for none). W: work arrays (phi, Jv, gam, nu, g, S, rhs, tmp).
     Returns OK or SINGULAR.
     """
-    minv = P[0]
+    minv = P.minv
     phi, Jv, gam, nu, g, S, rhs, tmp = W
     constraints(t, q, v, speed, P, phi, Jv, gam, nu)
     element_forces(q, v, P, g)
@@ -735,7 +739,7 @@ def project(t, q, v, speed, P, W, tol, maxit):
     For a fully driven mechanism (dof 0) this is the position and velocity analysis itself.
     Returns OK, SINGULAR or NO_CONVERGENCE.
     """
-    minv = P[0]
+    minv = P.minv
     phi, Jv, gam, nu, _, S, rhs, tmp = W
     m = phi.shape[0]
     if m == 0:

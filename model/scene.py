@@ -127,7 +127,7 @@ def _pin_pairs(joint: Joint) -> list[tuple[int, int]]:
 
 def _topology(bench: Bench, index: dict[str, int], ideal: set[str], forces: Sequence[Spring | Torque],
               surfaces: Mapping[str, JointSurfaces]):
-    """Pack the bench into the kernel's P tuple; clearance joints not in ``ideal`` become contacts."""
+    """Pack the bench into the kernel's parameters (:class:`~wearbench.model.kernel.Params`); clearance joints not in ``ideal`` become contacts."""
     def b(name: str) -> int:
         return -1 if name == GROUND else index[name]
 
@@ -241,14 +241,16 @@ def _topology(bench: Bench, index: dict[str, int], ideal: set[str], forces: Sequ
     for bb, r in enumerate(rows):
         for x, ks in enumerate(r):
             body_rows[bb, x] = ks
-    P = (minv, fext, rev_b_a, fa(rev_s, (-1, 4)), pri_b_a, fa(pri_s, (-1, 5)), drv_b_a, fa(drv_p, (-1, 2)),
-         ia(clr_b, (-1, 2)), fa(clr_p, (-1, K.NCLR)), surf, surf_n, ia(spr_b, (-1, 2)), fa(spr_p, (-1, 7)),
-         ia(trq_b, (-1,)), fa(trq_p, (-1, 2)), jb_a, body_rows, body_nrows, np.zeros((0, 3)))
+    P = K.Params(minv=minv, fext=fext, rev_b=rev_b_a, rev_s=fa(rev_s, (-1, 4)), pri_b=pri_b_a,
+                 pri_s=fa(pri_s, (-1, 5)), drv_b=drv_b_a, drv_p=fa(drv_p, (-1, 2)), clr_b=ia(clr_b, (-1, 2)),
+                 clr_p=fa(clr_p, (-1, K.NCLR)), surf=surf, surf_n=surf_n, spr_b=ia(spr_b, (-1, 2)),
+                 spr_p=fa(spr_p, (-1, 7)), trq_b=ia(trq_b, (-1,)), trq_p=fa(trq_p, (-1, 2)), jb=jb_a,
+                 body_rows=body_rows, body_nrows=body_nrows, profile=np.zeros((0, 3)))
     return P, tuple(row_joints), tuple(reaction_rows), tuple(clr_names), tuple(drivers)
 
 
 def _dense_jacobian(P, Jv: np.ndarray, n: int) -> np.ndarray:
-    jb = P[16]
+    jb = P.jb
     J = np.zeros((jb.shape[0], n))
     for k in range(jb.shape[0]):
         for s in range(2):
@@ -359,10 +361,10 @@ def build_scene(bench: Bench, *, clearances: Mapping[str, float | None] | None =
     K.project(0.0, q0, v0, 1.0, ideal_P, W, _ASSEMBLY_TOL, 20)  # per unit motor speed
     P, row_joints, reaction_rows, clr_names, drivers = _topology(bench, index, set(), forces, surfaces)
     # springs without a free length take their length at t = 0
-    spr_p = P[13]
+    spr_p = P.spr_p
     for k in range(spr_p.shape[0]):
         if spr_p[k, 6] < 0:
-            bi, bj = P[12][k]
+            bi, bj = P.spr_b[k]
             pi = _point(q0, bi, spr_p[k, 0:2])
             pj = _point(q0, bj, spr_p[k, 2:4])
             spr_p[k, 6] = float(np.hypot(*(pj - pi)))

@@ -259,8 +259,8 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
     P = scene.params
     if speed_profile is not None:
-        P = P[:-1] + (_profile(speed_profile, t_end),)
-        speed = float(P[-1][0, 2])
+        P = P._replace(profile=_profile(speed_profile, t_end))
+        speed = float(P.profile[0, 2])
     q = scene.q0.copy() if initial is None else np.array(initial[0], dtype=float)
     v = scene.v_unit * speed if initial is None else np.array(initial[1], dtype=float)
     out_y = np.zeros((times.size, 2 * n))
@@ -301,7 +301,7 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     cout = np.zeros((nc, K.NCO))
     lam = np.zeros(m)
     alpha, beta = meth.baumgarte
-    if I._deriv(0.0, y, speed, P, alpha, beta, inc, v0i, k[0], lam, cout, W) != 0:
+    if I.deriv(0.0, y, speed, P, alpha, beta, inc, v0i, k[0], lam, cout, W) != 0:
         raise _fail(scene, I.SINGULAR, stats, y, cout, speed, meth.name, drift_tolerance)
     for c in range(nc):
         if cout[c, K.CO_PEN] > 0:
