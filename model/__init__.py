@@ -1,16 +1,25 @@
 """wearbench.model: planar multibody theory of linkages with (worn) revolute clearance joints.
 
 Public API (the shared contract): :func:`build_scene`, :func:`simulate`, :class:`Scene`,
-:class:`SimulationResult`, :class:`SimulationError`. Plots live in ``wearbench.model.plots``.
+:class:`SimulationResult`, :class:`SimulationError`, the method registry :data:`METHODS`. Plots live
+in ``wearbench.model.plots``. Names load on first use, so the command line reads ``model.methods``
+without loading numba; the numba cache is configured by ``model.contact`` before any kernel exists.
 """
 
-from wearbench.model.jit_cache import configure_numba_cache
+from __future__ import annotations
 
-configure_numba_cache()  # before any kernel is compiled: the cache is keyed on the model's source
+import importlib
+from typing import Any
 
-from wearbench.model.integrators import METHODS, Method
-from wearbench.model.scene import Scene, Spring, Torque, build_scene
-from wearbench.model.simulate import SimulationError, SimulationResult, simulate
+_PUBLIC = {"METHODS": "methods", "Method": "methods", "Scene": "scene", "Spring": "scene", "Torque": "scene",
+           "build_scene": "scene", "SimulationError": "simulation", "SimulationResult": "simulation",
+           "simulate": "simulation"}
 
 __all__ = ["METHODS", "Method", "Scene", "SimulationError", "SimulationResult", "Spring", "Torque",
            "build_scene", "simulate"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _PUBLIC:
+        return getattr(importlib.import_module(f"wearbench.model.{_PUBLIC[name]}"), name)
+    raise AttributeError(f"module 'wearbench.model' has no attribute {name!r}")

@@ -18,6 +18,11 @@ import math
 import numpy as np
 from numba import njit
 from wearbench.bench.schema import CONTACT_LAWS, STIFFNESS_FORMS
+from wearbench.model.jit_cache import configure_numba_cache
+
+# every compiled module of the model imports this one first: the cache is keyed on the model's
+# source before the first kernel is decorated
+configure_numba_cache()
 
 __all__ = [
     "LAWS",

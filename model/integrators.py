@@ -1,11 +1,9 @@
-"""Time integrators for scenes with freedoms: interchangeable method classes on one compiled loop.
+"""Time integrators for scenes with freedoms: one compiled step for every tableau, one compiled loop.
 
-Holds the method classes (:class:`Dopri5`, the default; :class:`RK4Paper`, the paper's classical
-RK4 at a fixed 1e-4 s step with Baumgarte alpha = beta = 20), the registry :data:`METHODS`, and the
-numba-compiled step kernels and loop. Each method is a small class stating its capabilities
-(adaptive or fixed step, stabilisation) and its step kernel; every step kernel has the same
-signature ``(t, y, h, k, ...) -> (status, error norm)`` with ``k[0] = f(t, y)`` on entry, so the
-loop (step control, projection, contact-mode updates, dense output, contact records) is shared.
+:func:`erk_try` steps any explicit Runge-Kutta tableau of ``methods.py`` (the methods are data
+there); :func:`run_loop` is shared by all of them: step control, projection, contact-mode
+updates, dense output, contact records, peaks. ``k[0] = f(t, y)`` on entry to a step and
+``k[6] = f`` at its end. :func:`kinematics_loop` serves fully driven scenes with ideal joints.
 The loop runs compiled, returning to Python only when done, when a record buffer is full or on
 failure, so a step costs no interpreter time. Imports numpy, numba and the model's kernel only.
 
@@ -14,16 +12,15 @@ State y = (q, v); f(t, y) = (v, a) with a from :func:`wearbench.model.kernel.acc
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
+from wearbench.model.methods import NSTAGES
 
-__all__ = ["METHODS", "Accurate", "Dopri5", "Method", "RK4Paper", "get_method"]
+__all__ = ["deriv", "erk_try", "kinematics_loop", "run_loop"]
 
 # loop status codes
 DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS, PAUSED = range(10)
@@ -48,58 +45,45 @@ def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
     return st
 
 
-# Dormand-Prince 5(4) tableau (Hairer, Norsett, Wanner, Solving ODE I, table II.5.2)
-_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
-_A = np.array([
-    [0, 0, 0, 0, 0, 0],
-    [1 / 5, 0, 0, 0, 0, 0],
-    [3 / 40, 9 / 40, 0, 0, 0, 0],
-    [44 / 45, -56 / 15, 32 / 9, 0, 0, 0],
-    [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0, 0],
-    [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0],
-    [35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84],
-])
-_E = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
-
-
 @njit(cache=True)
-def dopri5_try(t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cout, W, atol, rtol):
-    """One Dormand-Prince 5(4) attempt: ynew and k[6] = f(t + h, ynew); returns (status, error norm)."""
+def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cout, W, atol, rtol):
+    """One step of an explicit Runge-Kutta tableau: ynew and k[6] = f(t + h, ynew); returns
+    (status, error norm), the norm 0 for a method without an embedded estimate."""
     N = y.shape[0]
-    for s in range(1, 7):
+    A, C, last = scheme.a, scheme.c, NSTAGES - 1
+    for s in range(1, scheme.stages):
         for i in range(N):
             acc = 0.0
             for r in range(s):
-                acc += _A[s, r] * k[r, i]
+                acc += A[s, r] * k[r, i]
             ytmp[i] = y[i] + h * acc
-        st = deriv(t + _C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
+        st = deriv(t + C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
         if st != 0:
             return st, 0.0
+    if scheme.fsal:
+        for i in range(N):
+            ynew[i] = ytmp[i]
+    else:
+        B = scheme.b
+        for i in range(N):
+            acc = 0.0
+            for r in range(scheme.stages):
+                acc += B[r] * k[r, i]
+            ynew[i] = y[i] + h / scheme.b_den * acc
+        st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[last], lam, cout, W)
+        if st != 0:
+            return st, 0.0
+    E = scheme.e
+    if E.shape[0] == 0:
+        return 0, 0.0
     err = 0.0
     for i in range(N):
-        ynew[i] = ytmp[i]
         e = 0.0
-        for r in range(7):
-            e += _E[r] * k[r, i]
+        for r in range(E.shape[0]):
+            e += E[r] * k[r, i]
         sc = atol[i] + rtol * max(abs(y[i]), abs(ynew[i]))
         err += (h * e / sc) ** 2
     return 0, math.sqrt(err / N)
-
-
-@njit(cache=True)
-def rk4_try(t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cout, W, atol, rtol):
-    """One classical Runge-Kutta 4 step: ynew and k[6] = f(t + h, ynew); error norm 0 (fixed step)."""
-    N = y.shape[0]
-    for s, c in ((1, 0.5), (2, 0.5), (3, 1.0)):
-        for i in range(N):
-            ytmp[i] = y[i] + c * h * k[s - 1, i]
-        st = deriv(t + c * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
-        if st != 0:
-            return st, 0.0
-    for i in range(N):
-        ynew[i] = y[i] + h / 6.0 * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i])
-    st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cout, W)
-    return st, 0.0
 
 
 @njit(cache=True)
@@ -191,10 +175,10 @@ def _update_modes(cout_old, cout_new, inc, v0i):
 
 
 @njit(cache=True)
-def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do_project, proj_tol,
+def run_loop(scheme, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do_project, proj_tol,
              drift_tol, atol, rtol, hmin, hmax, max_steps, out_t, out_y, out_a, out_c, out_lam,
              rec, record, blow_pen, k, cout_old, stats, W, sensor, peaks, pk, pe, pst):
-    """Integrate from t to t_end (in place on y, inc, v0i, stats). kind 0: DOPRI5, 1: RK4.
+    """Integrate from t to t_end (in place on y, inc, v0i, stats) with the tableau ``scheme`` (:class:`Scheme`).
 
     Output samples out_t[stats[S_OUT]:] falling in each accepted step are filled by cubic Hermite
     interpolation of y, then f and the contact outputs are evaluated there. With ``record`` each
@@ -243,13 +227,8 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
             return FULL
         hh = min(h, t_end - t)
         last = hh >= t_end - t
-        if kind == 0:
-            st, err = dopri5_try(t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W,
-                                 atol, rtol)
-        else:
-            st, err = rk4_try(t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W,
-                              atol, rtol)
-        stats[S_NFEV] += 6 if kind == 0 else 4
+        st, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W, atol, rtol)
+        stats[S_NFEV] += scheme.nfev
         if st != 0:
             stats[S_T] = t
             return SINGULAR
@@ -393,55 +372,6 @@ def run_loop(kind, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do
     stats[S_OUT] = iout
     stats[S_REC] = irec
     return DONE
-
-
-@dataclass(frozen=True)
-class Method:
-    """An integration method: its step kernel, step control and constraint stabilisation.
-
-    kind: compiled step kernel (0 DOPRI5, 1 RK4); adaptive: error-controlled step (else fixed
-    ``step``); project: coordinate projection onto the position and velocity constraints after
-    every accepted step (drift-free); baumgarte: (alpha, beta) of eq. 30.
-    """
-
-    name: str
-    kind: int
-    adaptive: bool
-    project: bool
-    baumgarte: tuple[float, float] = (0.0, 0.0)
-    rtol: float = 1e-6
-    atol: float = 1e-9
-    step: float | None = None  # s, fixed step (or first step of an adaptive method)
-    doc: str = ""
-
-
-Dopri5 = Method(
-    name="default", kind=0, adaptive=True, project=True, rtol=1e-6, atol=1e-9,
-    doc="Dormand-Prince 5(4), adaptive error-controlled step (PI control), coordinate projection "
-        "onto the position and velocity constraints after any accepted step with measurable drift "
-        "(drift-free); contact onsets and impacts are resolved by step rejection. rtol 1e-6, atol 1e-9 m: "
-        "peak contact forces within ~2 %; the clearance dynamics are chaotic, so pointwise agreement "
-        "over a whole revolution is out of reach for every method (see benchmarks/work_precision.py).",
-)
-Accurate = dataclasses.replace(
-    Dopri5, name="accurate", rtol=1e-8, atol=1e-11,
-    doc="The default method at rtol 1e-8, atol 1e-11 m: <= ~1 % RMS slider-acceleration error over the "
-        "predictable horizon, ~2x the default's cost; slow on sharply stepped worn surfaces.",
-)
-RK4Paper = Method(
-    name="rk4-paper", kind=1, adaptive=False, project=False, baumgarte=(20.0, 20.0), step=1e-4,
-    doc="The paper's method: classical Runge-Kutta 4, fixed step 1e-4 s, Baumgarte alpha = beta = 20.",
-)
-METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper)}
-METHODS["dopri5"] = Dopri5
-
-
-def get_method(name: str) -> Method:
-    """The method registered as ``name`` ("default", "dopri5", "accurate", "rk4-paper"); ValueError if unknown."""
-    try:
-        return METHODS[name]
-    except KeyError:
-        raise ValueError(f"unknown method {name!r}: expected one of {sorted(METHODS) + ['kinematics']}") from None
 
 
 @njit(cache=True)

@@ -17,7 +17,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from wearbench.model.simulate import SimulationResult
+from wearbench.model.simulation import SimulationResult
 
 __all__ = [
     "contact_force_figure",

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from wearbench.bench.schema import Bench, ContactLaw, Tolerances, WearState
 from wearbench.model.scene import Scene, build_scene
-from wearbench.model.simulate import SimulationResult, simulate
+from wearbench.model.simulation import SimulationResult, simulate
 from wearbench.model.surfaces import JointSurfaces
 
 __all__ = ["Realisation", "RealisationRun", "draw_realisation", "simulate_state", "state_scene"]
@@ -118,7 +118,7 @@ def simulate_state(bench: Bench, state: WearState | None, seed: int | None, *, r
     seed: None for the nominal bench started as the model starts (journals centred, ideal
     velocities); otherwise the draw of :func:`draw_realisation`. speed: commanded motor speed
     (rad/s, default the bench's); the realisation turns at ``speed_scale`` times it with its ripple.
-    options: passed to :func:`wearbench.model.simulate` (method, rtol, ...).
+    options: passed to :func:`wearbench.model.simulation` (method, rtol, ...).
     """
     real = draw_realisation(bench, seed, tolerances)
     commanded = bench.speed if speed is None else float(speed)

@@ -159,7 +159,7 @@ def test_no_library_module_starts_the_command_line_program():
     ("wearbench.acquisition.recorder", "from wearbench.hardware.emulators import device\n",
      ["wearbench.acquisition.recorder -> wearbench.hardware.emulators.device"]),
     ("wearbench.acquisition.backends.sim", "from wearbench.hardware.emulators import device\n", []),
-    ("wearbench.validation.compare", "from wearbench.model.simulate import simulate\n", []),
+    ("wearbench.validation.compare", "from wearbench.model.simulation import simulate\n", []),
 ])
 def test_the_check_catches_an_upward_import(module, source, expected):
     """The checker itself: an upward import written into a module is reported, an allowed one not."""

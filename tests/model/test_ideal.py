@@ -9,7 +9,7 @@ import pytest
 from wearbench.bench.load import load_bench, parse_bench, shipped_bench
 from wearbench.bench.schema import BenchError
 from wearbench.model import SimulationError, Spring, Torque, build_scene, simulate
-from wearbench.model.integrators import RK4Paper
+from wearbench.model.methods import RK4Paper
 
 
 def test_ideal_slider_crank_matches_closed_form(slider_crank):

@@ -53,7 +53,7 @@ def test_peaks_come_from_the_dense_output_not_the_grid(scene, half):
 def test_pausing_the_compiled_loop_changes_nothing(scene, half, monkeypatch):
     # the loop returns to Python every few thousand steps (so Ctrl-C acts): pausing every 97 steps
     # or never gives the same numbers
-    S = importlib.import_module("wearbench.model.simulate")  # the module (the package exports the function)
+    S = importlib.import_module("wearbench.model.simulation")  # the module (the package exports the function)
 
     runs = []
     for every in (97, 10**9):

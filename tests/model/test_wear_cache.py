@@ -43,13 +43,12 @@ def _run(root: Path) -> dict:
 @pytest.mark.slow
 def test_editing_a_callee_recompiles_the_cached_kernel(tmp_path):
     src = Path(model_pkg.__file__).parent
-    hw = Path(src.parent, "hardware") if (src.parent / "hardware" / "bench.py").exists() else None
+    import wearbench.bench as bench_pkg
+
     pkg = tmp_path / "wearbench"
     shutil.copytree(src, pkg / "model", ignore=shutil.ignore_patterns("__pycache__"))
-    import wearbench.hardware as hw_pkg
-
-    shutil.copytree(hw or Path(hw_pkg.__file__).parent, pkg / "hardware",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.npz"))
+    # the model stands on the bench layer only (tests/test_architecture.py)
+    shutil.copytree(Path(bench_pkg.__file__).parent, pkg / "bench", ignore=shutil.ignore_patterns("__pycache__"))
     first = _run(tmp_path)
     assert first["hb"] == pytest.approx(1e-5, rel=1e-12)
     assert first["overlap"] == pytest.approx(7e-4 - 1e-5, rel=1e-12)

@@ -19,6 +19,7 @@ import pandas as pd
 from wearbench.model import integrators as I
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
+from wearbench.model.methods import Method, get_method
 from wearbench.model.scene import Scene
 
 __all__ = ["DEFAULT_OUTPUT_RATE", "DRIFT_TOLERANCE", "SimulationError", "SimulationResult", "simulate"]
@@ -223,7 +224,7 @@ def _tolerances(scene: Scene, atol: float) -> np.ndarray:
 
 
 def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = None,
-             method: str | I.Method = "default", rtol: float | None = None, atol: float | None = None,
+             method: str | Method = "default", rtol: float | None = None, atol: float | None = None,
              speed: float | None = None, output_rate: float | None = None, record_contacts: bool = False,
              step: float | None = None, initial: tuple[np.ndarray, np.ndarray] | None = None,
              speed_profile: Callable[[np.ndarray], np.ndarray] | tuple[np.ndarray, np.ndarray] | None = None,
@@ -283,7 +284,7 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         table = _table(scene, times, out_y, out_a, out_c, out_lam)
         return SimulationResult(table, _summary(scene, "kinematics", stats, table, wall0, speed), contacts, scene)
 
-    meth = I.get_method(name) if isinstance(method, str) else method
+    meth = get_method(name) if isinstance(method, str) else method
     if step is not None:
         meth = dataclasses.replace(meth, step=float(step))
     rtol_ = meth.rtol if rtol is None else float(rtol)
@@ -318,8 +319,9 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         sensor[:] = (b, sx, sy, axis)
     peaks = np.zeros(nc + 1)
     pk, pe, ps = np.zeros((4, 2 * n)), np.zeros((2, nc + 1)), np.zeros(4)
+    scheme = meth.tableau.scheme()
     while True:
-        status = I.run_loop(meth.kind, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
+        status = I.run_loop(scheme, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
                             meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_,
                             1e-13, hmax, _STEPS_PER_CALL, times, out_y, out_a, out_c, out_lam, rec, record_contacts,
                             blow, k, cout, stats, W, sensor, peaks, pk, pe, ps)

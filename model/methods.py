@@ -1,0 +1,128 @@
+"""Integration methods as data: Butcher tableaus and the registry of methods.
+
+As scipy's ``integrate/_ivp/rk.py`` does, each explicit Runge-Kutta method is its tableau
+(:class:`Tableau`: :data:`DOPRI5`, :data:`RK4`), run by the one compiled step
+``integrators.erk_try``. A :class:`Method` pairs a tableau with its step control and constraint
+stabilisation; :data:`METHODS` is the registry ``simulate``, the command line's ``--method`` and
+``benchmarks/work_precision.py`` read. Adding a method: its tableau here, an entry in
+:data:`METHODS`. Imports numpy only (the command line reads it without loading numba).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DOPRI5", "METHODS", "NSTAGES", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Method", "RK4Paper", "Scheme",
+           "Tableau", "get_method"]
+
+NSTAGES = 7  # rows of the stage array k; k[NSTAGES - 1] holds f at the end of the step
+Scheme = namedtuple("Scheme", "a c b b_den e fsal stages nfev")  # a tableau as the compiled step reads it
+
+
+@dataclass(frozen=True)
+class Tableau:
+    """An explicit Runge-Kutta method as data (Butcher tableau), run by the one compiled :func:`erk_try`.
+
+    c: stage nodes; a: stage coefficients (row s uses k[0..s-1]); b: weights as exact numbers over a
+    common denominator ``b_den`` (ignored with ``fsal``: the last stage is the solution); e: weights of
+    the embedded error estimate (empty: a fixed-step method). With ``fsal`` the last of the 7 stages is
+    evaluated at the new state, so its derivative starts the next step.
+    """
+
+    name: str
+    order: int
+    c: tuple[float, ...]
+    a: tuple[tuple[float, ...], ...]
+    b: tuple[float, ...]
+    b_den: float = 1.0
+    e: tuple[float, ...] = ()
+    fsal: bool = False
+    reference: str = ""
+
+    def __post_init__(self) -> None:
+        stages = len(self.c)
+        if len(self.a) != stages or (self.fsal and stages != NSTAGES) or (not self.fsal and stages >= NSTAGES):
+            raise ValueError(f"tableau {self.name}: {stages} stages; expected {NSTAGES} with FSAL (the last at the "
+                             f"new state) or fewer than {NSTAGES} without, and one row of a per stage")
+
+    @property
+    def adaptive(self) -> bool:
+        return len(self.e) > 0
+
+    def scheme(self) -> Scheme:
+        """The arrays the compiled step reads."""
+        stages = len(self.c)
+        a = np.zeros((stages, NSTAGES))
+        for s, row in enumerate(self.a):
+            a[s, :len(row)] = row
+        return Scheme(a, np.array(self.c, dtype=float), np.array(self.b, dtype=float), float(self.b_den),
+                      np.array(self.e, dtype=float), self.fsal, stages, stages - 1 + (0 if self.fsal else 1))
+
+
+DOPRI5 = Tableau(
+    "dopri5", 5,
+    c=(0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0),
+    a=((), (1 / 5,), (3 / 40, 9 / 40), (44 / 45, -56 / 15, 32 / 9),
+       (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
+       (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
+       (35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84)),
+    b=(35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0),
+    e=(71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40),
+    fsal=True, reference="Dormand-Prince 5(4): Hairer, Norsett, Wanner, Solving ODE I, table II.5.2")
+RK4 = Tableau(
+    "rk4", 4, c=(0.0, 0.5, 0.5, 1.0), a=((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), b=(1, 2, 2, 1), b_den=6.0,
+    reference="classical Runge-Kutta 4 (the paper's integrator)")
+TABLEAUS = {t.name: t for t in (DOPRI5, RK4)}
+
+
+@dataclass(frozen=True)
+class Method:
+    """An integration method: its step kernel, step control and constraint stabilisation.
+
+    tableau: the explicit Runge-Kutta tableau the compiled loop steps with; adaptive: error-controlled
+    step (the tableau's embedded estimate; else fixed ``step``); project: coordinate projection onto the position and velocity constraints after
+    every accepted step (drift-free); baumgarte: (alpha, beta) of eq. 30.
+    """
+
+    name: str
+    tableau: Tableau
+    adaptive: bool
+    project: bool
+    baumgarte: tuple[float, float] = (0.0, 0.0)
+    rtol: float = 1e-6
+    atol: float = 1e-9
+    step: float | None = None  # s, fixed step (or first step of an adaptive method)
+    doc: str = ""
+
+
+Dopri5 = Method(
+    name="default", tableau=DOPRI5, adaptive=True, project=True, rtol=1e-6, atol=1e-9,
+    doc="Dormand-Prince 5(4), adaptive error-controlled step (PI control), coordinate projection "
+        "onto the position and velocity constraints after any accepted step with measurable drift "
+        "(drift-free); contact onsets and impacts are resolved by step rejection. rtol 1e-6, atol 1e-9 m: "
+        "peak contact forces within ~2 %; the clearance dynamics are chaotic, so pointwise agreement "
+        "over a whole revolution is out of reach for every method (see benchmarks/work_precision.py).",
+)
+Accurate = dataclasses.replace(
+    Dopri5, name="accurate", rtol=1e-8, atol=1e-11,
+    doc="The default method at rtol 1e-8, atol 1e-11 m: <= ~1 % RMS slider-acceleration error over the "
+        "predictable horizon, ~2x the default's cost; slow on sharply stepped worn surfaces.",
+)
+RK4Paper = Method(
+    name="rk4-paper", tableau=RK4, adaptive=False, project=False, baumgarte=(20.0, 20.0), step=1e-4,
+    doc="The paper's method: classical Runge-Kutta 4, fixed step 1e-4 s, Baumgarte alpha = beta = 20.",
+)
+METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper)}
+METHODS["dopri5"] = Dopri5
+
+
+def get_method(name: str) -> Method:
+    """The method registered as ``name`` ("default", "dopri5", "accurate", "rk4-paper"); ValueError if unknown."""
+    try:
+        return METHODS[name]
+    except KeyError:
+        raise ValueError(f"unknown method {name!r}: expected one of {sorted(METHODS) + ['kinematics']}") from None
