@@ -3,7 +3,7 @@
 numba's own ``cache=True`` keys a kernel on its own file only; ``wearbench.model.jit_cache`` keys the
 cache directory on the digest of the whole model package. The check runs a copy of the package in
 subprocesses: compile and cache, edit the callee (``contact.depth_eval``, called by
-``kernel.worn_contact``), run again and see the new physics.
+``worn_contact.worn_contact``), run again and see the new physics.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ sys.path.insert(0, sys.argv[1])
 import numpy as np
 import wearbench.model
 from numba.core import config
-from wearbench.model.kernel import worn_contact
+from wearbench.model.worn_contact import worn_contact
 assert wearbench.model.__file__.startswith(sys.argv[1]), wearbench.model.__file__
 depths = np.full(100, 1e-5)  # uniform wear 10 um on the bearing, new journal
 psi, f, hb, hj, sb, sj = worn_contact(depths, 100, np.zeros(100), 100, 7e-4, 0.3, 0.0, 0.0, 6e-4, 0.0)

@@ -44,7 +44,7 @@ def test_circular_journal_rests_on_the_rims_of_a_narrow_pit(bench):
     """A bearing pit 3 deg wide and 100 um deep: the contact search finds the overlap on its rims,
     as a brute-force maximum over 20,000 directions does; the old along-the-line-of-centres lookup
     would have let the journal sink 100 um into it."""
-    from wearbench.model.kernel import worn_contact
+    from wearbench.model.worn_contact import worn_contact
 
     n, c = 1000, 0.6e-3
     pit = np.zeros(n)
@@ -71,8 +71,8 @@ def _rims(n=1000):
 def test_second_zone_is_the_other_rim_of_a_bridged_pit():
     """A journal bridging a narrow pit touches both rims: the second zone is the other local
     maximum of the overlap, with the saddle between them, as a brute-force grid finds them."""
-    from wearbench.model.kernel import second_zone, worn_contact
     from wearbench.model.surfaces import depth_at
+    from wearbench.model.worn_contact import second_zone, worn_contact
 
     pit, centre = _rims()
     n, c = pit.size, 0.6e-3
@@ -96,7 +96,7 @@ def test_two_zone_force_is_continuous_when_the_zones_trade_places():
     """Sweeping the journal across the pit centre, the two rims trade places as the top zone.
     One force at the top zone jumps by the rims' angle there; the two-zone force (each rim its
     own normal, shared levels split) changes by no more than its smooth neighbours do."""
-    from wearbench.model.kernel import second_zone, worn_contact, zone_penetrations
+    from wearbench.model.worn_contact import second_zone, worn_contact, zone_penetrations
 
     pit, centre = _rims()
     n, c = pit.size, 0.6e-3
@@ -120,7 +120,7 @@ def test_two_zone_force_is_continuous_when_the_zones_trade_places():
 
 
 def test_zone_penetrations_are_continuous_at_merge_swap_and_fade():
-    from wearbench.model.kernel import zone_penetrations
+    from wearbench.model.worn_contact import zone_penetrations
 
     c = 0.6e-3
     f1 = c + 4e-6
