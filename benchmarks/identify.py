@@ -45,7 +45,7 @@ def main() -> None:
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-identify-")
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.cli.demo import prepare_truth, record_state, slug
+    from wearbench.cli.demo import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.model.compute import Task, compute_client, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
     from wearbench.validation import CompareOptions, load_session, rank_theories
@@ -71,7 +71,8 @@ def main() -> None:
         ensembles = build_ensembles(bench, states, settings=settings, cache=True, progress="ensembles")
         t_ens = time.perf_counter() - t0
         t0 = time.perf_counter()
-        run_tasks([Task(prepare_truth, {"bench": bench, "state": s, "seed": seed},
+        revolutions = truth_revolutions(args.cycles + 1)
+        run_tasks([Task(prepare_truth, {"bench": bench, "state": s, "seed": seed, "revolutions": revolutions},
                         task_key("bench-truth", s.name, seed), f"truth {s.name} {seed}") for s, seed in truths],
                   cache=False, progress="emulator truths")
         t_truth = time.perf_counter() - t0
@@ -80,7 +81,7 @@ def main() -> None:
     for s, seed in truths:
         paths.append(out / f"{slug(s.name)}_{seed}.mcap")
         # one cycle more than analysed: cycles are cut at crank angle 0, so the partial ends are dropped
-        record_state(bench, s, seed, paths[-1], backend="sim", cycles=args.cycles + 1)
+        record_state(bench, s, seed, paths[-1], backend="sim", cycles=args.cycles + 1, revolutions=revolutions)
     t_record = time.perf_counter() - t0
 
     t0 = time.perf_counter()

@@ -55,6 +55,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def truth_revolutions(cycles: int) -> int:
+    """Revolutions of the truth's run for a session of ``cycles``: the device plays its run, then wraps
+    (replays it), so the run covers the session and its start-up (twice the cycles, at least the default)."""
+    from wearbench.hardware.emulators.config import DEFAULT_REVOLUTIONS
+
+    return max(DEFAULT_REVOLUTIONS, 2 * cycles)
+
+
 def record_state(bench, state, seed: int | None, out: Path, *, backend: str, cycles: int, on_progress=None,
                  recorders: list | None = None, **emulator):
     """Record one session of the emulated ``bench`` whose hidden truth is ``state`` drawn with ``seed``
@@ -126,7 +134,8 @@ def run(args: argparse.Namespace) -> int:
     start = time.monotonic()
     with compute_client(**compute_options(args)):
         ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), progress="theory ensembles")
-        tasks = [Task(prepare_truth, {"bench": bench, "state": s, "seed": seeds[s.name]},
+        revolutions = truth_revolutions(args.cycles)
+        tasks = [Task(prepare_truth, {"bench": bench, "state": s, "seed": seeds[s.name], "revolutions": revolutions},
                       task_key("demo-truth", bench.sha256, s.name, seeds[s.name], time.time_ns()), f"truth {s.name}")
                  for s in states]
         failed = [r for r in run_tasks(tasks, cache=False, progress="emulator truths") if isinstance(r, TaskFailure)]
@@ -144,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
                 bar.update(task, completed=min(p.cycles, args.cycles), info=f"{p.phase}{dropped}")
 
             record_state(bench, state, seeds[state.name], path, backend=backend, cycles=args.cycles,
-                         on_progress=show, recorders=recorders)
+                         on_progress=show, recorders=recorders, revolutions=truth_revolutions(args.cycles))
 
         recorders: list = []
         jobs = [pool.submit(record, s, p) for s, p in zip(states, paths, strict=True)]
