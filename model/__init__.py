@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-_PUBLIC = {"METHODS": "methods", "Method": "methods", "Scene": "scene", "Spring": "scene", "Torque": "scene",
+_PUBLIC = {"METHODS": "methods", "Method": "methods", "Scene": "scene", "Spring": "packing", "Torque": "packing",
            "build_scene": "scene", "SimulationError": "simulation", "SimulationResult": "simulation",
            "simulate": "simulation"}
 

@@ -2,9 +2,9 @@
 
 Holds :class:`Scene`, :func:`build_scene` (absolute planar coordinates, ideal pins and prismatic
 joints, drivers, gravity, clearance joints as force elements, worn surfaces, assembly at t = 0 by
-Newton) and the force-element classes :class:`Spring` and :class:`Torque`. Imports the bench
-dataclasses, the surfaces contract and the model's own ``contact`` and ``kernel``; it must not
-import the integrators, plots or CLI.
+Newton). The kernel's parameters are packed by ``packing.py``. Imports the bench dataclasses, the
+surfaces contract and the model's own ``kernel`` and ``packing``; it must not import the
+integrators, plots or CLI.
 """
 
 from __future__ import annotations
@@ -15,41 +15,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from wearbench.bench.schema import GROUND, Bench, BenchError, Joint
+from wearbench.bench.schema import GROUND, Bench, BenchError
 from wearbench.model import kernel as K
-from wearbench.model.contact import LAWS, contact_stiffness
+from wearbench.model.packing import Spring, Torque, pack_params
 from wearbench.model.surfaces import JointSurfaces, surfaces_from_bench
 
-__all__ = ["LOW_RESTITUTION", "Scene", "Spring", "Torque", "build_scene"]
+__all__ = ["LOW_RESTITUTION", "Scene", "build_scene"]
 
 LOW_RESTITUTION = 0.7  # below this the Lankarani-Nikravesh law is not valid (it assumes ce near 1)
 _ASSEMBLY_TOL = 1e-10  # m, rad
-
-
-@dataclass(frozen=True)
-class Spring:
-    """Point-to-point spring-damper: tension k (l - l0) + c dl/dt between two body points.
-
-    ``body_*`` is a body name or "frame"; ``point_*`` a named point of that body (or of the frame)
-    or local coordinates (m). Stiffness N/m, damping N s/m, free length m (None: length at t = 0).
-    """
-
-    body_i: str
-    point_i: str | tuple[float, float]
-    body_j: str
-    point_j: str | tuple[float, float]
-    stiffness: float = 0.0
-    damping: float = 0.0
-    free_length: float | None = None
-
-
-@dataclass(frozen=True)
-class Torque:
-    """Applied torque on a body: T = torque - damping * omega (N m; damping N m s/rad)."""
-
-    body: str
-    torque: float = 0.0
-    damping: float = 0.0
 
 
 @dataclass
@@ -99,7 +73,7 @@ class Scene:
     def clearance_params(self, joint: str) -> dict[str, float]:
         """Geometry and contact parameters of clearance joint ``joint`` (SI)."""
         k = self.clearance_joints.index(joint)
-        p = self.params[9][k]
+        p = self.params.clr_p[k]
         return {"bearing_radius": p[K.CLR_R1], "journal_radius": p[K.CLR_R2], "stiffness": p[K.CLR_K],
                 "exponent": p[K.CLR_N], "restitution": p[K.CLR_CE], "law": int(p[K.CLR_LAW]),
                 "friction_coefficient": p[K.CLR_CF]}
@@ -109,144 +83,6 @@ class Scene:
         n, m = self.n, self.m
         return (np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m), np.zeros(n),
                 np.zeros((m, m)), np.zeros(m), np.zeros(n))
-
-
-def _local(bench: Bench, body: str, point: str | tuple[float, float]) -> tuple[float, float]:
-    if not isinstance(point, str):
-        return (float(point[0]), float(point[1]))
-    pts = bench.ground_points if body == GROUND else bench.body(body).points
-    if point not in pts:
-        raise KeyError(f"{bench.name}: {body} has no point {point!r}; points: {sorted(pts)}")
-    return tuple(pts[point])
-
-
-def _pin_pairs(joint: Joint) -> list[tuple[int, int]]:
-    """A pin shared by N bodies is N-1 pairs, each chained to the first body."""
-    return [(0, i) for i in range(1, len(joint.bodies))]
-
-
-def _topology(bench: Bench, index: dict[str, int], ideal: set[str], forces: Sequence[Spring | Torque],
-              surfaces: Mapping[str, JointSurfaces]):
-    """Pack the bench into the kernel's parameters (:class:`~wearbench.model.kernel.Params`); clearance joints not in ``ideal`` become contacts."""
-    def b(name: str) -> int:
-        return -1 if name == GROUND else index[name]
-
-    n = 3 * len(index)
-    minv = np.zeros(n)
-    fext = np.zeros(n)
-    for body in bench.bodies:
-        i = index[body.name]
-        minv[3 * i: 3 * i + 3] = (1 / body.mass, 1 / body.mass, 1 / body.inertia)
-        fext[3 * i: 3 * i + 2] = (body.mass * bench.gravity[0], body.mass * bench.gravity[1])
-    rev_b, rev_s, pri_b, pri_s, clr_b, clr_p, clr_names, surf_list = [], [], [], [], [], [], [], []
-    row_joints: list[str] = []
-    reaction_rows: list[tuple[str, int]] = []
-    for j in bench.joints:
-        if j.kind == "revolute" and (j.clearance is None or j.name in ideal):
-            for a, c in _pin_pairs(j):
-                prefix = j.name if len(j.bodies) == 2 else f"{j.name}_{j.bodies[c]}"
-                reaction_rows.append((prefix, 2 * len(rev_b)))
-                rev_b.append((b(j.bodies[a]), b(j.bodies[c])))
-                rev_s.append(_local(bench, j.bodies[a], j.points[a]) + _local(bench, j.bodies[c], j.points[c]))
-        elif j.kind == "revolute":
-            cl = j.clearance
-            ib = j.bodies.index(cl.bearing_body)
-            ij = j.bodies.index(cl.journal_body)
-            law = cl.contact
-            stiff = contact_stiffness(cl.bearing_material.youngs_modulus, cl.bearing_material.poisson_ratio,
-                                      cl.journal_material.youngs_modulus, cl.journal_material.poisson_ratio,
-                                      cl.bearing_radius, cl.journal_radius, law.stiffness)
-            clr_b.append((b(cl.bearing_body), b(cl.journal_body)))
-            s_i = _local(bench, cl.bearing_body, j.points[ib])
-            s_j = _local(bench, cl.journal_body, j.points[ij])
-            surf = surfaces.get(j.name)
-            row = np.zeros(K.NCLR)
-            row[[K.CLR_SIX, K.CLR_SIY, K.CLR_SJX, K.CLR_SJY]] = s_i + s_j
-            row[K.CLR_R1], row[K.CLR_R2], row[K.CLR_K] = cl.bearing_radius, cl.journal_radius, stiff
-            row[K.CLR_N], row[K.CLR_CE], row[K.CLR_LAW] = law.exponent, law.restitution, LAWS[law.law]
-            row[K.CLR_CF], row[K.CLR_FV0], row[K.CLR_FVM] = (law.friction_coefficient, law.friction_v0,
-                                                          law.friction_vm)
-            # an all-zero surface is the even clearance: same code path, bit-identical results
-            worn = surf is not None and (surf.bearing.any() or surf.journal.any())
-            row[K.CLR_WORN] = 1.0 if worn else 0.0
-            clr_p.append(row)
-            clr_names.append(j.name)
-            surf_list.append(surf)
-    for j in bench.joints:
-        if j.kind == "prismatic":
-            if j.bodies[1] == GROUND:
-                raise BenchError(bench.path or bench.name, f"joint {j.name}.bodies", list(j.bodies),
-                                 "expected the guide (frame or carrier) first and the sliding body second")
-            pri_b.append((b(j.bodies[0]), b(j.bodies[1])))
-            pri_s.append(_local(bench, j.bodies[0], j.points[0]) + _local(bench, j.bodies[1], j.points[1])
-                         + (j.axis,))
-    drv_b, drv_p, drivers = [], [], []
-    for d in bench.drivers:
-        j = bench.joint(d.joint)
-        body = next(x for x in j.bodies if x != GROUND)
-        drv_b.append(index[body])
-        drv_p.append((d.ratio, d.phase))
-        drivers.append((d.joint, index[body]))
-    # constraint row -> joint name, in kernel order (pins, prismatic, drivers)
-    for j in bench.joints:
-        if j.kind == "revolute" and (j.clearance is None or j.name in ideal):
-            row_joints += [j.name] * (2 * len(_pin_pairs(j)))
-    row_joints += [j.name for j in bench.joints if j.kind == "prismatic" for _ in range(2)]
-    row_joints += [d.joint for d in bench.drivers]
-    spr_b, spr_p, trq_b, trq_p = [], [], [], []
-    for f in forces:
-        if isinstance(f, Spring):
-            spr_b.append((b(f.body_i), b(f.body_j)))
-            spr_p.append(_local(bench, f.body_i, f.point_i) + _local(bench, f.body_j, f.point_j)
-                         + (f.stiffness, f.damping, -1.0 if f.free_length is None else f.free_length))
-        elif isinstance(f, Torque):
-            trq_b.append(index[f.body])
-            trq_p.append((f.torque, f.damping))
-        else:
-            raise TypeError(f"force element {f!r}: expected Spring or Torque")
-    nmax = max([3] + [max(s.bearing.size, s.journal.size) for s in surf_list if s is not None])
-    surf = np.zeros((len(clr_b), 2, nmax))
-    surf_n = np.full((len(clr_b), 2), 3, dtype=np.int64)
-    for k, s in enumerate(surf_list):
-        if s is not None:
-            surf[k, 0, :s.bearing.size] = s.bearing
-            surf[k, 1, :s.journal.size] = s.journal
-            surf_n[k] = (s.bearing.size, s.journal.size)
-
-    def ia(x, shape):
-        return np.array(x, dtype=np.int64).reshape(shape)
-
-    def fa(x, shape):
-        return np.array(x, dtype=float).reshape(shape)
-
-    rev_b_a, pri_b_a, drv_b_a = ia(rev_b, (-1, 2)), ia(pri_b, (-1, 2)), ia(drv_b, (-1,))
-    # compact Jacobian body pattern and rows per body
-    jb = []
-    for bi, bj in rev_b_a:
-        jb += [(bi, bj), (bi, bj)]
-    for bi, bj in pri_b_a:
-        jb += [(bi, bj), (bi, bj)]
-    for bd in drv_b_a:
-        jb.append((bd, -1))
-    jb_a = ia(jb, (-1, 2))
-    nb = len(index)
-    rows: list[list[tuple[int, int]]] = [[] for _ in range(nb)]
-    for k, (bi, bj) in enumerate(jb_a):
-        for s, bb in enumerate((bi, bj)):
-            if bb >= 0:
-                rows[bb].append((k, s))
-    kmax = max([1] + [len(r) for r in rows])
-    body_rows = np.zeros((nb, kmax, 2), dtype=np.int64)
-    body_nrows = np.array([len(r) for r in rows], dtype=np.int64)
-    for bb, r in enumerate(rows):
-        for x, ks in enumerate(r):
-            body_rows[bb, x] = ks
-    P = K.Params(minv=minv, fext=fext, rev_b=rev_b_a, rev_s=fa(rev_s, (-1, 4)), pri_b=pri_b_a,
-                 pri_s=fa(pri_s, (-1, 5)), drv_b=drv_b_a, drv_p=fa(drv_p, (-1, 2)), clr_b=ia(clr_b, (-1, 2)),
-                 clr_p=fa(clr_p, (-1, K.NCLR)), surf=surf, surf_n=surf_n, spr_b=ia(spr_b, (-1, 2)),
-                 spr_p=fa(spr_p, (-1, 7)), trq_b=ia(trq_b, (-1,)), trq_p=fa(trq_p, (-1, 2)), jb=jb_a,
-                 body_rows=body_rows, body_nrows=body_nrows, profile=np.zeros((0, 3)))
-    return P, tuple(row_joints), tuple(reaction_rows), tuple(clr_names), tuple(drivers)
 
 
 def _dense_jacobian(P, Jv: np.ndarray, n: int) -> np.ndarray:
@@ -351,7 +187,7 @@ def build_scene(bench: Bench, *, clearances: Mapping[str, float | None] | None =
                        f"({sorted(clear_names)})")
     index = {b.name: i for i, b in enumerate(bench.bodies)}
     n = 3 * len(index)
-    ideal_P, ideal_rows, _, _, _ = _topology(bench, index, clear_names, forces, {})
+    ideal_P, ideal_rows, _, _, _ = pack_params(bench, index, clear_names, forces, {})
     q0 = _assemble(bench, ideal_P, ideal_rows, n, _guess(bench, index))
     # velocities: minimum kinetic-energy solution of the ideal velocity equations (exact at dof 0)
     v0 = np.zeros(n)
@@ -359,7 +195,7 @@ def build_scene(bench: Bench, *, clearances: Mapping[str, float | None] | None =
     W = (np.zeros(m_ideal), np.zeros((m_ideal, 2, 3)), np.zeros(m_ideal), np.zeros(m_ideal), np.zeros(n),
          np.zeros((m_ideal, m_ideal)), np.zeros(m_ideal), np.zeros(n))
     K.project(0.0, q0, v0, 1.0, ideal_P, W, _ASSEMBLY_TOL, 20)  # per unit motor speed
-    P, row_joints, reaction_rows, clr_names, drivers = _topology(bench, index, set(), forces, surfaces)
+    P, row_joints, reaction_rows, clr_names, drivers = pack_params(bench, index, set(), forces, surfaces)
     # springs without a free length take their length at t = 0
     spr_p = P.spr_p
     for k in range(spr_p.shape[0]):
