@@ -13,6 +13,7 @@ State y = (q, v); f(t, y) = (v, a) with a from :func:`wearbench.model.kernel.acc
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -20,7 +21,7 @@ from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
 from wearbench.model.methods import NSTAGES
 
-__all__ = ["deriv", "erk_try", "kinematics_loop", "run_loop"]
+__all__ = ["Control", "Track", "deriv", "erk_try", "kinematics_loop", "run_loop"]
 
 # loop status codes
 DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS, PAUSED = range(10)
@@ -33,6 +34,12 @@ NSTATS = 13
 PEAK_SEARCH_FRACTION = 0.8
 _GOLDEN_ITERATIONS = 24  # golden-section iterations per step searched: the bracket shrinks by 0.618**24
 NREC = 8  # t, dt, fn, vt, omega_rel, phi_bearing, phi_journal, pen
+
+# step control of run_loop: adaptive step, projection (and its tolerance), drift limit, atol (per
+# coordinate), rtol, smallest and largest step, accepted steps per call
+Control = namedtuple("Control", "adaptive project proj_tol drift_tol atol rtol hmin hmax max_steps")
+# peak tracking of run_loop (see its docstring): sensor, running peaks, previous step's pk, pe, pst
+Track = namedtuple("Track", "sensor peaks pk pe pst")
 
 
 @njit(cache=True)
@@ -174,11 +181,22 @@ def _update_modes(cout_old, cout_new, inc, v0i):
     return changed
 
 
+@njit(cache=True, inline="always")
+def _save(stats, status, t, h, iout, irec, err_old):
+    """The loop's state in ``stats`` (a later call goes on from it); returns ``status``."""
+    stats[S_T] = t
+    stats[S_H] = h
+    stats[S_OUT] = iout
+    stats[S_REC] = irec
+    stats[S_ERR_OLD] = err_old
+    return status
+
+
 @njit(cache=True)
-def run_loop(scheme, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, do_project, proj_tol,
-             drift_tol, atol, rtol, hmin, hmax, max_steps, out_t, out_y, out_a, out_c, out_lam,
-             rec, record, blow_pen, k, cout_old, stats, W, sensor, peaks, pk, pe, pst):
-    """Integrate from t to t_end (in place on y, inc, v0i, stats) with the tableau ``scheme`` (:class:`Scheme`).
+def run_loop(scheme, control, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, out_t, out_y, out_a, out_c,
+             out_lam, rec, record, blow_pen, k, cout_old, stats, W, track):
+    """Integrate from t to t_end (in place on y, inc, v0i, stats) with the tableau ``scheme`` (:class:`Scheme`)
+    under the step control ``control`` (:class:`Control`), tracking peaks in ``track`` (:class:`Track`).
 
     Output samples out_t[stats[S_OUT]:] falling in each accepted step are filled by cubic Hermite
     interpolation of y, then f and the contact outputs are evaluated there. With ``record`` each
@@ -193,6 +211,8 @@ def run_loop(scheme, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, 
     the steps taken do not depend on the pauses). Returns a status code; stats[S_DETAIL] holds the joint or coordinate involved, stats[S_VALUE]
     the offending value.
     """
+    adaptive, do_project, proj_tol, drift_tol, atol, rtol, hmin, hmax, max_steps = control
+    sensor, peaks, pk, pe, pst = track
     N = y.shape[0]
     n = N // 2
     nc = inc.shape[0]
@@ -219,12 +239,7 @@ def run_loop(scheme, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, 
         pst[2] = 1
     while t < t_end:
         if record and irec >= rec.shape[0]:
-            stats[S_T] = t
-            stats[S_H] = h
-            stats[S_OUT] = iout
-            stats[S_REC] = irec
-            stats[S_ERR_OLD] = err_old
-            return FULL
+            return _save(stats, FULL, t, h, iout, irec, err_old)
         hh = min(h, t_end - t)
         last = hh >= t_end - t
         st, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W, atol, rtol)
@@ -361,17 +376,8 @@ def run_loop(scheme, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, adaptive, 
             h = min(hmax, hh * min(factor_max, max(0.2, f)))
             factor_max = 5.0
         if nsteps >= max_steps and t < t_end:  # back to Python now and then (Ctrl-C); call again to go on
-            stats[S_T] = t
-            stats[S_H] = h
-            stats[S_OUT] = iout
-            stats[S_REC] = irec
-            stats[S_ERR_OLD] = err_old
-            return PAUSED
-    stats[S_T] = t
-    stats[S_H] = h
-    stats[S_OUT] = iout
-    stats[S_REC] = irec
-    return DONE
+            return _save(stats, PAUSED, t, h, iout, irec, err_old)
+    return _save(stats, DONE, t, h, iout, irec, err_old)
 
 
 @njit(cache=True)

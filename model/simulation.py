@@ -320,11 +320,12 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     peaks = np.zeros(nc + 1)
     pk, pe, ps = np.zeros((4, 2 * n)), np.zeros((2, nc + 1)), np.zeros(4)
     scheme = meth.tableau.scheme()
+    control = I.Control(meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_, 1e-13, hmax,
+                        _STEPS_PER_CALL)
+    track = I.Track(sensor, peaks, pk, pe, ps)
     while True:
-        status = I.run_loop(scheme, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
-                            meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_,
-                            1e-13, hmax, _STEPS_PER_CALL, times, out_y, out_a, out_c, out_lam, rec, record_contacts,
-                            blow, k, cout, stats, W, sensor, peaks, pk, pe, ps)
+        status = I.run_loop(scheme, control, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
+                            times, out_y, out_a, out_c, out_lam, rec, record_contacts, blow, k, cout, stats, W, track)
         if status == I.FULL:
             rec = np.concatenate([rec, np.zeros_like(rec)])
             h = float(stats[I.S_H])
