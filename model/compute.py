@@ -360,7 +360,9 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
             with dask.config.set(_LEAN_LOCAL):  # the nannies pass this config on to their workers
                 cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
                                        host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
-                                       silence_logs=logging.ERROR,
+                                       # a worker's heartbeat racing the scheduler's close logs a traceback
+                                       # at ERROR; task errors come back as TaskFailure, not through logs
+                                       silence_logs=logging.CRITICAL,
                                        # dashboard off; the scheduler's health/metrics endpoint on a free
                                        # loopback port (its default 8787 clashes with other clusters)
                                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
