@@ -102,7 +102,7 @@ def main() -> None:
     reliability = []
     final = {}
     full = min(min(f.cycles for f in feats), args.cycles)
-    for n in sorted({1, 2, 5, 10, full}):
+    for n in sorted({1, 2, 5, 10, 20, 40, full}):
         if n > full:
             continue
         rows = []
