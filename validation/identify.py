@@ -7,11 +7,16 @@ its likelihood under each state, tempered by a factor learnt from the ensembles 
 the temperature minimises their log loss), gives the posterior with a uniform prior. The top
 state is named only when its probability reaches ``threshold``; otherwise the answer is
 "undecided", with the number of cycles that would decide it if the session went on as it began.
-Whether a state is consistent with the session at all is a separate test: the session's
-Mahalanobis distance against the distances of the ensemble's own held-out realisations (a gamma
-fitted by moments). When no state passes it the answer is "none of the candidates". A state
-"explains" the session when it is consistent and not ruled out by another (posterior at least
-``1 - threshold``).
+Whether a state is consistent with the session at all is a separate test in two parts, each
+against the same statistic of the ensemble's own held-out realisations (a gamma fitted by moments):
+the session's Mahalanobis distance in all features (is the session anywhere near this state?), and
+its distance along the directions from this state to the other candidates only (whitened by the
+state's covariance; at most ``K - 1`` of them). The second is what catches a state that is not
+among the candidates but lies between or beyond them, as wear stages do: in 72 features an offset
+of a few standard deviations drowns in the chi-square spread of the other 70, along the few
+directions that separate the candidates it does not. When no state passes both the answer is
+"none of the candidates". A state "explains" the session when it is consistent and not ruled out
+by another (posterior at least ``1 - threshold``).
 
 Validation verdict per state: the fraction of measured cycles inside the theory's cycle band
 (single-cycle distance below the 95th percentile of the ensemble's own cycles), and the crank
@@ -24,7 +29,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import optimize, special, stats
+from scipy import linalg, optimize, special, stats
 from wearbench.validation.ensemble import Ensemble
 from wearbench.validation.features import CycleFeatures, FeatureSpec
 from wearbench.validation.statistics import StateStatistics
@@ -40,7 +45,8 @@ class IdentifyOptions:
     """Decision rules. Floors are standard deviations added to every feature (see statistics.py)."""
 
     threshold: float = 0.9          # name the top state at posterior >= threshold
-    consistency: float = 0.001      # a state is consistent with the session when its p-value >= this
+    consistency: float = 0.001      # a state is consistent when its all-feature p-value >= this
+    consistency_direction: float = 0.01  # ... and its p-value along the candidates' directions >= this
     floor_curve: float = 0.5        # m/s^2, low-passed curve bins
     floor_energy: float = 0.05      # log10 units, impact-band energy bins
     max_cycles: int = 500           # horizon of "cycles needed"
@@ -48,8 +54,9 @@ class IdentifyOptions:
     def __post_init__(self) -> None:
         if not 0.5 <= self.threshold < 1:
             raise ValueError(f"threshold = {self.threshold}: expected a probability in [0.5, 1)")
-        if not 0 < self.consistency < 0.5:
-            raise ValueError(f"consistency = {self.consistency}: expected a p-value in (0, 0.5)")
+        for name in ("consistency", "consistency_direction"):
+            if not 0 < getattr(self, name) < 0.5:
+                raise ValueError(f"{name} = {getattr(self, name)}: expected a p-value in (0, 0.5)")
 
 
 @dataclass(frozen=True)
@@ -60,6 +67,7 @@ class StateModels:
     stats: Mapping[str, StateStatistics]
     temperature: float
     null: Mapping[str, tuple[float, float]]  # state -> (gamma shape, scale) of held-out distances
+    null_direction: Mapping[str, tuple[float, float]]  # the same along the directions to the other states
     cycle_limit: Mapping[str, float]  # state -> 95th percentile of single-cycle distances
     lo: Mapping[str, np.ndarray]  # state -> per-feature 5th percentile over cycles
     hi: Mapping[str, np.ndarray]
@@ -78,7 +86,8 @@ class Identification:
     p_top: float
     consistent: dict[str, bool]  # the state's distance test passes (absolute)
     explains: dict[str, bool]  # consistent and not ruled out by another state (posterior >= 1 - threshold)
-    p_value: dict[str, float]
+    p_value: dict[str, float]  # all features
+    p_direction: dict[str, float]  # along the directions to the other candidates
     cycles_needed: int | None  # cycles in all that would decide it (None: not within max_cycles)
     inside: dict[str, float]  # fraction of cycles inside each state's cycle band
     leaves: dict[str, list[str]]  # crank-angle ranges where cycles leave each state's band
@@ -99,6 +108,25 @@ def _posterior(ll: np.ndarray, temperature: float) -> np.ndarray:
     return np.exp(z - special.logsumexp(z))
 
 
+def _gamma(values: list[float]) -> tuple[float, float]:
+    """Gamma (shape, scale) with the mean and variance of ``values``."""
+    v = np.asarray(values)
+    mean, var = float(v.mean()), float(v.var(ddof=1))
+    return mean * mean / var, var / mean
+
+
+def direction_distance2(st: StateStatistics, others: list[np.ndarray], xbar: np.ndarray, n: float) -> float:
+    """Squared Mahalanobis distance of a session's mean over ``n`` cycles from state ``st`` along the
+    directions to the means ``others`` only (0 when there are none)."""
+    if not others:
+        return 0.0
+    chol = st.whitener(n)
+    u = np.stack([linalg.solve_triangular(chol, m - st.mean, lower=True) for m in others], axis=1)
+    q, _ = np.linalg.qr(u)
+    z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - st.mean, lower=True)
+    return float(np.sum((q.T @ z) ** 2))
+
+
 def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions(), *,
                columns: slice = slice(None)) -> StateModels:
     """Fit each state's statistics and calibrate the temperature and the consistency test.
@@ -112,18 +140,19 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
     fitted = {s: StateStatistics.fit(f, floor) for s, f in features.items()}
     # held-out realisations: their distance to their own state (refit without them), and their
     # log likelihood under every state, for the null distribution and the temperature
-    lls, truth, null = [], [], {}
+    lls, truth, null, null_direction = [], [], {}, {}
     for si, (s, f) in enumerate(features.items()):
-        d2 = []
+        d2, t2 = [], []
+        others = [fitted[t].mean for t in names if t != s]
         for r in range(f.shape[0]):
             loo = StateStatistics.fit(np.delete(f, r, axis=0), floor)
             xbar, n = f[r].mean(axis=0), f.shape[1]
             d2.append(loo.distance2(xbar, n))
+            t2.append(direction_distance2(loo, others, xbar, n))
             lls.append([loo.log_likelihood(xbar, n) if t == s else fitted[t].log_likelihood(xbar, n) for t in names])
             truth.append(si)
-        d2 = np.asarray(d2)
-        mean, var = float(d2.mean()), float(d2.var(ddof=1))
-        null[s] = (mean * mean / var, var / mean)
+        null[s] = _gamma(d2)
+        null_direction[s] = _gamma(t2) if others else (1.0, 1.0)
     lls_a, truth_a = np.asarray(lls), np.asarray(truth)
 
     def log_loss(log_t: float) -> float:
@@ -142,7 +171,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         d = flat - fitted[s].mean
         limit[s] = float(np.percentile(np.einsum("ij,jk,ik->i", d, inv, d), 95))
         lo[s], hi[s] = np.percentile(flat, 5, axis=0), np.percentile(flat, 95, axis=0)
-    return StateModels(names, fitted, temperature, null, limit, lo, hi, options, columns)
+    return StateModels(names, fitted, temperature, null, null_direction, limit, lo, hi, options, columns)
 
 
 def _ranges(flags: np.ndarray, bins: int) -> list[str]:
@@ -173,11 +202,16 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
     ll = np.array([models.stats[s].log_likelihood(xbar, n) for s in names])
     post = _posterior(ll, models.temperature)
     top = int(np.argmax(post))
-    p_value, consistent = {}, {}
+    p_value, p_direction, consistent = {}, {}, {}
     for s in names:
+        st = models.stats[s]
         shape, scale = models.null[s]
-        p_value[s] = float(stats.gamma.sf(models.stats[s].distance2(xbar, n), shape, scale=scale))
-        consistent[s] = p_value[s] >= opts.consistency
+        p_value[s] = float(stats.gamma.sf(st.distance2(xbar, n), shape, scale=scale))
+        others = [models.stats[t].mean for t in names if t != s]
+        shape, scale = models.null_direction[s]
+        p_direction[s] = float(stats.gamma.sf(direction_distance2(st, others, xbar, n), shape, scale=scale)) \
+            if others else 1.0
+        consistent[s] = p_value[s] >= opts.consistency and p_direction[s] >= opts.consistency_direction
     if not any(consistent.values()):
         verdict = NONE
     elif post[top] >= opts.threshold and consistent[names[top]]:
@@ -213,5 +247,5 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
     explains = {s: consistent[s] and float(p) >= 1 - opts.threshold for s, p in zip(names, post, strict=True)}
     return Identification(label, n, {s: float(p) for s, p in zip(names, post, strict=True)}, verdict,
-                          float(post[top]), consistent, explains, p_value, needed, inside, leaves, clipped, notes)
+                          float(post[top]), consistent, explains, p_value, p_direction, needed, inside, leaves, clipped, notes)
 

@@ -96,10 +96,13 @@ class StateStatistics:
             self._factors[n] = (chol, 2.0 * float(np.log(np.diag(chol)).sum()))
         return self._factors[n]
 
+    def whitener(self, n: float) -> np.ndarray:
+        """Lower Cholesky factor ``L`` of ``covariance(n)``: ``L^-1 (x - mean)`` is white under the state."""
+        return self._factor(n)[0]
+
     def distance2(self, xbar: np.ndarray, n: float) -> float:
         """Squared Mahalanobis distance of a session's mean features over ``n`` cycles."""
-        chol, _ = self._factor(n)
-        z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - self.mean, lower=True)
+        z = linalg.solve_triangular(self.whitener(n), np.asarray(xbar, dtype=float) - self.mean, lower=True)
         return float(z @ z)
 
     def log_likelihood(self, xbar: np.ndarray, n: float) -> float:
