@@ -17,19 +17,40 @@ Protobuf over JSON numeric arrays by measurement (``benchmarks/session_format.py
 148 against 161 MB per hour and 2.6x less write CPU; besides, float32 samples stay exact and a NaN
 sample stays a valid message (JSON has no NaN). Layout 1 (JSON, base64 samples) is read by
 ``layout1``. ``log_time`` is the host time of arrival (ns since the Unix epoch), ``publish_time`` the
-device time (ns on the device clock; equal to ``log_time`` for a message that has none). Imports numpy, protobuf, foxglove's schemas and
-the driver dataclasses only.
+device time (ns on the device clock; equal to ``log_time`` for a message that has none).
+
+The metadata records (:data:`METADATA`) are written and read back by name here too:
+:func:`session_records`, :func:`record_crank`, :func:`record_stream` and :func:`result_record` for
+the recorder, :func:`recorded_crank` and :func:`recorded_clip_level` for the reader and ``recover``.
+Imports numpy, protobuf, foxglove's schemas and the driver dataclasses (the bench and the session
+records for types only).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from importlib.metadata import version
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from foxglove.messages import Log, LogLevel, Timestamp
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
+from wearbench.acquisition.drivers import (
+    ACCELERATION,
+    ENCODER,
+    Block,
+    BusFrame,
+    Event,
+    MotorState,
+    StreamInfo,
+)
+
+if TYPE_CHECKING:
+    from wearbench.acquisition.session import SessionPlan, SessionResult
+    from wearbench.bench.schema import Bench
 
 __all__ = [
     "BENCH_ATTACHMENT",
@@ -39,6 +60,7 @@ __all__ = [
     "TOPICS",
     "Command",
     "CrankAngle",
+    "calibration_number",
     "clip_level",
     "count_clipped",
     "decode_block",
@@ -54,6 +76,12 @@ __all__ = [
     "log_level",
     "ns",
     "publish_time",
+    "record_crank",
+    "record_stream",
+    "recorded_clip_level",
+    "recorded_crank",
+    "result_record",
+    "session_records",
     "surface_attachment",
     "surface_joint",
 ]
@@ -80,6 +108,91 @@ def surface_attachment(joint: str) -> str:
 def surface_joint(name: str) -> str | None:
     """The joint of a worn-surface attachment ``name`` (None for another attachment)."""
     return name[5:-4] if name.startswith("wear/") and name.endswith(".npz") else None
+
+
+def session_records(bench: Bench, plan: SessionPlan, backend: str, info: Mapping[str, str],
+                    started_at: str) -> dict[str, dict[str, str]]:
+    """The records "session", "clearance", "wear", "hardware" and the sensors' part of
+    "calibration" of a session of ``plan`` on ``bench`` through ``backend`` (``info``: what the rig
+    reports of itself)."""
+    b, p = bench, plan
+    session = {"bench": b.name, "bench_sha256": b.sha256, "operator": p.operator,
+               "software": f"wearbench {version('wearbench')}", "backend": backend,
+               "speed_rad_s": repr(p.speed), "started_at": started_at}
+    session["target"] = f"{p.cycles} cycles" if p.cycles is not None else f"{p.duration} s"
+    if b.path is not None:
+        session["bench_path"] = str(Path(b.path).resolve())
+    clearance = {j.name: repr(p.clearances.get(j.name, j.clearance.radial_clearance)) for j in b.clearance_joints}
+    clearance.update({k: repr(v) for k, v in p.clearances.items()})
+    wear = {j.name: p.wear.get(j.name, str(j.clearance.surfaces) if j.clearance.surfaces else "new")
+            for j in b.clearance_joints}
+    wear.update(p.wear)
+    calibration: dict[str, str] = {}
+    for s in b.sensors:
+        calibration.update({f"{s.kind}.name": s.name, f"{s.kind}.sample_rate": repr(s.sample_rate)})
+        if s.kind == "accelerometer":
+            calibration.update({"accelerometer.range": repr(s.range), "accelerometer.axis": repr(s.axis),
+                                "accelerometer.sensitivity": repr(s.sensitivity),
+                                "accelerometer.body": s.body, "accelerometer.point": s.point})
+        else:
+            calibration.update({"encoder.joint": s.joint, "encoder.counts_per_rev": str(s.counts_per_rev)})
+    return {"session": session, "clearance": clearance, "wear": wear, "calibration": calibration,
+            "hardware": {"backend": backend, **info}}
+
+
+def record_crank(calibration: dict[str, str], state: MotorState | Exception) -> CrankAngle | None:
+    """Write the encoder's angle offset into ``calibration`` from the drive's ``state`` at the start
+    (or why it is unknown); the crank angle of the counts, None without counts per revolution."""
+    if isinstance(state, Exception):
+        calibration["encoder.angle_offset"] = f"unknown ({state})"
+        return None
+    cpr = float(calibration.get("encoder.counts_per_rev", 0) or 0)
+    if not cpr:
+        return None
+    offset = state.angle - state.counts * 2 * math.pi / cpr
+    calibration["encoder.angle_offset"] = repr(offset)
+    return CrankAngle(cpr, offset)
+
+
+def record_stream(calibration: dict[str, str], info: StreamInfo, source: str) -> None:
+    """Write what stream ``info`` of source ``source`` holds, and its extras, into ``calibration``."""
+    calibration[f"{info.name}.stream"] = (f"{info.unit} {info.dtype}{list(info.shape) or ''} "
+                                          f"at {info.sample_rate:g} Hz from {info.source or source}")
+    calibration.update({f"{info.name}.{k}": v for k, v in info.extra.items()})
+
+
+def result_record(r: SessionResult, lost: int) -> dict[str, str]:
+    """The "result" record of a session that ended with ``r`` (``lost``: items the writer could not encode)."""
+    return {"reason": r.reason, "completed": str(r.completed), "cycles": repr(r.cycles),
+            "duration_s": repr(r.duration), "malformed_frames": str(r.malformed),
+            "lost_items": str(lost), "acceleration.clipped_samples": str(r.clipped),
+            **{f"{k}.{name}": str(v) for name, d in (("blocks", r.blocks), ("samples", r.samples),
+                                                      ("dropped_blocks", r.dropped_blocks),
+                                                      ("dropped_samples", r.dropped_samples),
+                                                      ("repeated_blocks", r.repeated_blocks))
+               for k, v in d.items()}}
+
+
+def calibration_number(calibration: Mapping[str, str], key: str, default: float = 0.0) -> float:
+    """The number the calibration record holds at ``key``; ``default`` when absent or not a number."""
+    try:
+        return float(calibration[key])
+    except (KeyError, ValueError):
+        return default
+
+
+def recorded_clip_level(calibration: Mapping[str, str]) -> float:
+    """The acceleration clip level (:func:`clip_level`) from the recorded range and LSB."""
+    full_scale = calibration_number(calibration, "acceleration.range",
+                                    calibration_number(calibration, "accelerometer.range"))
+    return clip_level(full_scale, calibration_number(calibration, "acceleration.lsb", full_scale / 32768))
+
+
+def recorded_crank(calibration: Mapping[str, str], counts_per_rev: float = 0.0) -> CrankAngle | None:
+    """The crank angle of the recorded counts (``counts_per_rev`` when the record lacks it); None
+    without counts per revolution."""
+    cpr = calibration_number(calibration, "encoder.counts_per_rev") or counts_per_rev
+    return CrankAngle(cpr, calibration_number(calibration, "encoder.angle_offset")) if cpr else None
 
 
 TOPICS = {ACCELERATION: "/acceleration", ENCODER: "/encoder", "state": "/motor/state",

@@ -16,8 +16,6 @@ import signal
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from importlib.metadata import version
 from pathlib import Path
 from typing import BinaryIO
 
@@ -36,79 +34,23 @@ from wearbench.acquisition.drivers import (
 from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
     Command,
-    CrankAngle,
     clip_level,
     count_clipped,
+    record_crank,
+    record_stream,
+    result_record,
+    session_records,
     surface_attachment,
 )
 from wearbench.acquisition.sequence import SequenceCheck
+from wearbench.acquisition.session import Progress, SessionPlan, SessionResult
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.schema import Bench
 
-__all__ = ["Progress", "Recorder", "SessionPlan", "SessionResult", "record_session"]
+__all__ = ["Recorder", "record_session"]
 
 _PULSE_MARGIN = 0.05  # revolutions recorded past the index pulse that closes the last cycle
 _FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
-
-
-@dataclass
-class SessionPlan:
-    """What to record. ``speed`` is the motor speed (rad/s); stop after ``cycles`` complete crank
-    cycles (index pulse to index pulse) or ``duration`` s of recording (device clock), whichever is
-    given."""
-
-    speed: float
-    cycles: float | None = None
-    duration: float | None = None
-    acceleration: float | None = None  # ramp, rad/s^2 (None: the bench motor's max_acceleration)
-    settle: float = 0.5  # s held at speed before recording starts
-    speed_tolerance: float = 0.02  # relative: steady when |speed - target| < tol * |target|
-    clearances: dict[str, float] = field(default_factory=dict)  # m, as mounted
-    wear: dict[str, str] = field(default_factory=dict)  # joint -> label or surfaces file
-    operator: str = ""
-    silence_timeout: float = 2.0  # s (rig clock) without a block: the device stopped answering
-    state_interval: float = 0.05  # s (rig clock) between drive state polls
-    max_malformed: int = 100  # malformed frames tolerated before the session stops
-
-    def __post_init__(self) -> None:
-        if (self.cycles is None) == (self.duration is None):
-            raise ValueError("a session needs exactly one of cycles or duration")
-        if self.speed == 0 or not math.isfinite(self.speed):
-            raise ValueError(f"speed = {self.speed!r} rad/s: a session needs the crank turning (finite, non-zero)")
-        for name, value, unit in (("cycles", self.cycles, ""), ("duration", self.duration, " s")):
-            if value is not None and not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} = {value!r}{unit}: expected a finite number > 0")
-        if not (math.isfinite(self.settle) and self.settle >= 0):
-            raise ValueError(f"settle = {self.settle!r} s: expected a finite number >= 0")
-
-
-@dataclass
-class Progress:
-    cycles: float = 0.0
-    elapsed: float = 0.0  # s of recording, device clock
-    target: float = 0.0  # cycles or seconds, as planned
-    sample_rate: float = 0.0  # Hz, acceleration samples per host second, recent
-    dropped: int = 0  # samples lost (sequence gaps x block size)
-    phase: str = "start"
-
-
-@dataclass
-class SessionResult:
-    path: Path | None
-    reason: str  # "completed" or why it stopped
-    completed: bool
-    cycles: float
-    duration: float  # s recorded, device clock
-    blocks: dict[str, int]
-    samples: dict[str, int]
-    dropped_blocks: dict[str, int]
-    dropped_samples: dict[str, int]
-    repeated_blocks: dict[str, int]
-    malformed: int
-    events: int
-    clipped: int = 0  # acceleration samples at or beyond the range
-    writer_cpu: float = 0.0  # s of CPU used by the writer thread
-    reader_cpu: float = 0.0  # s of CPU used by the reader threads
 
 
 def _failure_reason(exc: Exception, what: str) -> str:
@@ -306,48 +248,26 @@ class Recorder:
     # ---- the session ------------------------------------------------------------------------
 
     def _metadata(self) -> dict[str, dict[str, str]]:
-        b, p = self.bench, self.plan
-        session = {"bench": b.name, "bench_sha256": b.sha256, "operator": p.operator,
-                   "software": f"wearbench {version('wearbench')}", "backend": self.rig.backend,
-                   "speed_rad_s": repr(p.speed), "started_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-        session["target"] = f"{p.cycles} cycles" if p.cycles is not None else f"{p.duration} s"
-        if b.path is not None:
-            session["bench_path"] = str(Path(b.path).resolve())
-        clearance = {j.name: repr(p.clearances.get(j.name, j.clearance.radial_clearance))
-                     for j in b.clearance_joints}
-        clearance.update({k: repr(v) for k, v in p.clearances.items()})
-        wear = {j.name: p.wear.get(j.name, str(j.clearance.surfaces) if j.clearance.surfaces else "new")
-                for j in b.clearance_joints}
-        wear.update(p.wear)
-        calibration: dict[str, str] = {}
-        for s in b.sensors:
-            calibration.update({f"{s.kind}.name": s.name, f"{s.kind}.sample_rate": repr(s.sample_rate)})
-            if s.kind == "accelerometer":
-                calibration.update({"accelerometer.range": repr(s.range), "accelerometer.axis": repr(s.axis),
-                                    "accelerometer.sensitivity": repr(s.sensitivity),
-                                    "accelerometer.body": s.body, "accelerometer.point": s.point})
-            else:
-                calibration.update({"encoder.joint": s.joint, "encoder.counts_per_rev": str(s.counts_per_rev)})
+        """The session's metadata records; sets the writer's crank angle and the clip level."""
+        rig = self.rig
+        records = session_records(self.bench, self.plan, rig.backend, rig.info,
+                                  time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
+        calibration = records["calibration"]
         try:
-            s0 = self._poll()
-            cpr = float(calibration.get("encoder.counts_per_rev", 0) or 0)
-            if cpr:
-                offset = s0.angle - s0.counts * 2 * math.pi / cpr
-                calibration["encoder.angle_offset"] = repr(offset)
-                self.writer.crank = CrankAngle(cpr, offset)
+            state: MotorState | Exception = self._poll()
         except Exception as exc:  # noqa: BLE001 - a drive that cannot answer shows up again in _run
-            calibration["encoder.angle_offset"] = f"unknown ({exc})"
-        for source in self.rig.sources:
+            state = exc
+        crank = record_crank(calibration, state)
+        if crank is not None:
+            self.writer.crank = crank
+        for source in rig.sources:
             for info in source.describe():
                 if info.name == ACCELERATION:
-                    full_scale = float(info.extra.get("range", b.sensor("accelerometer").range))
+                    full_scale = float(info.extra.get("range", self.bench.sensor("accelerometer").range))
                     lsb = info.extra.get("lsb")
                     self._clip_level = clip_level(full_scale, float(lsb) if lsb else None)
-                calibration[f"{info.name}.stream"] = (f"{info.unit} {info.dtype}{list(info.shape) or ''} "
-                                                      f"at {info.sample_rate:g} Hz from {info.source or source.name}")
-                calibration.update({f"{info.name}.{k}": v for k, v in info.extra.items()})
-        return {"session": session, "clearance": clearance, "wear": wear, "calibration": calibration,
-                "hardware": {"backend": self.rig.backend, **self.rig.info}}
+                record_stream(calibration, info, source.name)
+        return records
 
     def _command(self, command: str, speed: float | None = None, acceleration: float | None = None) -> None:
         self._post(Command(command, speed, acceleration, time.time()))
@@ -567,15 +487,7 @@ class Recorder:
                 self._lost += 1
         r = self._result(prog)
         try:
-            w.add_metadata("result", {
-                "reason": r.reason, "completed": str(r.completed), "cycles": repr(r.cycles),
-                "duration_s": repr(r.duration), "malformed_frames": str(r.malformed),
-                "lost_items": str(self._lost), "acceleration.clipped_samples": str(r.clipped),
-                **{f"{k}.{name}": str(v) for name, d in (("blocks", r.blocks), ("samples", r.samples),
-                                                          ("dropped_blocks", r.dropped_blocks),
-                                                          ("dropped_samples", r.dropped_samples),
-                                                          ("repeated_blocks", r.repeated_blocks))
-                   for k, v in d.items()}})
+            w.add_metadata("result", result_record(r, self._lost))
         except OSError:
             pass  # accepted, as above
         for attempt in range(_FINISH_TRIES):  # space may come back (the ballast, another process)

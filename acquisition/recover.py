@@ -24,11 +24,11 @@ from wearbench.acquisition.layout import (
     ENCODING,
     SCHEMAS,
     TOPICS,
-    CrankAngle,
-    clip_level,
     count_clipped,
     ns,
     publish_time,
+    recorded_clip_level,
+    recorded_crank,
 )
 from wearbench.acquisition.session_file import scan_mcap
 from wearbench.acquisition.session_writer import CHUNK_SIZE, COMPRESSION, PROFILE
@@ -50,16 +50,8 @@ class RecoveryReport:
 def _upgraders(calibration: dict[str, str]) -> dict[str, Callable[[bytes], bytes]]:
     """Layout-1 message -> current-layout message, per channel key."""
 
-    def number(key: str, default: float = 0.0) -> float:
-        try:
-            return float(calibration[key])
-        except (KeyError, ValueError):
-            return default
-
-    cpr = number("encoder.counts_per_rev")
-    crank = CrankAngle(cpr, number("encoder.angle_offset")) if cpr else None
-    full_scale = number("acceleration.range", number("accelerometer.range"))
-    level = clip_level(full_scale, number("acceleration.lsb", full_scale / 32768))
+    crank = recorded_crank(calibration)
+    level = recorded_clip_level(calibration)
 
     def acceleration(data: bytes) -> bytes:
         block = layout1.decode_block(ACCELERATION, data)

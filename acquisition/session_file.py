@@ -38,7 +38,8 @@ from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
     SCHEMAS,
     TOPICS,
-    clip_level,
+    recorded_clip_level,
+    recorded_crank,
     surface_joint,
 )
 from wearbench.acquisition.sequence import SequenceCheck
@@ -246,11 +247,12 @@ def _speed(angle: np.ndarray, t: np.ndarray, half: int = 5) -> np.ndarray:
     return speed
 
 
-def _float(record: dict[str, str], key: str, default: float) -> float:
+def _bench_counts_per_rev(bench: Bench | None) -> float:
+    """The encoder's counts per revolution in ``bench`` (0 without a bench or an encoder)."""
     try:
-        return float(record[key])
-    except (KeyError, ValueError):
-        return default
+        return float(bench.sensor("encoder").counts_per_rev) if bench is not None else 0.0
+    except KeyError:
+        return 0.0
 
 
 def _bench(text: str, meta: dict, path: Path) -> tuple[Bench | None, str | None]:
@@ -294,20 +296,14 @@ def read_session(path: str | Path) -> Session:
 
     t, h, seq = _sample_frame(acc_blocks, origin, host_origin)
     values = np.concatenate([b.samples for b in acc_blocks]).astype(np.float64) if acc_blocks else np.zeros(0)
-    acc_range = _float(calib, "acceleration.range", _float(calib, "accelerometer.range", 0.0))
-    level = clip_level(acc_range, _float(calib, "acceleration.lsb", acc_range / 32768))
+    level = recorded_clip_level(calib)
     acceleration = pd.DataFrame({"time": t, "host_time": h, "acc": values, "sequence": seq,
                                  "clipped": np.abs(values) >= level})
 
     t, h, seq = _sample_frame(enc_blocks, origin, host_origin)
-    cpr = _float(calib, "encoder.counts_per_rev", 0.0)
-    if not cpr and bench is not None:
-        try:
-            cpr = float(bench.sensor("encoder").counts_per_rev)
-        except KeyError:
-            cpr = 0.0
+    crank = recorded_crank(calib, _bench_counts_per_rev(bench))
     counts = _unwrap_counts(np.concatenate([b.samples for b in enc_blocks])) if enc_blocks else np.zeros(0)
-    angle = counts * (2 * math.pi / cpr) + _float(calib, "encoder.angle_offset", 0.0) if cpr else counts * np.nan
+    angle = counts * (2 * math.pi / crank.counts_per_rev) + crank.offset if crank else counts * np.nan
     speed = _speed(angle, t)
     index = (np.concatenate([b.index for b in enc_blocks]) if enc_blocks else np.zeros(0, dtype=bool))
     encoder = pd.DataFrame({"time": t, "angle": angle, "speed": speed, "index": index.astype(bool),

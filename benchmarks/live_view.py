@@ -26,7 +26,8 @@ import websockets
 from record_throughput import _metered
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.live import LiveView
-from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.recorder import Recorder
+from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.load import parse_bench, shipped_bench
 from wearbench.bench.units import parse_quantity

@@ -23,7 +23,8 @@ import time
 from pathlib import Path
 
 from wearbench.acquisition.backends import open_rig
-from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.recorder import Recorder
+from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import scan_mcap
 from wearbench.bench.load import parse_bench, shipped_bench
 from wearbench.bench.units import parse_quantity

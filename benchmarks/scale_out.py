@@ -5,7 +5,7 @@ within its tolerances, 0.3 mm clearance, ``--revolutions`` motor revolutions eac
 theory ensembles and sweeps submit. Measured in one run:
 
 - wall time of the serial in-process loop (``workers=0``), of a 1-worker LocalCluster at Dask's
-  default settings and as wearbench configures it (``compute._LEAN_LOCAL``: fewer timers), and of a
+  default settings and as wearbench configures it (``cluster._LEAN_LOCAL``: fewer timers), and of a
   2-worker LocalCluster (cluster start-up, which includes the numba warm-up on each worker, timed
   apart);
 - speed-up 2 vs 1 worker (target >= 1.7x on 2 cores) and overhead of the 1-worker cluster against
@@ -85,9 +85,9 @@ def main() -> None:
 
     os.environ["WEARBENCH_CACHE"] = tempfile.mkdtemp(prefix="wearbench-scale-out-")
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.model import compute
-    from wearbench.model.compute import Task, compute_client, run_tasks, task_key, usable_cores
-    from wearbench.model.compute import _warm_up as warm_up
+    from wearbench.model import cluster
+    from wearbench.model.cluster import usable_cores, warm_up
+    from wearbench.model.compute import Task, compute_client, run_tasks, task_key
     from wearbench.model.sweep import Axis, SweepSpec
 
     bench = load_bench(shipped_bench("ninebar"))
@@ -114,7 +114,7 @@ def main() -> None:
             out = run_tasks(tasks, workers=0, cache=False)
             t2, c1, w1 = time.perf_counter(), time.process_time(), 0.0
         else:
-            lean, compute._LEAN_LOCAL = compute._LEAN_LOCAL, ({} if dask_defaults else compute._LEAN_LOCAL)
+            lean, cluster._LEAN_LOCAL = cluster._LEAN_LOCAL, ({} if dask_defaults else cluster._LEAN_LOCAL)
             try:
                 with compute_client(workers=workers) as client:
                     t1 = time.perf_counter()
@@ -131,7 +131,7 @@ def main() -> None:
                         per_task = (cluster_cpu(client) - a) / args.noops
                         breakdown.append((name, idle, per_task))
             finally:
-                compute._LEAN_LOCAL = lean
+                cluster._LEAN_LOCAL = lean
         failed = [r for r in out if not isinstance(r, dict)]
         if failed:
             raise SystemExit(f"{name}: {len(failed)} tasks failed: {failed[0]}")

@@ -62,7 +62,8 @@ def _option_value(text: str):
 
 def run(args: argparse.Namespace) -> int:
     from wearbench.acquisition.backends import open_rig
-    from wearbench.acquisition.recorder import Recorder, SessionPlan
+    from wearbench.acquisition.recorder import Recorder
+    from wearbench.acquisition.session import SessionPlan
     from wearbench.acquisition.session_writer import (
         SessionWriter,
         check_free_space,

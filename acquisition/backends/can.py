@@ -159,9 +159,7 @@ class BenchFrames(can.Listener):
     def for_bench(cls, bench: Bench) -> BenchFrames:
         """Frames of ``bench``: its encoder's counts per revolution and its driver's phase, so angles
         are crank angles as the model and the serial device give them."""
-        enc = bench.sensor("encoder")
-        phase = next((d.phase for d in bench.drivers if d.joint == enc.joint), 0.0)
-        return cls(enc.counts_per_rev, phase)
+        return cls(bench.sensor("encoder").counts_per_rev, bench.encoder_driver.phase)
 
 
 class FrameLog(can.Listener):

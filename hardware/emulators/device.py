@@ -169,7 +169,7 @@ class BenchDevice:
         acc = _sensor(bench, "accelerometer", Sensor("accelerometer", "accelerometer", 10000.0))
         self.counts_per_rev = int(enc.counts_per_rev or 4000)
         self.encoder_rate = float(enc.sample_rate)
-        driver = next((d for d in bench.drivers if d.joint == enc.joint), bench.drivers[0])
+        driver = bench.encoder_driver
         self._ratio, self._phase = float(driver.ratio), float(driver.phase)
         self.range = float(acc.range or 50 * 9.80665)
         self.sample_rate = float(acc.sample_rate)

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
-from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.recorder import Recorder
+from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import read_session
 from wearbench.acquisition.session_writer import MIN_FREE_BYTES, NotEnoughSpace, SessionWriter
 

@@ -15,7 +15,8 @@ from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import ACCELERATION
 from wearbench.acquisition.layout import decode_block, decode_event
 from wearbench.acquisition.live import LiveView, parse_address
-from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.recorder import Recorder
+from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_writer import SessionWriter
 
 from .conftest import FAST, HARMONIC, assert_same_blocks, recorded_blocks, sent_from_device

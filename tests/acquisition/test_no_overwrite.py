@@ -12,7 +12,8 @@ import math
 import pytest
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import DriverError
-from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.recorder import Recorder
+from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import read_session
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.cli import main

@@ -83,7 +83,8 @@ def test_cli_record_and_inspect(session_file):
 def chunked_file(tmp_path_factory, bench):
     """A sim session written with 16 KiB chunks (many chunks to cut between)."""
     from wearbench.acquisition.backends import open_rig
-    from wearbench.acquisition.recorder import Recorder, SessionPlan
+    from wearbench.acquisition.recorder import Recorder
+    from wearbench.acquisition.session import SessionPlan
     from wearbench.acquisition.session_writer import SessionWriter
 
     out = tmp_path_factory.mktemp("chunked") / "chunked.mcap"

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block
-from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.recorder import Recorder
+from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import frames, read_session, scan_mcap
 from wearbench.validation.cycles import cut_cycles, reference_angle
 

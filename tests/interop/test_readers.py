@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
-from wearbench.acquisition.recorder import Recorder, SessionPlan
+from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.recover import recover
+from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import blocks, read_session, scan_mcap
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.load import load_bench, shipped_bench

@@ -14,7 +14,7 @@ import cloudpickle
 import numpy as np
 import psutil
 import pytest
-from wearbench.model import compute
+from wearbench.model import compute, task_cache
 from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
 
 # the test module is imported by path (importlib mode), so workers get its functions by value
@@ -63,7 +63,7 @@ def test_task_key_is_a_content_address(monkeypatch):
     assert task_key("run", a, _Point(1e-4, ("A",)), {"b": 1, "a": Path("x/y")}, 2.0) != k
     assert task_key("run", a.astype(np.float32), _Point(1e-4, ("A", "B")), {"b": 1, "a": Path("x/y")}, 2.0) != k
     # a changed model source changes every key
-    monkeypatch.setattr(compute, "model_source_digest", lambda: "0" * 64)
+    monkeypatch.setattr(task_cache, "model_source_digest", lambda: "0" * 64)
     assert task_key("run", a, _Point(1e-4, ("A", "B")), {"b": 1, "a": Path("x/y")}, 2.0) != k
     with pytest.raises(TypeError, match="cannot address a object"):
         task_key(object())

@@ -7,7 +7,8 @@ import re
 
 import pytest
 from wearbench.acquisition.backends import open_rig
-from wearbench.acquisition.recorder import SessionPlan, record_session
+from wearbench.acquisition.recorder import record_session
+from wearbench.acquisition.session import SessionPlan
 from wearbench.bench.load import load_bench, parse_bench, shipped_bench
 from wearbench.cli import main
 from wearbench.hardware.emulators.device import table_speed

@@ -1,0 +1,185 @@
+"""Where a batch runs: the scheduler to use, and a Dask client on a running cluster or a LocalCluster.
+
+Scheduler, first that is set (:func:`resolve_scheduler`): the ``scheduler`` argument,
+``$WEARBENCH_SCHEDULER``, ``[compute] scheduler`` in the bench file (commands on a bench pass it),
+``[compute] scheduler`` in the user config (``$WEARBENCH_CONFIG``, default
+``~/.config/wearbench/config.toml``); "local" or nothing set: a LocalCluster.
+
+Imports the standard library and ``dask.distributed`` (lazily), and the model only in the worker
+warm-up; no CLI code.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import os
+import tomllib
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from distributed import Client
+    from wearbench.bench.schema import Bench
+
+__all__ = ["ActiveClient", "active_client", "compute_client", "resolve_scheduler", "usable_cores", "warm_up"]
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (the affinity mask where the OS has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _user_config() -> tuple[Path, dict]:
+    """The user config's path and its ``[compute]`` table (empty when the file does not exist)."""
+    path = Path(os.environ.get("WEARBENCH_CONFIG", Path.home() / ".config" / "wearbench" / "config.toml"))
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return path, {}
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    compute = data.get("compute", {})
+    if not isinstance(compute, dict):
+        raise ValueError(f"{path}: [compute] = {compute!r}: expected a table")  # noqa: TRY004 - a user error
+    return path, compute
+
+
+def resolve_scheduler(scheduler: str | None = None, *, bench: Bench | None = None) -> str | None:
+    """The scheduler address to use, first that is set: the argument, ``$WEARBENCH_SCHEDULER``,
+    ``bench``'s ``[compute] scheduler``, the user config's ``[compute] scheduler``. None (also for
+    "local" at any level, which stops the search there) means a LocalCluster on this machine."""
+
+    def sources() -> Iterator[tuple[str, Any]]:
+        yield "scheduler", scheduler
+        yield "WEARBENCH_SCHEDULER", os.environ.get("WEARBENCH_SCHEDULER")
+        if bench is not None:
+            yield f"{bench.path or bench.name}: compute.scheduler", bench.scheduler
+        path, table = _user_config()
+        yield f"{path}: compute.scheduler", table.get("scheduler")
+
+    for source, value in sources():
+        if value:
+            if not isinstance(value, str) or not (value.strip().lower() == "local" or "://" in value):
+                raise ValueError(f"{source} = {value!r}: expected 'local' or a Dask scheduler address such as "
+                                 "'tcp://10.0.0.5:8786'")
+            return None if value.strip().lower() == "local" else value.strip()
+    return None
+
+
+def warm_up() -> None:
+    """Load (or compile) the model's numba kernels once in this process: a tiny clearance run."""
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.model import build_scene, simulate
+
+    scene = build_scene(load_bench(shipped_bench("slider-crank")))
+    simulate(scene, revolutions=0.05, output_rate=1000.0, method="dopri5", record_contacts=True)
+
+
+def _warm_up_plugin():
+    from distributed import WorkerPlugin
+
+    class ModelWarmUp(WorkerPlugin):
+        """Each worker (also one restarted after a crash) loads the numba kernels before its first task."""
+
+        name = "wearbench-model-warm-up"
+
+        def setup(self, worker) -> None:
+            warm_up()
+
+    return ModelWarmUp()
+
+
+# A local cluster's background work, trimmed (Dask's own settings). While a batch runs, the event
+# loops of scheduler, nannies and workers wake up on timers whatever the tasks do; at Dask's defaults
+# that cost 7 % of a core, about 100 ms per 1.4 s task (benchmarks/scale_out.py). Here:
+# - the event-loop health tick every 1 s, not 20 ms (it only measures how long a loop was blocked);
+# - the memory monitors of workers and nannies every 1 s, not 100 ms (simulations grow slowly);
+# - no statistical profiler sampling each worker's stack every 10 ms (it feeds the dashboard, off);
+# - the system monitor every 2 s, not 0.5 s;
+# - no work stealing (a balancing pass every 1 s): with worker-saturation 1.0 the scheduler hands a
+#   worker a task only when its thread is free, so there is nothing queued on a worker to steal
+#   and the tail of a batch balances itself.
+# Idle cluster of 1 worker: 0.69 -> 0.11 s CPU per 10 s (client + scheduler + nanny, worker).
+_LEAN_LOCAL = {"distributed.admin.tick.interval": "1s", "distributed.worker.memory.monitor-interval": "1s",
+               "distributed.worker.profile.enabled": False, "distributed.admin.system-monitor.interval": "2s",
+               "distributed.scheduler.work-stealing": False, "distributed.scheduler.worker-saturation": 1.0}
+
+
+@dataclass
+class ActiveClient:
+    """The client of the innermost :func:`compute_client` block."""
+
+    client: Client | None  # None: run in-process, serially
+
+
+_ACTIVE: contextvars.ContextVar[ActiveClient | None] = contextvars.ContextVar("wearbench_compute", default=None)
+
+
+def active_client() -> ActiveClient | None:
+    """The client of the :func:`compute_client` block this code runs in; None outside one."""
+    return _ACTIVE.get()
+
+
+@contextlib.contextmanager
+def compute_client(scheduler: str | None = None, workers: int | None = None) -> Iterator[Client | None]:
+    """A client that ``run_tasks`` calls inside this block share (None when ``workers=0``: serial).
+
+    scheduler: a running cluster's address ("tcp://HOST:PORT"); None: ``$WEARBENCH_SCHEDULER``, the
+    user config, else a LocalCluster of ``workers`` (default: the usable cores) single-threaded
+    processes on 127.0.0.1, dashboard off. The cluster (if started here) is closed on exit, also on
+    Ctrl-C; results already cached stay cached.
+    """
+    if workers is not None and workers < 0:
+        raise ValueError(f"workers = {workers}: expected 0 (in-process) or more")
+    if workers == 0:
+        token = _ACTIVE.set(ActiveClient(None))
+        try:
+            yield None
+        finally:
+            _ACTIVE.reset(token)
+        return
+    import logging
+
+    import dask
+    from distributed import Client, LocalCluster
+
+    address = resolve_scheduler(scheduler)
+    cluster = None
+    try:
+        if address is None:
+            with dask.config.set(_LEAN_LOCAL):  # the nannies pass this config on to their workers
+                cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
+                                       # a worker's heartbeat racing the scheduler's close logs a traceback
+                                       # at ERROR; task errors come back as TaskFailure, not through logs
+                                       silence_logs=logging.CRITICAL,
+                                       # dashboard off; the scheduler's health/metrics endpoint on a free
+                                       # loopback port (its default 8787 clashes with other clusters)
+                                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+            client = Client(cluster)
+        else:
+            try:
+                client = Client(address, timeout="10s")
+            except OSError as exc:
+                raise OSError(f"scheduler {address}: cannot connect ({exc}); start one with 'dask scheduler' "
+                              "or leave the scheduler unset for a local cluster") from None
+        try:
+            client.register_plugin(_warm_up_plugin())
+            token = _ACTIVE.set(ActiveClient(client))
+            try:
+                yield client
+            finally:
+                _ACTIVE.reset(token)
+        finally:
+            client.close()
+    finally:
+        if cluster is not None:
+            cluster.close()
