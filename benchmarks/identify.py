@@ -9,7 +9,8 @@ recorded through the sim backend to MCAP. The ensembles' seeds (1..M) never meet
 Prints: ensemble build time (cold cache unless --cache), time per identification of a 20-cycle
 session against 4 cached ensembles, accuracy against the number of cycles used (top-1, named
 right / named wrong / undecided / none), Brier score, wrong states judged to explain a session
-(consistent and p >= 0.1) and wrong states passing the consistency test alone,
+(consistent and p >= 0.1), wrong states passing the consistency test alone (both parts) and its
+all-feature part alone (the test of earlier versions), true states failing it,
 the confusion matrix and a reliability table at the full session length, held-out candidates, and
 the earlier pointwise ISO ranking (one nominal simulation per state) on the same sessions.
 
@@ -98,7 +99,7 @@ def main() -> None:
     print(f"build 4 ensembles: {t_ens:.0f} s   emulator truths: {t_truth:.0f} s   record {len(paths)} sessions: "
           f"{t_record:.0f} s   identify one 20-cycle session (cached ensembles, load to report data): {t_one:.1f} s")
     print("\ncycles  sessions  top-1   named right  named wrong  undecided  none   Brier   wrong state explains"
-          "  wrong state consistent")
+          "  wrong state consistent (all features alone)  true state inconsistent")
     reliability = []
     final = {}
     full = min(min(f.cycles for f in feats), args.cycles)
@@ -118,8 +119,10 @@ def main() -> None:
         brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for t, r in rows])
         explains = np.mean([r.explains[s] for t, r in rows for s in names if s != t])
         consistent = np.mean([r.consistent[s] for t, r in rows for s in names if s != t])
+        omnibus = np.mean([r.p_value[s] >= options.consistency for t, r in rows for s in names if s != t])
+        rejected = np.mean([not r.consistent[t] for t, r in rows])
         print(f"{n:6d}  {len(rows):8d}  {top1:5.2f}   {right:11.2f}  {wrong:11.2f}  {undecided:9.2f}  {none:4.2f}   "
-              f"{brier:5.3f}   {explains:20.2f}  {consistent:22.2f}")
+              f"{brier:5.3f}   {explains:20.2f}  {consistent:22.2f} ({omnibus:.2f}){rejected:25.2f}")
         reliability += [(r.p_top, max(r.posterior, key=r.posterior.get) == t) for t, r in rows]
         if n == full:
             final = {i: r for i, (_, r) in enumerate(rows)}
