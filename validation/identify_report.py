@@ -30,7 +30,8 @@ NOTES = (
     "state's hierarchical ensemble "
     "statistics, tempered by a factor calibrated on held-out realisations; uniform prior. A state is "
     "named only at p >= the threshold, else 'undecided'; 'none of the candidates' when no state passes "
-    "the consistency test (p-value of the session's distance against held-out realisations)."),
+    "the consistency test: the session's distance in all features, and along the directions to the other "
+    "candidates, each against the same distance of held-out realisations (p >= 0.001 and 0.01)."),
     ("Model reference for window scores: every five-cycle window of every realisation scored against "
     "the ensemble median, the same way as the measured windows (crank-angle domain, CFC 180, shift "
     "search held to the sensor's plausible delay). 'As good as the model' = the measured median rating "
