@@ -1,7 +1,9 @@
 """Which candidate state explains a session: posterior probabilities from theory ensembles.
 
 For each candidate state its ensemble gives the statistics of cycle features
-(``statistics.StateStatistics``). A session's ``n`` complete cycles give the mean feature vector;
+(``statistics.StateStatistics``), with the between-bench and cycle-to-cycle covariances pooled
+over the candidates (``StateStatistics.pooled``: the states of one bench share its tolerances).
+A session's ``n`` complete cycles give the mean feature vector;
 its likelihood under each state, tempered by a factor learnt from the ensembles themselves
 (leave-one-realisation-out: each held-out realisation plays a session of its ``C`` cycles and
 the temperature minimises their log loss), gives the posterior with a uniform prior. The top
@@ -50,6 +52,7 @@ class IdentifyOptions:
     floor_curve: float = 0.5        # m/s^2, low-passed curve bins
     floor_energy: float = 0.05      # log10 units, impact-band energy bins
     max_cycles: int = 500           # horizon of "cycles needed"
+    pooled: bool = True             # one within- and between-covariance for all candidates (see statistics.py)
 
     def __post_init__(self) -> None:
         if not 0.5 <= self.threshold < 1:
@@ -127,6 +130,10 @@ def direction_distance2(st: StateStatistics, others: list[np.ndarray], xbar: np.
     return float(np.sum((q.T @ z) ** 2))
 
 
+def _models(fits: dict[str, StateStatistics], pooled: bool) -> dict[str, StateStatistics]:
+    return dict(zip(fits, StateStatistics.pooled(list(fits.values())), strict=True)) if pooled else fits
+
+
 def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions(), *,
                columns: slice = slice(None)) -> StateModels:
     """Fit each state's statistics and calibrate the temperature and the consistency test.
@@ -137,19 +144,21 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
     names = tuple(ensembles)
     floor = _floor(next(iter(ensembles.values())).settings.features, options)[columns]
     features = {s: e.features[:, :, columns] for s, e in ensembles.items()}
-    fitted = {s: StateStatistics.fit(f, floor) for s, f in features.items()}
-    # held-out realisations: their distance to their own state (refit without them), and their
-    # log likelihood under every state, for the null distribution and the temperature
+    own = {s: StateStatistics.fit(f, floor) for s, f in features.items()}
+    fitted = _models(own, options.pooled)
+    # held-out realisations: their distance to their own state (refit without them, and so the
+    # pooled covariances), and their log likelihood under every state, for the null distributions
+    # and the temperature
     lls, truth, null, null_direction = [], [], {}, {}
     for si, (s, f) in enumerate(features.items()):
         d2, t2 = [], []
         others = [fitted[t].mean for t in names if t != s]
         for r in range(f.shape[0]):
-            loo = StateStatistics.fit(np.delete(f, r, axis=0), floor)
+            models = _models({**own, s: StateStatistics.fit(np.delete(f, r, axis=0), floor)}, options.pooled)
             xbar, n = f[r].mean(axis=0), f.shape[1]
-            d2.append(loo.distance2(xbar, n))
-            t2.append(direction_distance2(loo, others, xbar, n))
-            lls.append([loo.log_likelihood(xbar, n) if t == s else fitted[t].log_likelihood(xbar, n) for t in names])
+            d2.append(models[s].distance2(xbar, n))
+            t2.append(direction_distance2(models[s], others, xbar, n))
+            lls.append([models[t].log_likelihood(xbar, n) for t in names])
             truth.append(si)
         null[s] = _gamma(d2)
         null_direction[s] = _gamma(t2) if others else (1.0, 1.0)

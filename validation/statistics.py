@@ -18,7 +18,8 @@ Pure numpy/scipy; imports nothing from wearbench but the feature spec.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import linalg
@@ -83,6 +84,18 @@ class StateStatistics:
         within = shrunk_covariance((values - means[:, None, :]).reshape(-1, p)) * (m * c - 1) / (m * (c - 1))
         between = _psd(shrunk_covariance(means) - within / c)
         return cls(means.mean(axis=0), within, between, np.asarray(floor, dtype=float), m, c)
+
+    @staticmethod
+    def pooled(states: Sequence[StateStatistics]) -> list[StateStatistics]:
+        """The ``states`` with one within- and one between-covariance, the mean of theirs.
+
+        The states of one bench share its tolerances and its sensor, so the spread that the
+        tolerances and the chaos give the features is estimated from all ensembles together (as
+        linear discriminant analysis pools the class covariances): four times the realisations of
+        one ensemble, where 72 features outnumber one ensemble's 32. Each state keeps its mean."""
+        within = np.mean([s.within for s in states], axis=0)
+        between = np.mean([s.between for s in states], axis=0)
+        return [replace(s, within=within, between=between) for s in states]
 
     def covariance(self, n: float) -> np.ndarray:
         """Covariance of the mean of ``n`` cycles of one bench about this ensemble's mean."""

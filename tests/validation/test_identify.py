@@ -85,3 +85,28 @@ def test_a_state_between_the_candidates_is_caught_along_their_directions():
     assert np.mean([r.verdict == NONE for r in held]) >= 0.7
     own = [r.consistent[s] for s in ("A", "C") for r in results[s]]
     assert np.mean(own) >= 0.9  # nominal 0.989 (p >= 0.001 and 0.01); the nulls are fitted on 32 realisations
+
+
+def test_pooled_covariances_calibrate_states_that_share_their_spread():
+    """Four states with one (correlated) spread, as the wear states of one bench share its tolerances:
+    the pooled fit needs less tempering than one covariance per state, and names more sessions."""
+    rng = np.random.default_rng(4)
+    idx = np.arange(P)
+    corr = 0.6 ** np.abs(np.subtract.outer(idx, idx))
+    chol_b, chol_w = np.linalg.cholesky(SB * corr), np.linalg.cholesky(SW * corr)
+
+    def correlated(mean, realisations, cycles):
+        bench = (chol_b @ rng.normal(size=(P, realisations))).T[:, None, :]
+        return mean + bench + np.einsum("ij,rcj->rci", chol_w, rng.normal(size=(realisations, cycles, P)))
+
+    means = {s: rng.normal(0.0, 0.08, P) for s in "ABCD"}
+    ensembles = {s: ensemble(s, correlated(m, 32, 8)) for s, m in means.items()}
+    sessions = [(s, correlated(means[s], 1, 20)[0]) for s in "ABCD" for _ in range(15)]
+    result = {}
+    for pooled in (True, False):
+        models = fit_states(ensembles, IdentifyOptions(floor_curve=1e-6, floor_energy=1e-6, pooled=pooled))
+        named = np.mean([identify_features(CycleFeatures(SPEC, x, np.zeros(20)), models).verdict == s
+                         for s, x in sessions])
+        result[pooled] = (models.temperature, named)
+    assert result[True][0] < 0.8 * result[False][0] and result[True][0] < 1.5, result
+    assert result[True][1] >= result[False][1] + 0.2, result  # measured: T 1.07 vs 2.29, named 0.78 vs 0.40
