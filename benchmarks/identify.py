@@ -155,6 +155,17 @@ def main() -> None:
         print(f"  {label:44s} top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
               f"  named right {np.mean([r.verdict == t for r, t in rs]):.2f}")
 
+    print(f"\ncovariances (at {args.cycles} cycles; default: pooled over the candidates):")
+    for label, pooled in (("pooled over the candidates", True), ("one per state (earlier versions)", False)):
+        sub_models = fit_states(ensembles, replace(options, pooled=pooled))
+        rs = [(identify_features(f, sub_models), t) for f, t in zip(feats, truth_names, strict=True)]
+        brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for r, t in rs])
+        print(f"  {label:34s} top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
+              f"  named right {np.mean([r.verdict == t for r, t in rs]):.2f}"
+              f"  named wrong {np.mean([r.verdict in names and r.verdict != t for r, t in rs]):.2f}"
+              f"  Brier {brier:.3f}  temperature {sub_models.temperature:.2f}"
+              f"  wrong state consistent {np.mean([r.consistent[s] for r, t in rs for s in names if s != t]):.2f}")
+
     print(f"\nhow many realisations (top-1 and Brier at {args.cycles} cycles; default 32):")
     for m in sorted({8, 16, 24, args.realisations}):
         if m > args.realisations:
