@@ -27,8 +27,7 @@ NOTES = (
     "simulated trajectory."),
     ("Posterior: Gaussian likelihood of the session's mean cycle features (low-passed 50 Hz curve and "
     "impact energy in the 50-150, 150-400 and 400-1000 Hz bands, in 20 deg crank-angle bins) under each "
-    "state's hierarchical ensemble "
-    "statistics, tempered by a factor calibrated on held-out realisations; uniform prior. A state is "
+    "state's hierarchical ensemble statistics (covariances pooled over the candidates), tempered by a factor calibrated on held-out realisations; uniform prior. A state is "
     "named only at p >= the threshold, else 'undecided'; 'none of the candidates' when no state passes "
     "the consistency test: the session's distance in all features, and along the directions to the other "
     "candidates, each against the same distance of held-out realisations (p >= 0.001 and 0.01)."),
