@@ -68,8 +68,9 @@ def fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf):
     k0 = i0 % nb
     cell = 2.0 * math.pi / nb
     rj = nj / (2.0 * math.pi)
-    yb, mb, cb, sb = tb[0], tb[1], tb[2], tb[3]
-    yj, mj = tj[0], tj[1]
+    # views starting at the window's first entries: indices from 0 up let LLVM vectorise the loops
+    yb, mb = tb[0, k0:k0 + m + 1], tb[1, k0:k0 + m + 1]
+    cb, sb = tb[2, k0:k0 + m], tb[3, k0:k0 + m]
     if nj == nb:  # the same fraction of a journal interval at every midpoint
         x = ((i0 + 1.0) * cell + thi - thj) * rj - 0.5
         x -= nj * math.floor(x / nj)
@@ -81,15 +82,13 @@ def fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf):
         w1 = hermite(0.0, 1.0, 0.0, 0.0, fr)
         w2 = hermite(0.0, 0.0, 1.0, 0.0, fr)
         w3 = hermite(0.0, 0.0, 0.0, 1.0, fr)
+        yj, mj = tj[0, j0:j0 + m + 1], tj[1, j0:j0 + m + 1]
         for t in range(m):
-            k = k0 + t
-            j = j0 + t
-            hb = hermite(yb[k], mb[k], yb[k + 1], mb[k + 1], 0.5)
-            hj = w0 * yj[j] + w1 * mj[j] + w2 * yj[j + 1] + w3 * mj[j + 1]
-            buf[t] = ex * cb[k] + ey * sb[k] - hb - hj
+            hb = hermite(yb[t], mb[t], yb[t + 1], mb[t + 1], 0.5)
+            hj = w0 * yj[t] + w1 * mj[t] + w2 * yj[t + 1] + w3 * mj[t + 1]
+            buf[t] = ex * cb[t] + ey * sb[t] - hb - hj
     else:
         for t in range(m):
-            k = k0 + t
-            hb = hermite(yb[k], mb[k], yb[k + 1], mb[k + 1], 0.5)
+            hb = hermite(yb[t], mb[t], yb[t + 1], mb[t + 1], 0.5)
             xj = ((i0 + t + 1.0) * cell + thi - thj) * rj - 0.5
-            buf[t] = ex * cb[k] + ey * sb[k] - hb - table_depth(yj, mj, nj, xj)
+            buf[t] = ex * cb[t] + ey * sb[t] - hb - table_depth(tj[0], tj[1], nj, xj)
