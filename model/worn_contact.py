@@ -213,6 +213,15 @@ def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, b
     ey = emag * math.sin(alpha - thi)
     i1 = math.floor((psi1 - thi) / cell - 0.5)  # bearing interval holding psi1
     half = nb // 2
+    # beyond the outermost samples above the floor no peak can count: the walk stops there (for a
+    # window that does not wrap, where the samples hold every midpoint the walk can reach)
+    t_lo, t_hi = -nb, m + nb
+    if m < nb:
+        t_lo, t_hi = 0, m - 1
+        while t_hi >= 0 and buf[t_hi] <= floor:
+            t_hi -= 1
+        while t_lo < m and buf[t_lo] <= floor:
+            t_lo += 1
     best_psi, best_f, best_s, best_s_at = psi1, -math.inf, -math.inf, math.nan
     for sign in (-1, 1):
         valley, valley_at = f1, math.nan  # valley_at: the midpoint it was sampled at, if any
@@ -221,10 +230,11 @@ def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, b
         i = i1 + sign
         k = i % nb  # i modulo nb, kept by steps (an integer division per sample costs more than the sample)
         while abs(i - i1) <= half:
-            if ex * tb[2, k] + ey * tb[3, k] <= ec_end:
+            t = i - i0
+            past = t > t_hi if sign > 0 else t < t_lo
+            if past or ex * tb[2, k] + ey * tb[3, k] <= ec_end:
                 break
             mid = (i + 1.0) * cell + thi
-            t = i - i0
             f = buf[t] if 0 <= t < m else _off_window(tb, tj, nb, nj, emag, alpha, thi, thj, i)
             if f < prev:
                 if rising and prev > best_f:  # passed a peak at the previous sample
