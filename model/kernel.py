@@ -261,10 +261,11 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
 
     Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
-    d and the normal at the direction where the surfaces overlap most (:func:`worn_contact`); the
+    d and the normal at the direction where the surfaces overlap most (``worn_contact.contact_zones``,
+    from the surface tables ``P.surf_t``); the
     flag ``CLR_WORN`` keeps new surfaces on the even-clearance code path (bit-identical results).
     A worn joint may touch in two separate zones (a journal bridging a hollow on its two rims):
-    a second local maximum of the overlap (:func:`second_zone`) whose overlap f2 - c exceeds half
+    a second local maximum of the overlap (the second zone) whose overlap f2 - c exceeds half
     the first's carries load too, each zone with its own normal and the joint's contact law. So
     the force stays continuous when two zones of nearly equal overlap trade places: the levels
     between the clearance c and the saddle s shared by both zones are split between them in
