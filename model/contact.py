@@ -36,8 +36,12 @@ __all__ = [
     "effective_modulus",
     "friction_factor",
     "friction_force",
+    "hermite",
     "impact_speed",
+    "node_slopes",
     "normal_force",
+    "table_depth",
+    "table_depth_eval",
 ]
 
 LAWS = {name: code for code, name in enumerate(CONTACT_LAWS)}  # the kernel's law codes
@@ -154,6 +158,62 @@ def _pchip_node_slope(d0: float, d1: float) -> float:
     return 2.0 * d0 * d1 / (d0 + d1)
 
 
+@njit(cache=True, inline="always")
+def hermite(y0: float, m0: float, y1: float, m1: float, f: float) -> float:
+    """Cubic Hermite value at fraction ``f`` of an interval from node values and slopes (per region)."""
+    f2 = f * f
+    f3 = f2 * f
+    return (2.0 * f3 - 3.0 * f2 + 1.0) * y0 + (f3 - 2.0 * f2 + f) * m0 + (-2.0 * f3 + 3.0 * f2) * y1 \
+        + (f3 - f2) * m1
+
+
+@njit(cache=True)
+def node_slopes(depths: np.ndarray, n: int) -> np.ndarray:
+    """The PCHIP node slopes (m per region) of :func:`depth_eval` for the first ``n`` depths, a table
+    computed once per surface so the contact search can sample depths without recomputing them."""
+    out = np.zeros(depths.size)
+    for i in range(n):
+        out[i] = _pchip_node_slope(depths[i] - depths[i - 1 if i > 0 else n - 1],
+                                   depths[i + 1 if i + 1 < n else 0] - depths[i])
+    return out
+
+
+@njit(cache=True, inline="always")
+def table_depth(depths: np.ndarray, slopes: np.ndarray, n: int, x: float) -> float:
+    """Depth (m) at region coordinate ``x`` (node i at x = i, periodic), the value of
+    :func:`depth_eval` at phi = 2 pi (x + 0.5) / n, from the :func:`node_slopes` table."""
+    x = x - n * math.floor(x / n)
+    i0 = int(x)
+    f = x - i0
+    if i0 >= n:
+        i0 -= n
+    i1 = i0 + 1 if i0 + 1 < n else 0
+    return hermite(depths[i0], slopes[i0], depths[i1], slopes[i1], f)
+
+
+@njit(cache=True, inline="always")
+def _locate(n: int, phi: float) -> tuple[int, int, float]:
+    """The interval (centres i0, i1) holding body-frame angle ``phi`` and the fraction in it."""
+    x = phi * (n / (2.0 * math.pi)) - 0.5
+    x = x - n * math.floor(x / n)  # in [0, n]
+    i = int(x)
+    f = x - i
+    i0 = i if i < n else i - n  # cheap periodic neighbours (no signed modulo: the hot path)
+    i1 = i0 + 1 if i0 + 1 < n else 0
+    return i0, i1, f
+
+
+@njit(cache=True, inline="always")
+def _hermite_eval(y0: float, m0: float, y1: float, m1: float, f: float, n: int) -> tuple[float, float, float]:
+    """Depth and its first and second derivatives in phi at fraction ``f`` of an interval."""
+    f2 = f * f
+    h = hermite(y0, m0, y1, m1, f)
+    dh = (6.0 * f2 - 6.0 * f) * (y0 - y1) + (3.0 * f2 - 4.0 * f + 1.0) * m0 + (3.0 * f2 - 2.0 * f) * m1
+    d2h = (12.0 * f - 6.0) * (y0 - y1) + (6.0 * f - 4.0) * m0 + (6.0 * f - 2.0) * m1
+    scale = n / (2.0 * math.pi)
+    return h, dh * scale, d2h * scale * scale
+
+
 @njit(cache=True)
 def depth_eval(depths: np.ndarray, n: int, phi: float) -> tuple[float, float, float]:
     """Wear depth (m) at body-frame angle ``phi`` (rad) and its first and second derivatives
@@ -166,29 +226,23 @@ def depth_eval(depths: np.ndarray, n: int, phi: float) -> tuple[float, float, fl
     shape-preserving (no negative depths, no new extrema at the edge of a pit, which a C2 spline
     would add). The second derivative is piecewise linear (used by the contact search only).
     """
-    x = phi * (n / (2.0 * math.pi)) - 0.5
-    x = x - n * math.floor(x / n)  # in [0, n]
-    i = int(x)
-    f = x - i
-    i0 = i if i < n else i - n  # cheap periodic neighbours (no signed modulo: the hot path)
+    i0, i1, f = _locate(n, phi)
     im = i0 - 1 if i0 > 0 else n - 1
-    i1 = i0 + 1 if i0 + 1 < n else 0
     i2 = i1 + 1 if i1 + 1 < n else 0
     y0 = depths[i0]
     y1 = depths[i1]
-    ym = depths[im]
-    y2 = depths[i2]
     d = y1 - y0
-    m0 = _pchip_node_slope(y0 - ym, d)
-    m1 = _pchip_node_slope(d, y2 - y1)
-    f2 = f * f
-    f3 = f2 * f
-    h = (2.0 * f3 - 3.0 * f2 + 1.0) * y0 + (f3 - 2.0 * f2 + f) * m0 + (-2.0 * f3 + 3.0 * f2) * y1 \
-        + (f3 - f2) * m1
-    dh = (6.0 * f2 - 6.0 * f) * (y0 - y1) + (3.0 * f2 - 4.0 * f + 1.0) * m0 + (3.0 * f2 - 2.0 * f) * m1
-    d2h = (12.0 * f - 6.0) * (y0 - y1) + (6.0 * f - 4.0) * m0 + (6.0 * f - 2.0) * m1
-    scale = n / (2.0 * math.pi)
-    return h, dh * scale, d2h * scale * scale
+    m0 = _pchip_node_slope(y0 - depths[im], d)
+    m1 = _pchip_node_slope(d, depths[i2] - y1)
+    return _hermite_eval(y0, m0, y1, m1, f, n)
+
+
+@njit(cache=True, inline="always")
+def table_depth_eval(depths: np.ndarray, slopes: np.ndarray, n: int, phi: float) -> tuple[float, float, float]:
+    """:func:`depth_eval` (the same values) with the node slopes read from the :func:`node_slopes`
+    table instead of computed."""
+    i0, i1, f = _locate(n, phi)
+    return _hermite_eval(depths[i0], slopes[i0], depths[i1], slopes[i1], f, n)
 
 
 @njit(cache=True)

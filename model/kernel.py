@@ -11,7 +11,7 @@ solved through the Schur complement S = Phi_q M^-1 Phi_q^T (Cholesky, m x m). Ea
 touches at most two bodies, so Phi_q is stored compactly: body index ``Jb[k, s]`` (-1 = none) and
 the three entries ``Jv[k, s, :]`` per slot s.
 
-P = Params(minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, surf, surf_n,
+P = Params(minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, surf, surf_n, surf_t,
            spr_b, spr_p, trq_b, trq_p, jb, body_rows, body_nrows, profile), a named tuple numba compiles:
 - minv (n,): inverse masses/inertias; fext (n,): constant generalised forces (gravity).
 - rev_b (nr, 2), rev_s (nr, 4): ideal pin pairs: bodies (-1 = frame) and local points
@@ -20,7 +20,8 @@ P = Params(minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, s
   body i with direction ``axis`` (in body i's frame); theta_j - theta_i = axis (2 rows).
 - drv_b (nd,), drv_p (nd, 2): drivers theta_b = ratio * theta_motor(t) + phase (1 row).
 - clr_b (nc, 2), clr_p (nc, NCLR): clearance joints (bearing body, journal body), see CLR_* below.
-- surf (nc, 2, nmax), surf_n (nc, 2): worn depths of bearing [0] and journal [1], regions used.
+- surf (nc, 2, nmax), surf_n (nc, 2): worn depths of bearing [0] and journal [1], regions used;
+  surf_t (nc, 2, TABLE_ROWS, 2 nmax): their ``midpoints.surface_tables``, the contact search's tables.
 - spr_b (ns, 2), spr_p (ns, 7): point-to-point spring-dampers (x_i, y_i, x_j, y_j, k, c, l0).
 - trq_b (nt,), trq_p (nt, 2): applied torques T = T0 - c_rot * omega on a body.
 - jb (m, 2): constant body pattern of Phi_q; body_rows (nb, kmax, 2), body_nrows (nb,): rows
@@ -43,9 +44,9 @@ from wearbench.model.contact import (
     impact_speed,
     normal_force,
 )
-from wearbench.model.worn_contact import overlap_at, second_zone, worn_contact, zone_penetrations
+from wearbench.model.worn_contact import contact_zones, zone_penetrations
 
-Params = namedtuple("Params", "minv fext rev_b rev_s pri_b pri_s drv_b drv_p clr_b clr_p surf surf_n "
+Params = namedtuple("Params", "minv fext rev_b rev_s pri_b pri_s drv_b drv_p clr_b clr_p surf surf_n surf_t "
                                "spr_b spr_p trq_b trq_p jb body_rows body_nrows profile")
 
 # clearance parameter columns
@@ -260,10 +261,11 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
 
     Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
-    d and the normal at the direction where the surfaces overlap most (:func:`worn_contact`); the
+    d and the normal at the direction where the surfaces overlap most (``worn_contact.contact_zones``,
+    from the surface tables ``P.surf_t``); the
     flag ``CLR_WORN`` keeps new surfaces on the even-clearance code path (bit-identical results).
     A worn joint may touch in two separate zones (a journal bridging a hollow on its two rims):
-    a second local maximum of the overlap (:func:`second_zone`) whose overlap f2 - c exceeds half
+    a second local maximum of the overlap (the second zone) whose overlap f2 - c exceeds half
     the first's carries load too, each zone with its own normal and the joint's contact law. So
     the force stays continuous when two zones of nearly equal overlap trade places: the levels
     between the clearance c and the saddle s shared by both zones are split between them in
@@ -275,7 +277,8 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
     ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while
     the flag is off the current normal speed stands in for the impact speed (contact onset).
     """
-    clr_b, clr_p, surf, surf_n = P.clr_b, P.clr_p, P.surf, P.surf_n
+    clr_b, clr_p, surf, surf_n, surf_t = P.clr_b, P.clr_p, P.surf, P.surf_n, P.surf_t
+    buf = np.empty(0)  # the contact search's midpoint samples (allocated for the first worn joint)
     for k in range(clr_b.shape[0]):
         bi, bj = clr_b[k, 0], clr_b[k, 1]
         p = clr_p[k]
@@ -295,22 +298,19 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         psi = alpha
         pen = emag - clear
         if p[CLR_WORN] > 0.0 and emag > 0.0:
-            psi, overlap, hb, hj, slope_b, slope_j = worn_contact(
-                surf[k, 0], surf_n[k, 0], surf[k, 1], surf_n[k, 1], emag, alpha, thi, thj, clear,
-                cout[k, CO_ALPHA])
+            nb, nj = surf_n[k, 0], surf_n[k, 1]
+            if buf.size == 0:
+                buf = np.empty(surf.shape[2])
+            psi, overlap, hb, hj, slope_b, slope_j, psi2, f2, sad, hb2, hj2, sb2, sj2 = contact_zones(
+                surf_t[k, 0], surf_t[k, 1], nb, nj, emag, alpha, thi, thj, clear, cout[k, CO_ALPHA], buf)
             pen = overlap - clear
             pen1 = pen
             fn2 = 0.0
             ft2 = 0.0
-            if pen > 0.0:
-                psi2, f2, sad = second_zone(surf[k, 0], surf_n[k, 0], surf[k, 1], surf_n[k, 1], emag,
-                                            alpha, thi, thj, clear, psi, overlap)
-                if f2 > -math.inf:
-                    pen1, pen2, r = zone_penetrations(overlap, f2, sad, clear)
-                    _, _, _, hb2, hj2, sb2, sj2 = overlap_at(surf[k, 0], surf_n[k, 0], surf[k, 1],
-                                                           surf_n[k, 1], emag, alpha, thi, thj, psi2)
-                    fn2, ft2, _, _ = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi2,
-                                                 pen2, hb2, hj2, sb2, sj2, inc[k], v0i[k], r, g)
+            if f2 > -math.inf:  # searched only in contact
+                pen1, pen2, r = zone_penetrations(overlap, f2, sad, clear)
+                fn2, ft2, _, _ = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi2,
+                                             pen2, hb2, hj2, sb2, sj2, inc[k], v0i[k], r, g)
             fn, ft, vn, vt = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi, pen1, hb,
                                          hj, slope_b, slope_j, inc[k], v0i[k], 1.0, g)
             fn += fn2

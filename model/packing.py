@@ -16,6 +16,7 @@ import numpy as np
 from wearbench.bench.schema import GROUND, Bench, BenchError, Joint
 from wearbench.model import kernel as K
 from wearbench.model.contact import LAWS, contact_stiffness
+from wearbench.model.midpoints import TABLE_ROWS, surface_tables
 from wearbench.model.surfaces import JointSurfaces
 
 __all__ = ["Spring", "Torque", "pack_params"]
@@ -94,7 +95,8 @@ def _pack_pins(bench: Bench, b, pinned: list[Joint]):
 
 
 def _pack_clearances(bench: Bench, b, joints: list[Joint], surfaces: Mapping[str, JointSurfaces]):
-    """Clearance joints as contacts: bearing/journal bodies, the CLR_* parameter rows, worn depths."""
+    """Clearance joints as contacts: bearing/journal bodies, the CLR_* parameter rows, worn depths
+    and their tables (``midpoints.surface_tables``)."""
     clr_b, clr_p, surf_list = [], [], []
     for j in joints:
         cl = j.clearance
@@ -127,7 +129,12 @@ def _pack_clearances(bench: Bench, b, joints: list[Joint], surfaces: Mapping[str
             surf[k, 0, :s.bearing.size] = s.bearing
             surf[k, 1, :s.journal.size] = s.journal
             surf_n[k] = (s.bearing.size, s.journal.size)
-    return _ia(clr_b, (-1, 2)), _fa(clr_p, (-1, K.NCLR)), surf, surf_n
+    tables = np.zeros((len(clr_b), 2, TABLE_ROWS, 2 * nmax))  # the contact search's, once per surface
+    for k in range(len(clr_b)):
+        for side in (0, 1):
+            n = surf_n[k, side]
+            tables[k, side, :, :2 * n] = surface_tables(surf[k, side], n)
+    return _ia(clr_b, (-1, 2)), _fa(clr_p, (-1, K.NCLR)), surf, surf_n, tables
 
 
 def _pack_prismatics(bench: Bench, b, joints: list[Joint]):
@@ -206,7 +213,7 @@ def pack_params(bench: Bench, index: dict[str, int], ideal: set[str], forces: Se
     prismatic = [j for j in bench.joints if j.kind == "prismatic"]
     minv, fext = _pack_bodies(bench, index)
     rev_b, rev_s, reaction_rows = _pack_pins(bench, b, pinned)
-    clr_b, clr_p, surf, surf_n = _pack_clearances(bench, b, contacts, surfaces)
+    clr_b, clr_p, surf, surf_n, surf_t = _pack_clearances(bench, b, contacts, surfaces)
     pri_b, pri_s = _pack_prismatics(bench, b, prismatic)
     drv_b, drv_p, drivers = _pack_drivers(bench, index)
     spr_b, spr_p, trq_b, trq_p = _pack_forces(bench, b, index, forces)
@@ -215,7 +222,7 @@ def pack_params(bench: Bench, index: dict[str, int], ideal: set[str], forces: Se
     row_joints = ([j.name for j in pinned for _ in range(2 * len(_pin_pairs(j)))]
                   + [j.name for j in prismatic for _ in range(2)] + [d.joint for d in bench.drivers])
     P = K.Params(minv=minv, fext=fext, rev_b=rev_b, rev_s=rev_s, pri_b=pri_b, pri_s=pri_s, drv_b=drv_b,
-                 drv_p=drv_p, clr_b=clr_b, clr_p=clr_p, surf=surf, surf_n=surf_n, spr_b=spr_b, spr_p=spr_p,
+                 drv_p=drv_p, clr_b=clr_b, clr_p=clr_p, surf=surf, surf_n=surf_n, surf_t=surf_t, spr_b=spr_b, spr_p=spr_p,
                  trq_b=trq_b, trq_p=trq_p, jb=jb, body_rows=body_rows, body_nrows=body_nrows,
                  profile=np.zeros((0, 3)))
     return P, tuple(row_joints), tuple(reaction_rows), tuple(j.name for j in contacts), tuple(drivers)

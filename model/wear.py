@@ -26,7 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from numba import njit
-from wearbench.model.contact import conformal_radius, depth_eval, effective_modulus
+from wearbench.model.contact import (
+    conformal_radius,
+    effective_modulus,
+    node_slopes,
+    table_depth_eval,
+)
 from wearbench.model.surfaces import JointSurfaces
 
 __all__ = [
@@ -206,10 +211,12 @@ def _bin(out, n, phi, depth):
     sum over regions, hence the volume, is exact."""
     x = (phi / (2.0 * np.pi)) * n - 0.5
     x = x - n * np.floor(x / n)
-    i = int(np.floor(x))
+    i = int(np.floor(x))  # in [0, n]: wrapped by a comparison (an integer modulo costs more)
     f = x - i
-    out[i % n] += depth * (1.0 - f)
-    out[(i + 1) % n] += depth * f
+    i0 = i if i < n else i - n
+    i1 = i0 + 1 if i0 + 1 < n else 0
+    out[i0] += depth * (1.0 - f)
+    out[i1] += depth * f
 
 
 @njit(cache=True)
@@ -224,12 +231,13 @@ def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, lengt
     elastic-foundation pressure shape; it is sampled every quarter region and binned on both surfaces.
     """
     nb, nj = sb.size, sj.size
+    mb, mj = node_slopes(sb, nb), node_slopes(sj, nj)  # depth_eval's values, without its divisions
     step = 0.5 * np.pi / max(nb, nj)
     smax = int(0.5 * np.pi / step)
     wts = np.zeros(2 * smax + 1)
     for r in range(pen.size):
-        hb, db, _ = depth_eval(sb, nb, phib[r])
-        hj, dj, _ = depth_eval(sj, nj, phij[r])
+        hb, db, _ = table_depth_eval(sb, mb, nb, phib[r])
+        hj, dj, _ = table_depth_eval(sj, mj, nj, phij[r])
         a = pen[r] + clear + hb + hj
         b = -(db + dj)
         emag = np.sqrt(a * a + b * b)
@@ -240,8 +248,8 @@ def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, lengt
         for sign in (-1, 1):
             for s in range(1, smax + 1):
                 d = sign * s * step
-                o = (emag * np.cos(gamma + d) - depth_eval(sb, nb, phib[r] + d)[0]
-                     - depth_eval(sj, nj, phij[r] + d)[0] - clear)
+                o = (emag * np.cos(gamma + d) - table_depth_eval(sb, mb, nb, phib[r] + d)[0]
+                     - table_depth_eval(sj, mj, nj, phij[r] + d)[0] - clear)
                 if o <= 0.0:
                     break
                 wts[smax + sign * s] = o

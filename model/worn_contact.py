@@ -3,17 +3,27 @@
 The overlap of the journal over the bearing along each global direction, its maximum near the line
 of centres (the first zone, with its depths and slopes there), a second load-carrying zone on the
 other rim of a bridged pit, and the penetrations of both zones, continuous where the zones merge,
-swap or fade. Called by ``kernel.clearance_forces``; imports numpy, numba, math and ``contact``.
+swap or fade. Called by ``kernel.clearance_forces`` through :func:`contact_zones`; imports numpy,
+numba, math, ``contact`` and ``midpoints``.
+
+Both searches compare the overlap at the midpoints of the bearing's intervals; :func:`contact_zones`
+samples them all once (``midpoints.fill_midpoints``, from tables made once per surface) and both
+searches read those samples, so a sample costs a few multiplications instead of two PCHIP
+evaluations; every value returned is evaluated with :func:`overlap_at`. ``worn_contact`` and
+``second_zone`` take bare depth arrays and build the tables (O(n) per call: for tests and tools).
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
-from wearbench.model.contact import depth_eval
+from wearbench.model.contact import depth_eval, table_depth_eval
+from wearbench.model.midpoints import fill_midpoints, midpoint_window, surface_tables
 
-__all__ = ["SECOND_ZONE_RATIO", "overlap_at", "second_zone", "worn_contact", "zone_penetrations"]
+__all__ = ["SECOND_ZONE_RATIO", "contact_zones", "overlap_at", "search_second_zone", "search_top_zone",
+           "second_zone", "worn_contact", "zone_penetrations"]
 
 
 @njit(cache=True)
@@ -23,9 +33,23 @@ def overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, psi):
     two depths and slopes there (see :func:`worn_contact`)."""
     hb, db, d2b = depth_eval(sb, nb, psi - thi)
     hj, dj, d2j = depth_eval(sj, nj, psi - thj)
-    c = math.cos(psi - alpha)
-    s = math.sin(psi - alpha)
+    return _overlap(emag, psi - alpha, hb, db, d2b, hj, dj, d2j)
+
+
+@njit(cache=True, inline="always")
+def _overlap(emag, dpsi, hb, db, d2b, hj, dj, d2j):
+    """The tuple of :func:`overlap_at` from the depths and their derivatives (dpsi = psi - alpha)."""
+    c = math.cos(dpsi)
+    s = math.sin(dpsi)
     return emag * c - hb - hj, -emag * s - db - dj, -emag * c - d2b - d2j, hb, hj, db, dj
+
+
+@njit(cache=True)
+def _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, psi):
+    """:func:`overlap_at` (the same values) from ``midpoints.surface_tables`` (no slopes to compute)."""
+    hb, db, d2b = table_depth_eval(tb[0], tb[1], nb, psi - thi)
+    hj, dj, d2j = table_depth_eval(tj[0], tj[1], nj, psi - thj)
+    return _overlap(emag, psi - alpha, hb, db, d2b, hj, dj, d2j)
 
 
 @njit(cache=True)
@@ -43,13 +67,31 @@ def _node_min(depths, n, x0, x1):
     return lo
 
 
+@njit(cache=True)
+def _interval_bound(sb, nb, sj, nj, emag, alpha, thj, rj, lo_b, cell, i):
+    """Upper bound of the overlap on bearing interval ``i`` (global angles [lo_b, lo_b + cell]):
+    |e| max cos - the smaller bearing node - the smallest journal node under it."""
+    hi_b = lo_b + cell
+    d = 0.0 if lo_b <= alpha <= hi_b else min(abs(lo_b - alpha), abs(hi_b - alpha))
+    return emag * math.cos(d) - min(sb[i % nb], sb[(i + 1) % nb]) - _node_min(
+        sj, nj, (lo_b - thj) * rj - 0.5, (hi_b - thj) * rj - 0.5)
+
+
+@njit(cache=True)
+def _off_window(tb, tj, nb, nj, emag, alpha, thi, thj, i):
+    """The overlap at the midpoint of bearing interval ``i``, evaluated: for a midpoint outside the
+    sampled window (a separate, not inlined, function: inlined, it slows the walk's loop tenfold)."""
+    return _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, (i + 1.0) * (2.0 * math.pi / nb) + thi)[0]
+
+
 @njit(cache=True, inline="always")
-def _polish_peak(sb, nb, sj, nj, emag, alpha, thi, thj, psi, cell):
-    """The local maximum of the overlap within ``cell`` of ``psi``: safeguarded Newton on f' = 0
-    (bisects across a curvature jump)."""
+def _polish_peak(tb, tj, nb, nj, emag, alpha, thi, thj, psi, ev, cell):
+    """The local maximum of the overlap within ``cell`` of ``psi`` (``ev``: the overlap tuple
+    there): safeguarded Newton on f' = 0 (bisects across a curvature jump). Returns the point and
+    its overlap tuple."""
     lo, hi = psi - cell, psi + cell
     for _ in range(24):
-        d1, d2 = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[1:3]
+        d1, d2 = ev[1], ev[2]
         if d1 > 0.0:
             lo = psi
         else:
@@ -60,11 +102,12 @@ def _polish_peak(sb, nb, sj, nj, emag, alpha, thi, thj, psi, cell):
         if abs(nxt - psi) < 1e-13:
             break
         psi = nxt
-    return psi
+        ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, psi)
+    return psi, ev
 
 
 @njit(cache=True)
-def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
+def search_top_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf, i0, m):
     """Contact direction of a worn journal in a worn bearing: where the two surfaces overlap most.
 
     The journal (radius R2 - h_j, journal frame) reaches, in global direction psi from the bearing
@@ -75,25 +118,28 @@ def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
     allows instead of sinking to its bottom, and by the envelope theorem grad_e d = u(psi*): the
     normal is the radial direction of the contact point, continuous while the maximum is unique.
     Search: climb from alpha (or from ``hint``, the last contact direction, if the overlap is larger
-    there; a starting point only, the result does not depend on it) to a local maximum; then branch and bound outward from
-    alpha over blocks of bearing intervals, while |e| cos(psi - alpha) can still beat the best
-    overlap and the clearance: a block, then an interval, is looked at, and sampled, only if
-    its upper bound |e| max cos - min node depths (PCHIP stays within its nodes) beats the best
-    (at its middle);
-    then Newton on f'(psi) = 0 around the best point.
+    there; a starting point only, the result does not depend on it) to a local maximum; then the
+    best of the midpoint samples ``buf`` of the window (i0, m) (see :func:`contact_zones`), taken
+    outward from alpha in blocks of 8 intervals (the order only breaks exact ties), where a sample
+    that does not exceed the clearance counts only if its interval's upper bound (|e| max cos - min
+    node depths; PCHIP stays within its nodes) does: the branch and bound this replaces sampled
+    exactly those; then Newton on f'(psi) = 0 around the best point.
+    ``tb``, ``tj``: ``midpoints.surface_tables`` of bearing and journal (depths in row 0).
     Returns (psi*, f(psi*), h_b, h_j, h_b', h_j') at the contact direction.
     """
-    f0, d1, d2, hb0, hj0, sb0, sj0 = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, alpha)
+    sb, sj = tb[0], tj[0]
+    ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, alpha)
+    f0 = ev[0]
     if emag <= max(f0, clear):
-        return alpha, f0, hb0, hj0, sb0, sj0
+        return alpha, f0, ev[3], ev[4], ev[5], ev[6]
     cell = 2.0 * math.pi / nb
     # 1. climb to the local maximum next to alpha (a good first bound prunes most of the scan)
-    best, fbest = alpha, f0
+    best, fbest, d1, d2 = alpha, f0, ev[1], ev[2]
     dh = (hint - alpha + math.pi) % (2.0 * math.pi) - math.pi
     if abs(dh) < 0.5 * math.pi:  # the last contact direction is usually next to this one
-        fh, h1, h2 = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, alpha + dh)[:3]
-        if fh > f0:
-            best, fbest, d1, d2 = alpha + dh, fh, h1, h2
+        eh = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, alpha + dh)
+        if eh[0] > f0:
+            best, fbest, d1, d2, ev = alpha + dh, eh[0], eh[1], eh[2], eh
     walk = 0.5 * cell  # grows while f keeps rising where it is convex
     for it in range(30):
         if it >= 6 and fbest < clear:  # out of contact the scan prunes against the clearance anyway
@@ -103,126 +149,155 @@ def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
         else:
             stp = walk if d1 > 0.0 else -walk
             walk = min(2.0 * walk, 16.0 * cell)
-        f, e1, e2 = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, best + stp)[:3]
+        et = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best + stp)
         for _ in range(3):
-            if f > fbest:
+            if et[0] > fbest:
                 break
             stp *= 0.25
-            f, e1, e2 = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, best + stp)[:3]
-        if f <= fbest:
+            et = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best + stp)
+        if et[0] <= fbest:
             break
-        best, fbest, d1, d2 = best + stp, f, e1, e2
+        best, fbest, d1, d2, ev = best + stp, et[0], et[1], et[2], et
         if abs(stp) < 1e-4 * cell:
             break
-    # 2. branch and bound over blocks of bearing intervals, outward from alpha
+    # 2. the best midpoint sample, outward from alpha in blocks of 8 intervals
     rj = nj / (2.0 * math.pi)
     ia = math.floor((alpha - thi) / cell - 0.5)
-    blk = 8
+    sampled = False  # the best is a table sample (ev is not its overlap tuple)
     for sign in (-1, 1):
-        first = ia if sign > 0 else ia - blk
-        while True:
-            lo_g = (first + 0.5) * cell + thi  # global angle of the block's first node
-            hi_g = lo_g + blk * cell
-            dmin = 0.0 if lo_g <= alpha <= hi_g else min(abs(lo_g - alpha), abs(hi_g - alpha))
-            if dmin >= 0.5 * math.pi:
-                break
-            reach = emag * math.cos(dmin)
-            floor = max(fbest, clear)
-            if reach <= floor:
-                break
-            if reach - _node_min(sb, nb, first, first + blk) - _node_min(
-                    sj, nj, (lo_g - thj) * rj - 0.5, (hi_g - thj) * rj - 0.5) > floor:
-                for i in range(first, first + blk):
+        first = ia if sign > 0 else ia - 8
+        while first + 8 > i0 and first < i0 + m:
+            for i in range(max(first, i0), min(first + 8, i0 + m)):
+                f = buf[i - i0]
+                if f > fbest:
                     lo_b = (i + 0.5) * cell + thi
-                    hi_b = lo_b + cell
-                    d = 0.0 if lo_b <= alpha <= hi_b else min(abs(lo_b - alpha), abs(hi_b - alpha))
-                    bound = emag * math.cos(d) - min(sb[i % nb], sb[(i + 1) % nb]) - _node_min(
-                        sj, nj, (lo_b - thj) * rj - 0.5, (hi_b - thj) * rj - 0.5)
-                    if bound > max(fbest, clear):
-                        psi = lo_b + 0.5 * cell
-                        f = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[0]
-                        if f > fbest:
-                            best, fbest = psi, f
-            first += sign * blk
+                    if f > clear or _interval_bound(sb, nb, sj, nj, emag, alpha, thj, rj, lo_b, cell, i) > clear:
+                        best, fbest, sampled = lo_b + 0.5 * cell, f, True
+            first += sign * 8
+    if sampled:  # its overlap exactly
+        ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best)
     if fbest < clear - 1e-6:  # no contact by a wide margin: its exact place does not matter
-        f, _, _, hb, hj, db, dj = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, best)
-        return best, f, hb, hj, db, dj
-    psi = _polish_peak(sb, nb, sj, nj, emag, alpha, thi, thj, best, cell)
-    f, _, _, hb, hj, db, dj = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, psi)
-    if f < fbest:  # Newton left the best sample's value behind (flat cell): keep the sample
-        psi = best
-        f, _, _, hb, hj, db, dj = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, psi)
-    return psi, f, hb, hj, db, dj
+        return best, ev[0], ev[3], ev[4], ev[5], ev[6]
+    fbest = ev[0]
+    psi, ep = _polish_peak(tb, tj, nb, nj, emag, alpha, thi, thj, best, ev, cell)
+    if ep[0] < fbest:  # Newton left the best sample's value behind (flat cell): keep the sample
+        psi, ep = best, ev
+    return psi, ep[0], ep[3], ep[4], ep[5], ep[6]
 
 
 SECOND_ZONE_RATIO = 0.5  # a second zone counts once its overlap exceeds this fraction of the first's
 
 
 @njit(cache=True)
-def second_zone(sb, nb, sj, nj, emag, alpha, thi, thj, clear, psi1, f1):
+def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, buf, i0, m):
     """The second contact zone of a worn joint: the highest local maximum of the overlap f (see
     :func:`overlap_at`) other than the top one (psi1, f1), and the lowest overlap between the two.
 
-    Walks outward from psi1 over bearing-interval midpoints on both sides, through valleys and
-    over peaks, while |e| cos can still reach the floor clear + SECOND_ZONE_RATIO (f1 - clear),
-    skipping blocks of 8 intervals whose upper bound (|e| max cos - min node depths) cannot reach
-    the clearance; the highest peak above the floor is polished by safeguarded Newton (it may
+    Walks outward from psi1 over the bearing-interval midpoint samples (``buf``, window (i0, m), as
+    :func:`search_top_zone`) on both sides, through valleys and over peaks, while |e| cos(max(0,
+    dm - 8 cell)) (dm: angle from alpha) can still reach the floor clear + SECOND_ZONE_RATIO
+    (f1 - clear); the highest peak above the floor is polished by safeguarded Newton (it may
     equal f1: two zones of equal overlap). Returns (psi2, f2, s) with
     f2 = -inf when there is no second zone above the floor; s is the lowest sampled overlap on the
     way from psi1 to psi2 (the saddle, from the interval midpoints; continuous in the state, as a
-    minimum of continuous samples, and never below the true saddle).
+    minimum of continuous samples, and never below the true saddle; only max(s, clear) matters),
+    followed by h_b, h_j, h_b', h_j' at psi2 (zeros when there is none).
     """
     floor = clear + SECOND_ZONE_RATIO * (f1 - clear)
     if emag <= floor:
-        return psi1, -math.inf, -math.inf
+        return psi1, -math.inf, -math.inf, 0.0, 0.0, 0.0, 0.0
     cell = 2.0 * math.pi / nb
-    rj = nj / (2.0 * math.pi)
+    reach = math.acos(floor / emag) + 8.0 * cell
+    ec_end = emag * math.cos(reach) if reach < 0.5 * math.pi else 0.0  # the walk ends at |e| cos(dm) <= this
+    ex = emag * math.cos(alpha - thi)  # e in the bearing frame: |e| cos(dm) = e' . (cos, sin)(midpoint)
+    ey = emag * math.sin(alpha - thi)
     i1 = math.floor((psi1 - thi) / cell - 0.5)  # bearing interval holding psi1
-    best_psi, best_f, best_s = psi1, -math.inf, -math.inf
+    half = nb // 2
+    # beyond the outermost samples above the floor no peak can count: the walk stops there (for a
+    # window that does not wrap, where the samples hold every midpoint the walk can reach)
+    t_lo, t_hi = -nb, m + nb
+    if m < nb:
+        t_lo, t_hi = 0, m - 1
+        while t_hi >= 0 and buf[t_hi] <= floor:
+            t_hi -= 1
+        while t_lo < m and buf[t_lo] <= floor:
+            t_lo += 1
+    best_psi, best_f, best_s, best_s_at = psi1, -math.inf, -math.inf, math.nan
     for sign in (-1, 1):
-        valley = f1
+        valley, valley_at = f1, math.nan  # valley_at: the midpoint it was sampled at, if any
         prev, prev_psi = f1, psi1
         rising = False
         i = i1 + sign
-        while abs(i - i1) <= nb // 2:
-            mid = (i + 1.0) * cell + thi
-            dm = abs((mid - alpha + math.pi) % (2.0 * math.pi) - math.pi)
-            if dm >= 0.5 * math.pi or emag * math.cos(max(0.0, dm - 8.0 * cell)) <= floor:
+        k = i % nb  # i modulo nb, kept by steps (an integer division per sample costs more than the sample)
+        while abs(i - i1) <= half:
+            t = i - i0
+            past = t > t_hi if sign > 0 else t < t_lo
+            if past or ex * tb[2, k] + ey * tb[3, k] <= ec_end:
                 break
-            # block bound: can any of the next 8 intervals overlap at all? (if not, the saddle
-            # between zones on either side is below the clearance, which is all that matters)
-            j0 = i if sign > 0 else i - 7
-            lo_g = (j0 + 0.5) * cell + thi
-            if emag * math.cos(max(0.0, dm - 8.0 * cell)) - _node_min(sb, nb, j0, j0 + 8) - _node_min(
-                    sj, nj, (lo_g - thj) * rj - 0.5, (lo_g + 8 * cell - thj) * rj - 0.5) <= clear:
-                if rising and prev > best_f:  # the peak was the last sample before the gap
-                    best_psi, best_f, best_s = prev_psi, prev, valley
-                valley = min(valley, clear)
-                prev, prev_psi = -math.inf, mid
-                rising = False
-                i += 8 * sign
-                continue
-            f = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, mid)[0]
+            mid = (i + 1.0) * cell + thi
+            f = buf[t] if 0 <= t < m else _off_window(tb, tj, nb, nj, emag, alpha, thi, thj, i)
             if f < prev:
                 if rising and prev > best_f:  # passed a peak at the previous sample
-                    best_psi, best_f, best_s = prev_psi, prev, valley
+                    best_psi, best_f, best_s, best_s_at = prev_psi, prev, valley, valley_at
                 rising = False
-                valley = min(valley, f)
+                if f < valley:
+                    valley, valley_at = f, mid
             elif f > prev:
                 rising = True
             prev, prev_psi = f, mid
             i += sign
+            k += sign
+            if k == nb:
+                k = 0
+            elif k < 0:
+                k = nb - 1
         if rising and prev > best_f:
-            best_psi, best_f, best_s = prev_psi, prev, valley
+            best_psi, best_f, best_s, best_s_at = prev_psi, prev, valley, valley_at
     if best_f <= floor:
-        return psi1, -math.inf, -math.inf
-    psi = _polish_peak(sb, nb, sj, nj, emag, alpha, thi, thj, best_psi, cell)
-    f = overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, psi)[0]
-    if f < best_f:
-        psi, f = best_psi, best_f
+        return psi1, -math.inf, -math.inf, 0.0, 0.0, 0.0, 0.0
+    if not math.isnan(best_s_at):  # the saddle and the peak are samples: their values exactly
+        best_s = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best_s_at)[0]
+    eb = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best_psi)
+    psi, ev = _polish_peak(tb, tj, nb, nj, emag, alpha, thi, thj, best_psi, eb, cell)
+    if ev[0] < eb[0]:
+        psi, ev = best_psi, eb
     if abs((psi - psi1 + math.pi) % (2.0 * math.pi) - math.pi) < cell:
-        return psi1, -math.inf, -math.inf  # climbed back into the top zone
-    return psi, f, min(best_s, f)
+        return psi1, -math.inf, -math.inf, 0.0, 0.0, 0.0, 0.0  # climbed back into the top zone
+    return psi, ev[0], min(best_s, ev[0]), ev[3], ev[4], ev[5], ev[6]
+
+
+@njit(cache=True)
+def contact_zones(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf):
+    """Both contact zones of a worn joint: (psi1, f1, h_b, h_j, h_b', h_j') of
+    :func:`search_top_zone` and (psi2, f2, saddle, h_b, h_j, h_b', h_j') of
+    :func:`search_second_zone` (f2 = -inf: none; searched only when f1 exceeds the clearance). Samples the overlap at the bearing midpoints
+    within reach once (``midpoints.fill_midpoints`` into ``buf``, at least nb long) for both."""
+    i0, m = midpoint_window(nb, emag, alpha, thi, clear)
+    if emag > clear:  # else no direction can overlap the clearance: the top zone returns at once
+        fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf)
+    psi, f, hb, hj, db, dj = search_top_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf, i0, m)
+    second = (psi, -math.inf, -math.inf, 0.0, 0.0, 0.0, 0.0)
+    if f > clear:
+        second = search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi, f, buf, i0, m)
+    return (psi, f, hb, hj, db, dj) + second
+
+
+@njit(cache=True)
+def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
+    """:func:`search_top_zone` on bare depth arrays (builds the tables: O(n) per call)."""
+    return contact_zones(surface_tables(sb, nb), surface_tables(sj, nj), nb, nj, emag, alpha, thi, thj, clear,
+                         hint, np.empty(nb))[:6]
+
+
+@njit(cache=True)
+def second_zone(sb, nb, sj, nj, emag, alpha, thi, thj, clear, psi1, f1):
+    """(psi2, f2, saddle) of :func:`search_second_zone` on bare depth arrays (builds the tables: O(n)
+    per call)."""
+    tb, tj, buf = surface_tables(sb, nb), surface_tables(sj, nj), np.empty(nb)
+    i0, m = midpoint_window(nb, emag, alpha, thi, clear)
+    if emag > clear:
+        fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf)
+    return search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, buf, i0, m)[:3]
 
 
 @njit(cache=True)

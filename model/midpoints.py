@@ -1,0 +1,94 @@
+"""The overlap of two worn surfaces at the bearing's interval midpoints, from per-surface tables.
+
+Both contact-zone searches (``worn_contact``) compare the overlap
+f(psi) = |e| cos(psi - alpha) - h_b(psi - th_b) - h_j(psi - th_j) at the midpoints of the bearing's
+intervals (halfway between two region centres). :func:`surface_tables` is computed once per surface
+(when the scene is packed); :func:`fill_midpoints` then writes f at every midpoint of the window
+:func:`midpoint_window` (the directions |e| cos can still bring into contact) in one loop of a few
+multiplications per sample, which both searches read: the bearing's midpoint depth is the Hermite
+value at fraction 1/2, |e| cos(psi - alpha) = e' . (cos, sin) of the midpoint in the bearing frame,
+and the journal, when it has as many regions as the bearing, sits at the same fraction of its
+interval for every midpoint. The samples equal :func:`overlap_at` to rounding; the searches evaluate
+every value they return with ``overlap_at`` itself. Imports numpy, numba, math and ``contact``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from wearbench.model.contact import hermite, node_slopes, table_depth
+
+__all__ = ["TABLE_ROWS", "fill_midpoints", "midpoint_window", "surface_tables"]
+
+TABLE_ROWS = 4  # depth, node slope, cos and sin of the midpoint angle; each twice over (no wrapping)
+_MARGIN = 10  # intervals of the window beyond the reach of |e| cos
+
+
+@njit(cache=True)
+def surface_tables(depths: np.ndarray, n: int) -> np.ndarray:
+    """(TABLE_ROWS, 2 n) tables of a surface of ``n`` regions: depths, PCHIP node slopes
+    (``contact.node_slopes``, m per region) and cos, sin of the body-frame angle 2 pi (k + 1) / n of
+    the midpoint after centre k, each repeated once so that a window of up to n midpoints reads
+    them without wrapping."""
+    out = np.empty((TABLE_ROWS, 2 * n))
+    slopes = node_slopes(depths, n)
+    cell = 2.0 * math.pi / n
+    for k in range(n):
+        ang = (k + 1) * cell
+        for rep in (k, k + n):
+            out[0, rep] = depths[k]
+            out[1, rep] = slopes[k]
+            out[2, rep] = math.cos(ang)
+            out[3, rep] = math.sin(ang)
+    return out
+
+
+@njit(cache=True)
+def midpoint_window(nb: int, emag: float, alpha: float, thi: float, clear: float) -> tuple[int, int]:
+    """(i0, m): the bearing intervals i0 .. i0 + m - 1 around the one holding ``alpha``, all whose
+    midpoints lie within min(pi/2, acos(clear/|e|)) + 10 intervals of it, beyond which the overlap
+    cannot exceed the clearance (m <= nb: the whole circle for a coarse surface)."""
+    cell = 2.0 * math.pi / nb
+    half = min(0.5 * math.pi, math.acos(min(1.0, clear / emag))) + _MARGIN * cell
+    ia = math.floor((alpha - thi) / cell - 0.5)
+    h = math.ceil(half / cell) + 1
+    if 2 * h + 1 >= nb:
+        return ia - nb // 2, nb
+    return ia - h, 2 * h + 1
+
+
+@njit(cache=True)
+def fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf):
+    """buf[t] = the overlap (m) at the midpoint of bearing interval i0 + t, t < m (see the module
+    docstring); ``tb``, ``tj``: :func:`surface_tables` of bearing and journal."""
+    ex = emag * math.cos(alpha - thi)  # e in the bearing frame
+    ey = emag * math.sin(alpha - thi)
+    k0 = i0 % nb
+    cell = 2.0 * math.pi / nb
+    rj = nj / (2.0 * math.pi)
+    # views starting at the window's first entries: indices from 0 up let LLVM vectorise the loops
+    yb, mb = tb[0, k0:k0 + m + 1], tb[1, k0:k0 + m + 1]
+    cb, sb = tb[2, k0:k0 + m], tb[3, k0:k0 + m]
+    if nj == nb:  # the same fraction of a journal interval at every midpoint
+        x = ((i0 + 1.0) * cell + thi - thj) * rj - 0.5
+        x -= nj * math.floor(x / nj)
+        j0 = int(x)
+        fr = x - j0
+        if j0 >= nj:
+            j0 -= nj
+        w0 = hermite(1.0, 0.0, 0.0, 0.0, fr)
+        w1 = hermite(0.0, 1.0, 0.0, 0.0, fr)
+        w2 = hermite(0.0, 0.0, 1.0, 0.0, fr)
+        w3 = hermite(0.0, 0.0, 0.0, 1.0, fr)
+        yj, mj = tj[0, j0:j0 + m + 1], tj[1, j0:j0 + m + 1]
+        for t in range(m):
+            hb = hermite(yb[t], mb[t], yb[t + 1], mb[t + 1], 0.5)
+            hj = w0 * yj[t] + w1 * mj[t] + w2 * yj[t + 1] + w3 * mj[t + 1]
+            buf[t] = ex * cb[t] + ey * sb[t] - hb - hj
+    else:
+        for t in range(m):
+            hb = hermite(yb[t], mb[t], yb[t + 1], mb[t + 1], 0.5)
+            xj = ((i0 + t + 1.0) * cell + thi - thj) * rj - 0.5
+            buf[t] = ex * cb[t] + ey * sb[t] - hb - table_depth(tj[0], tj[1], nj, xj)
