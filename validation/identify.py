@@ -161,7 +161,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
             lls.append([models[t].log_likelihood(xbar, n) for t in names])
             truth.append(si)
         null[s] = _gamma(d2)
-        null_direction[s] = _gamma(t2) if others else (1.0, 1.0)
+        null_direction[s] = _gamma(t2) if others else (1.0, 1.0)  # one candidate: distance 0, p 1
     lls_a, truth_a = np.asarray(lls), np.asarray(truth)
 
     def log_loss(log_t: float) -> float:
@@ -218,8 +218,7 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         p_value[s] = float(stats.gamma.sf(st.distance2(xbar, n), shape, scale=scale))
         others = [models.stats[t].mean for t in names if t != s]
         shape, scale = models.null_direction[s]
-        p_direction[s] = float(stats.gamma.sf(direction_distance2(st, others, xbar, n), shape, scale=scale)) \
-            if others else 1.0
+        p_direction[s] = float(stats.gamma.sf(direction_distance2(st, others, xbar, n), shape, scale=scale))
         consistent[s] = p_value[s] >= opts.consistency and p_direction[s] >= opts.consistency_direction
     if not any(consistent.values()):
         verdict = NONE
@@ -256,5 +255,6 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
     explains = {s: consistent[s] and float(p) >= 1 - opts.threshold for s, p in zip(names, post, strict=True)}
     return Identification(label, n, {s: float(p) for s, p in zip(names, post, strict=True)}, verdict,
-                          float(post[top]), consistent, explains, p_value, p_direction, needed, inside, leaves, clipped, notes)
+                          float(post[top]), consistent, explains, p_value, p_direction, needed, inside, leaves,
+                          clipped, notes)
 

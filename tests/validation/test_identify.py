@@ -110,3 +110,12 @@ def test_pooled_covariances_calibrate_states_that_share_their_spread():
         result[pooled] = (models.temperature, named)
     assert result[True][0] < 0.8 * result[False][0] and result[True][0] < 1.5, result
     assert result[True][1] >= result[False][1] + 0.2, result  # measured: T 1.07 vs 2.29, named 0.78 vs 0.40
+
+
+def test_one_candidate_has_no_directions_and_still_gets_its_all_feature_test():
+    rng = np.random.default_rng(5)
+    models = fit_states({"A": ensemble("A", draw(rng, np.zeros(P), 16, 8))})
+    near = identify_features(CycleFeatures(SPEC, draw(rng, np.zeros(P), 1, 10)[0], np.zeros(10)), models)
+    far = identify_features(CycleFeatures(SPEC, draw(rng, np.full(P, 0.5), 1, 10)[0], np.zeros(10)), models)
+    assert near.p_direction == far.p_direction == {"A": 1.0}
+    assert near.verdict == "A" and far.verdict == NONE, (near.p_value, far.p_value)
