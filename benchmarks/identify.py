@@ -141,40 +141,35 @@ def main() -> None:
         if m.any():
             print(f"  [{lo:.2f}, {min(hi, 1):.2f})  {m.sum():5d}  {p[m].mean():.3f}  {ok[m].mean():.3f}")
 
+    def scores(sub_models) -> str:
+        """The full sessions identified with ``sub_models``: one line of scores."""
+        rs = [(identify_features(f, sub_models), t) for f, t in zip(feats, truth_names, strict=True)]
+        brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for r, t in rs])
+        return (f"top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
+                f"  named right {np.mean([r.verdict == t for r, t in rs]):.2f}"
+                f"  named wrong {np.mean([r.verdict in names and r.verdict != t for r, t in rs]):.2f}"
+                f"  Brier {brier:.3f}  temperature {sub_models.temperature:.2f}"
+                f"  wrong state consistent {np.mean([r.consistent[s] for r, t in rs for s in names if s != t]):.2f}")
+
     spec = settings.features
-    print(f"\nwhich statistics (top-1 and named right at {args.cycles} cycles; chosen: all blocks; "
-          f"{spec.bins} crank-angle bins):")
+    print(f"\nwhich statistics (full sessions; chosen: all blocks; {spec.bins} crank-angle bins):")
     blocks = [("low-passed curve + impact energy, all bands", slice(None)),
               (f"low-passed curve ({spec.lowpass:g} Hz) only", slice(0, spec.bins)),
               ("impact energy, all bands", slice(spec.bins, None))]
     blocks += [(f"impact energy {lo:g}-{hi:g} Hz only", slice((i + 1) * spec.bins, (i + 2) * spec.bins))
                for i, (lo, hi) in enumerate(spec.bands)]
     for label, cols in blocks:
-        sub_models = fit_states(ensembles, options, columns=cols)
-        rs = [(identify_features(f, sub_models), t) for f, t in zip(feats, truth_names, strict=True)]
-        print(f"  {label:44s} top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
-              f"  named right {np.mean([r.verdict == t for r, t in rs]):.2f}")
+        print(f"  {label:44s} {scores(fit_states(ensembles, options, columns=cols))}")
 
-    print(f"\ncovariances (at {args.cycles} cycles; default: pooled over the candidates):")
+    print("\ncovariances (full sessions; default: pooled over the candidates):")
     for label, pooled in (("pooled over the candidates", True), ("one per state (earlier versions)", False)):
-        sub_models = fit_states(ensembles, replace(options, pooled=pooled))
-        rs = [(identify_features(f, sub_models), t) for f, t in zip(feats, truth_names, strict=True)]
-        brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for r, t in rs])
-        print(f"  {label:34s} top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
-              f"  named right {np.mean([r.verdict == t for r, t in rs]):.2f}"
-              f"  named wrong {np.mean([r.verdict in names and r.verdict != t for r, t in rs]):.2f}"
-              f"  Brier {brier:.3f}  temperature {sub_models.temperature:.2f}"
-              f"  wrong state consistent {np.mean([r.consistent[s] for r, t in rs for s in names if s != t]):.2f}")
+        print(f"  {label:34s} {scores(fit_states(ensembles, replace(options, pooled=pooled)))}")
 
-    print(f"\nhow many realisations (top-1 and Brier at {args.cycles} cycles; default 32):")
+    print("\nhow many realisations (full sessions; default 32):")
     for m in sorted({8, 16, 24, args.realisations}):
-        if m > args.realisations:
-            continue
-        sub_models = fit_states({k: replace(e, features=e.features[:m]) for k, e in ensembles.items()}, options)
-        rs = [(identify_features(f, sub_models), t) for f, t in zip(feats, truth_names, strict=True)]
-        brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for r, t in rs])
-        print(f"  M = {m:3d}  top-1 {np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rs]):.2f}"
-              f"  Brier {brier:.3f}  temperature {sub_models.temperature:.2f}")
+        if m <= args.realisations:
+            subsets = {k: replace(e, features=e.features[:m]) for k, e in ensembles.items()}
+            print(f"  M = {m:3d}  {scores(fit_states(subsets, options))}")
 
     # a distribution-free alternative: the energy distance between the session's cycles and each
     # ensemble's cycles (features standardised by the pooled ensemble spread); smallest wins
