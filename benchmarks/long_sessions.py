@@ -14,20 +14,9 @@ over the first and the last two windows.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 import numpy as np
-
-
-def simulate_cycles(bench, state, seed: int, cycles: int) -> np.ndarray:
-    """Per-cycle features of one realisation over ``cycles`` revolutions (a compute-layer task)."""
-    from wearbench.model.realisation import simulate_state
-    from wearbench.validation.ensemble import EnsembleSettings
-    from wearbench.validation.features import cycle_features
-
-    settings = EnsembleSettings()
-    run = simulate_state(bench, state, seed, revolutions=cycles + 1.0, settle=settings.settle,
-                         output_rate=settings.output_rate)
-    return cycle_features(run.t, run.crank, run.acc, settings.features).values[:cycles]
 
 
 def main() -> None:
@@ -39,7 +28,7 @@ def main() -> None:
 
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.model.compute import Task, run_tasks, task_key
-    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles, realisation_summary
     from wearbench.validation.features import CycleFeatures
     from wearbench.validation.identify import fit_states, identify_features
 
@@ -48,9 +37,12 @@ def main() -> None:
     settings = EnsembleSettings()
     models = fit_states(build_ensembles(bench, bench.states, settings=settings, progress=None))
     jobs = [(s, 1000 + k) for s in states for k in range(args.draws)]
-    results = run_tasks([Task(simulate_cycles, {"bench": bench, "state": s, "seed": seed, "cycles": args.cycles},
-                              task_key("long-session", s.name, seed, args.cycles), f"{s.name} #{seed}")
+    long = replace(settings, cycles=args.cycles)  # an ensemble realisation, only longer
+    results = run_tasks([Task(realisation_summary, {"bench": bench, "state": s, "seed": seed, "speed": bench.speed,
+                                                    "settings": long},
+                              task_key("long-realisation", s.name, seed, args.cycles), f"{s.name} #{seed}")
                          for s, seed in jobs], progress="long realisations")
+    results = [r["features"] for r in results]
     starts = range(0, args.cycles - args.window + 1, args.window)
     print(f"\n{len(jobs)} realisations of {args.cycles} cycles; p of the true state per {args.window}-cycle window "
           "(consistency p-value in brackets)")
