@@ -40,8 +40,13 @@ __all__ = [
     "impact_speed",
     "node_slopes",
     "normal_force",
+    "region_coordinate",
+    "region_interval",
+    "rewrap",
     "table_depth",
     "table_depth_eval",
+    "table_eval",
+    "table_value",
 ]
 
 LAWS = {name: code for code, name in enumerate(CONTACT_LAWS)}  # the kernel's law codes
@@ -179,28 +184,50 @@ def node_slopes(depths: np.ndarray, n: int) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def table_depth(depths: np.ndarray, slopes: np.ndarray, n: int, x: float) -> float:
-    """Depth (m) at region coordinate ``x`` (node i at x = i, periodic), the value of
-    :func:`depth_eval` at phi = 2 pi (x + 0.5) / n, from the :func:`node_slopes` table."""
-    x = x - n * math.floor(x / n)
-    i0 = int(x)
-    f = x - i0
-    if i0 >= n:
-        i0 -= n
-    i1 = i0 + 1 if i0 + 1 < n else 0
-    return hermite(depths[i0], slopes[i0], depths[i1], slopes[i1], f)
-
-
-@njit(cache=True, inline="always")
-def _locate(n: int, phi: float) -> tuple[int, int, float]:
-    """The interval (centres i0, i1) holding body-frame angle ``phi`` and the fraction in it."""
-    x = phi * (n / (2.0 * math.pi)) - 0.5
-    x = x - n * math.floor(x / n)  # in [0, n]
+def region_interval(x: float, n: int) -> tuple[int, int, float]:
+    """The interval (centres i0, i1) holding region coordinate ``x`` in [0, n] (centre i at x = i,
+    periodic) and the fraction in it; wrap other coordinates first (``x - n floor(x / n)``)."""
     i = int(x)
     f = x - i
     i0 = i if i < n else i - n  # cheap periodic neighbours (no signed modulo: the hot path)
     i1 = i0 + 1 if i0 + 1 < n else 0
     return i0, i1, f
+
+
+@njit(cache=True, inline="always")
+def table_value(depths: np.ndarray, slopes: np.ndarray, n: int, x: float) -> float:
+    """Depth (m) at region coordinate ``x`` in [0, n] (node i at x = i, periodic), the value of
+    :func:`depth_eval` at phi = 2 pi (x + 0.5) / n, from the :func:`node_slopes` table."""
+    i0, i1, f = region_interval(x, n)
+    return hermite(depths[i0], slopes[i0], depths[i1], slopes[i1], f)
+
+
+@njit(cache=True, inline="always")
+def table_depth(depths: np.ndarray, slopes: np.ndarray, n: int, x: float) -> float:
+    """:func:`table_value` at any region coordinate ``x`` (wrapped first)."""
+    return table_value(depths, slopes, n, x - n * math.floor(x / n))
+
+
+@njit(cache=True, inline="always")
+def region_coordinate(phi: float, n: int) -> float:
+    """The region coordinate in [0, n] of body-frame angle ``phi`` (rad; centre i at i)."""
+    x = phi * (n / (2.0 * math.pi)) - 0.5
+    return x - n * math.floor(x / n)
+
+
+@njit(cache=True, inline="always")
+def rewrap(x: float, n: int) -> float:
+    """A region coordinate within n of [0, n] wrapped into [0, n] by one comparison (a coordinate
+    stepped from a wrapped one: no division)."""
+    if x >= n:
+        return x - n
+    return x + n if x < 0.0 else x
+
+
+@njit(cache=True, inline="always")
+def _locate(n: int, phi: float) -> tuple[int, int, float]:
+    """The interval (centres i0, i1) holding body-frame angle ``phi`` and the fraction in it."""
+    return region_interval(region_coordinate(phi, n), n)
 
 
 @njit(cache=True, inline="always")
@@ -235,6 +262,14 @@ def depth_eval(depths: np.ndarray, n: int, phi: float) -> tuple[float, float, fl
     m0 = _pchip_node_slope(y0 - depths[im], d)
     m1 = _pchip_node_slope(d, depths[i2] - y1)
     return _hermite_eval(y0, m0, y1, m1, f, n)
+
+
+@njit(cache=True, inline="always")
+def table_eval(depths: np.ndarray, slopes: np.ndarray, n: int, x: float) -> tuple[float, float, float]:
+    """Depth (m) and its first and second derivatives in phi at region coordinate ``x`` in [0, n]
+    (see :func:`table_value`)."""
+    i0, i1, f = region_interval(x, n)
+    return _hermite_eval(depths[i0], slopes[i0], depths[i1], slopes[i1], f, n)
 
 
 @njit(cache=True, inline="always")

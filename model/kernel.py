@@ -49,13 +49,13 @@ from wearbench.model.worn_contact import contact_zones, zone_penetrations
 Params = namedtuple("Params", "minv fext rev_b rev_s pri_b pri_s drv_b drv_p clr_b clr_p surf surf_n surf_t "
                                "spr_b spr_p trq_b trq_p jb body_rows body_nrows profile")
 
-# clearance parameter columns
+# clearance parameter columns (CLR_WORN: 1 for worn surfaces; CLR_CURV: their largest |h_b''| + |h_j''|)
 CLR_SIX, CLR_SIY, CLR_SJX, CLR_SJY, CLR_R1, CLR_R2, CLR_K, CLR_N, CLR_CE, CLR_LAW, CLR_CF, \
-    CLR_FV0, CLR_FVM, CLR_WORN = range(14)
-NCLR = 14
+    CLR_FV0, CLR_FVM, CLR_WORN, CLR_CURV = range(15)
+NCLR = 15
 # contact output columns (cout)
-CO_EX, CO_EY, CO_PEN, CO_FN, CO_FT, CO_VN, CO_VT, CO_OMEGA, CO_PHIB, CO_PHIJ, CO_ALPHA = range(11)
-NCO = 11
+CO_EX, CO_EY, CO_PEN, CO_FN, CO_FT, CO_VN, CO_VT, CO_OMEGA, CO_PHIB, CO_PHIJ = range(10)
+NCO = 10
 
 OK, SINGULAR, NO_CONVERGENCE = 0, 1, 2
 
@@ -302,7 +302,7 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
             if buf.size == 0:
                 buf = np.empty(surf.shape[2])
             psi, overlap, hb, hj, slope_b, slope_j, psi2, f2, sad, hb2, hj2, sb2, sj2 = contact_zones(
-                surf_t[k, 0], surf_t[k, 1], nb, nj, emag, alpha, thi, thj, clear, cout[k, CO_ALPHA], buf)
+                surf_t[k, 0], surf_t[k, 1], nb, nj, emag, alpha, thi, thj, clear, p[CLR_CURV], buf)
             pen = overlap - clear
             pen1 = pen
             fn2 = 0.0
@@ -350,7 +350,6 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         c[CO_OMEGA] = wj - wi
         c[CO_PHIB] = (psi - thi) % (2.0 * math.pi)
         c[CO_PHIJ] = (psi - thj) % (2.0 * math.pi)
-        c[CO_ALPHA] = psi
 
 
 @njit(cache=True)

@@ -16,7 +16,7 @@ import numpy as np
 from wearbench.bench.schema import GROUND, Bench, BenchError, Joint
 from wearbench.model import kernel as K
 from wearbench.model.contact import LAWS, contact_stiffness
-from wearbench.model.midpoints import TABLE_ROWS, surface_tables
+from wearbench.model.midpoints import TABLE_ROWS, surface_curvature, surface_tables
 from wearbench.model.surfaces import JointSurfaces
 
 __all__ = ["Spring", "Torque", "pack_params"]
@@ -134,6 +134,7 @@ def _pack_clearances(bench: Bench, b, joints: list[Joint], surfaces: Mapping[str
         for side in (0, 1):
             n = surf_n[k, side]
             tables[k, side, :, :2 * n] = surface_tables(surf[k, side], n)
+            clr_p[k][K.CLR_CURV] += surface_curvature(tables[k, side], n)
     return _ia(clr_b, (-1, 2)), _fa(clr_p, (-1, K.NCLR)), surf, surf_n, tables
 
 

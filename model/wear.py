@@ -30,7 +30,11 @@ from wearbench.model.contact import (
     conformal_radius,
     effective_modulus,
     node_slopes,
+    region_coordinate,
+    region_interval,
+    rewrap,
     table_depth_eval,
+    table_value,
 )
 from wearbench.model.surfaces import JointSurfaces
 
@@ -206,20 +210,6 @@ def _swept_deposit(n: int, start: np.ndarray, sweep: np.ndarray, half: np.ndarra
 
 
 @njit(cache=True)
-def _bin(out, n, phi, depth):
-    """Add ``depth`` (m) at angle ``phi`` to the two nearest region centres (linear weights): the
-    sum over regions, hence the volume, is exact."""
-    x = (phi / (2.0 * np.pi)) * n - 0.5
-    x = x - n * np.floor(x / n)
-    i = int(np.floor(x))  # in [0, n]: wrapped by a comparison (an integer modulo costs more)
-    f = x - i
-    i0 = i if i < n else i - n
-    i1 = i0 + 1 if i0 + 1 < n else 0
-    out[i0] += depth * (1.0 - f)
-    out[i1] += depth * f
-
-
-@njit(cache=True)
 def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, length, out_b, out_j):
     """Spread the worn volumes ``vol_b``, ``vol_j`` (m^3 per row) over each row's overlap arc.
 
@@ -228,12 +218,17 @@ def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, lengt
     f(psi) = |e| cos(psi - alpha) - h_b - h_j is largest, so f'(psi*) = 0 and f(psi*) = pen + clear:
     |e| cos(gamma) = pen + clear + h_b + h_j and |e| sin(gamma) = -(h_b' + h_j') give the eccentricity
     and gamma = psi* - alpha. The overlap o(d) = f(psi* + d) - clear > 0 around psi* is the
-    elastic-foundation pressure shape; it is sampled every quarter region and binned on both surfaces.
+    elastic-foundation pressure shape; it is sampled every quarter region (of the finer surface) and
+    added to the two nearest region centres of both surfaces (linear weights: the volume is exact).
+    Samples step through region coordinates and rotate |e| (cos, sin) by the step: no angle is
+    divided, wrapped or passed to cos per sample.
     """
     nb, nj = sb.size, sj.size
     mb, mj = node_slopes(sb, nb), node_slopes(sj, nj)  # depth_eval's values, without its divisions
     step = 0.5 * np.pi / max(nb, nj)
     smax = int(0.5 * np.pi / step)
+    qb, qj = step * nb / (2.0 * np.pi), step * nj / (2.0 * np.pi)  # a step in region units
+    cos_step, sin_step = math.cos(step), math.sin(step)
     wts = np.zeros(2 * smax + 1)
     for r in range(pen.size):
         hb, db, _ = table_depth_eval(sb, mb, nb, phib[r])
@@ -242,14 +237,16 @@ def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, lengt
         b = -(db + dj)
         emag = np.sqrt(a * a + b * b)
         gamma = np.arctan2(b, a)
+        xb, xj = region_coordinate(phib[r], nb), region_coordinate(phij[r], nj)
         wts[smax] = max(pen[r], 0.0)
         lo = smax
         hi = smax
         for sign in (-1, 1):
+            c, sn = emag * math.cos(gamma), emag * math.sin(gamma)  # |e| (cos, sin)(gamma + d), rotated by step
             for s in range(1, smax + 1):
-                d = sign * s * step
-                o = (emag * np.cos(gamma + d) - table_depth_eval(sb, mb, nb, phib[r] + d)[0]
-                     - table_depth_eval(sj, mj, nj, phij[r] + d)[0] - clear)
+                c, sn = c * cos_step - sign * sn * sin_step, sn * cos_step + sign * c * sin_step
+                o = (c - table_value(sb, mb, nb, rewrap(xb + sign * s * qb, nb))
+                     - table_value(sj, mj, nj, rewrap(xj + sign * s * qj, nj)) - clear)
                 if o <= 0.0:
                     break
                 wts[smax + sign * s] = o
@@ -266,10 +263,18 @@ def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, lengt
         db_ = vol_b[r] / (length * r1 * 2.0 * np.pi / nb) / total
         dj_ = vol_j[r] / (length * r2 * 2.0 * np.pi / nj) / total
         for s in range(lo, hi + 1):
-            d = (s - smax) * step
-            _bin(out_b, nb, phib[r] + d, db_ * wts[s])
-            _bin(out_j, nj, phij[r] + d, dj_ * wts[s])
+            _bin(out_b, nb, rewrap(xb + (s - smax) * qb, nb), db_ * wts[s])
+            _bin(out_j, nj, rewrap(xj + (s - smax) * qj, nj), dj_ * wts[s])
             wts[s] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _bin(out, n, x, depth):
+    """Add ``depth`` (m) at region coordinate x in [0, n] to the two nearest region centres (linear
+    weights: the sum over regions, hence the volume, is exact)."""
+    i0, i1, f = region_interval(x, n)
+    out[i0] += depth * (1.0 - f)
+    out[i1] += depth * f
 
 
 def accumulate_wear(record: pd.DataFrame, law: WearLaw, regions: int = 1000, *,

@@ -9,8 +9,9 @@ numba, math, ``contact`` and ``midpoints``.
 Both searches compare the overlap at the midpoints of the bearing's intervals; :func:`contact_zones`
 samples them all once (``midpoints.fill_midpoints``, from tables made once per surface) and both
 searches read those samples, so a sample costs a few multiplications instead of two PCHIP
-evaluations; every value returned is evaluated with :func:`overlap_at`. ``worn_contact`` and
-``second_zone`` take bare depth arrays and build the tables (O(n) per call: for tests and tools).
+evaluations; every value returned is evaluated from the tables (:func:`overlap_at`'s values, to
+rounding). ``worn_contact`` and ``second_zone`` take bare depth arrays and build the tables (O(n)
+per call: for tests and tools).
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ import math
 
 import numpy as np
 from numba import njit
-from wearbench.model.contact import depth_eval, table_depth_eval
-from wearbench.model.midpoints import fill_midpoints, midpoint_window, surface_tables
+from wearbench.model.contact import depth_eval, region_coordinate, rewrap, table_eval
+from wearbench.model.midpoints import fill_midpoints, midpoint_window, surface_curvature, surface_tables
 
 __all__ = ["SECOND_ZONE_RATIO", "contact_zones", "overlap_at", "search_second_zone", "search_top_zone",
            "second_zone", "worn_contact", "zone_penetrations"]
@@ -45,47 +46,47 @@ def _overlap(emag, dpsi, hb, db, d2b, hj, dj, d2j):
 
 
 @njit(cache=True)
-def _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, psi):
-    """:func:`overlap_at` (the same values) from ``midpoints.surface_tables`` (no slopes to compute)."""
-    hb, db, d2b = table_depth_eval(tb[0], tb[1], nb, psi - thi)
-    hj, dj, d2j = table_depth_eval(tj[0], tj[1], nj, psi - thj)
-    return _overlap(emag, psi - alpha, hb, db, d2b, hj, dj, d2j)
+def _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, psi):
+    """:func:`overlap_at` from ``midpoints.surface_tables``, for |psi - alpha| < 2 pi; ``xb``, ``xj``:
+    the region coordinates of alpha on bearing and journal (``contact.region_coordinate``), from
+    which an evaluation steps instead of dividing and flooring an angle."""
+    d = psi - alpha
+    hb, db, d2b = table_eval(tb[0], tb[1], nb, rewrap(xb + d * (nb / (2.0 * math.pi)), nb))
+    hj, dj, d2j = table_eval(tj[0], tj[1], nj, rewrap(xj + d * (nj / (2.0 * math.pi)), nj))
+    return _overlap(emag, d, hb, db, d2b, hj, dj, d2j)
 
 
 @njit(cache=True)
-def _node_min(depths, n, x0, x1):
-    """Smallest node value of ``depths`` over the PCHIP intervals covering [x0, x1] (region units,
-    centres at integers after the -0.5 shift): PCHIP never leaves the range of its two nodes, so
-    this bounds the depth from below on the whole range."""
-    i0 = math.floor(x0)
-    i1 = math.floor(x1) + 1
-    i = i0 % n
-    lo = depths[i]
-    for _ in range(i1 - i0):
-        i = i + 1 if i + 1 < n else 0
-        lo = min(lo, depths[i])
-    return lo
+def _off_window(tb, tj, nb, nj, emag, alpha, xb, xj, psi):
+    """The overlap at a midpoint ``psi`` outside the sampled window, evaluated (a separate, not
+    inlined, function: inlined, it slows the walk's loop tenfold)."""
+    return _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, psi)[0]
 
 
-@njit(cache=True)
-def _interval_bound(sb, nb, sj, nj, emag, alpha, thj, rj, lo_b, cell, i):
-    """Upper bound of the overlap on bearing interval ``i`` (global angles [lo_b, lo_b + cell]):
-    |e| max cos - the smaller bearing node - the smallest journal node under it."""
-    hi_b = lo_b + cell
-    d = 0.0 if lo_b <= alpha <= hi_b else min(abs(lo_b - alpha), abs(hi_b - alpha))
-    return emag * math.cos(d) - min(sb[i % nb], sb[(i + 1) % nb]) - _node_min(
-        sj, nj, (lo_b - thj) * rj - 0.5, (hi_b - thj) * rj - 0.5)
+@njit(cache=True, fastmath=True)
+def _largest(buf, m):
+    """max(buf[:m]) (-inf for m = 0); fastmath lets the reduction vectorise (a maximum is exact in
+    any order)."""
+    top = -math.inf
+    for t in range(m):
+        top = max(top, buf[t])
+    return top
 
 
-@njit(cache=True)
-def _off_window(tb, tj, nb, nj, emag, alpha, thi, thj, i):
-    """The overlap at the midpoint of bearing interval ``i``, evaluated: for a midpoint outside the
-    sampled window (a separate, not inlined, function: inlined, it slows the walk's loop tenfold)."""
-    return _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, (i + 1.0) * (2.0 * math.pi / nb) + thi)[0]
+@njit(cache=True, fastmath=True)
+def _above(buf, m, level):
+    """The first and last t < m with buf[t] > level ((m, -1) if none); fastmath lets the two
+    integer reductions vectorise."""
+    lo, hi = m, -1
+    for t in range(m):
+        v = buf[t] > level
+        lo = min(lo, t if v else m)
+        hi = max(hi, t if v else -1)
+    return lo, hi
 
 
 @njit(cache=True, inline="always")
-def _polish_peak(tb, tj, nb, nj, emag, alpha, thi, thj, psi, ev, cell):
+def _polish_peak(tb, tj, nb, nj, emag, alpha, xb, xj, psi, ev, cell):
     """The local maximum of the overlap within ``cell`` of ``psi`` (``ev``: the overlap tuple
     there): safeguarded Newton on f' = 0 (bisects across a curvature jump). Returns the point and
     its overlap tuple."""
@@ -96,18 +97,22 @@ def _polish_peak(tb, tj, nb, nj, emag, alpha, thi, thj, psi, ev, cell):
             lo = psi
         else:
             hi = psi
-        nxt = psi - d1 / d2 if d2 < 0.0 else 0.5 * (lo + hi)
-        if not lo < nxt < hi:
-            nxt = 0.5 * (lo + hi)
+        nxt = 0.5 * (lo + hi)
+        if d2 < 0.0:
+            stp = -d1 / d2
+            if abs(stp) < 1e-13:  # converged (tested first: psi + stp may round to psi, a bracket end)
+                break
+            if lo < psi + stp < hi:
+                nxt = psi + stp
         if abs(nxt - psi) < 1e-13:
             break
         psi = nxt
-        ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, psi)
+        ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, psi)
     return psi, ev
 
 
 @njit(cache=True)
-def search_top_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf, i0, m):
+def search_top_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, curv, buf, i0, m):
     """Contact direction of a worn journal in a worn bearing: where the two surfaces overlap most.
 
     The journal (radius R2 - h_j, journal frame) reaches, in global direction psi from the bearing
@@ -117,70 +122,32 @@ def search_top_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf, i0,
     circular (or worn) journal rests on the rims of a pit narrower than its relative curvature
     allows instead of sinking to its bottom, and by the envelope theorem grad_e d = u(psi*): the
     normal is the radial direction of the contact point, continuous while the maximum is unique.
-    Search: climb from alpha (or from ``hint``, the last contact direction, if the overlap is larger
-    there; a starting point only, the result does not depend on it) to a local maximum; then the
-    best of the midpoint samples ``buf`` of the window (i0, m) (see :func:`contact_zones`), taken
-    outward from alpha in blocks of 8 intervals (the order only breaks exact ties), where a sample
-    that does not exceed the clearance counts only if its interval's upper bound (|e| max cos - min
-    node depths; PCHIP stays within its nodes) does: the branch and bound this replaces sampled
-    exactly those; then Newton on f'(psi) = 0 around the best point.
-    ``tb``, ``tj``: ``midpoints.surface_tables`` of bearing and journal (depths in row 0).
+    Search: depths are never negative, so f <= |e| cos(psi - alpha): for |e| <= c (the clearance)
+    the overlap at alpha is returned. Else the best of the midpoint samples ``buf`` of the window
+    (i0, m) (see :func:`contact_zones`; the first of equal ones): both its neighbours are no higher,
+    so a local maximum lies within one interval of it, found by safeguarded Newton on f'(psi) = 0.
+    Between two midpoints f rises at most sag = (|e| + curv) cell^2 / 8 above the nearer one
+    (``curv``: the largest |h_b''| + |h_j''|, ``midpoints.surface_curvature``), so a best sample more
+    than sag + 1 um below the clearance is out of contact and returned unpolished. A peak narrower
+    than an interval whose samples lie below the best one's can be missed, by at most the sag.
+    ``tb``, ``tj``: ``midpoints.surface_tables`` of bearing and journal.
     Returns (psi*, f(psi*), h_b, h_j, h_b', h_j') at the contact direction.
     """
-    sb, sj = tb[0], tj[0]
-    ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, alpha)
-    f0 = ev[0]
-    if emag <= max(f0, clear):
-        return alpha, f0, ev[3], ev[4], ev[5], ev[6]
+    xb, xj = region_coordinate(alpha - thi, nb), region_coordinate(alpha - thj, nj)
+    if emag <= clear:
+        ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, alpha)
+        return alpha, ev[0], ev[3], ev[4], ev[5], ev[6]
     cell = 2.0 * math.pi / nb
-    # 1. climb to the local maximum next to alpha (a good first bound prunes most of the scan)
-    best, fbest, d1, d2 = alpha, f0, ev[1], ev[2]
-    dh = (hint - alpha + math.pi) % (2.0 * math.pi) - math.pi
-    if abs(dh) < 0.5 * math.pi:  # the last contact direction is usually next to this one
-        eh = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, alpha + dh)
-        if eh[0] > f0:
-            best, fbest, d1, d2, ev = alpha + dh, eh[0], eh[1], eh[2], eh
-    walk = 0.5 * cell  # grows while f keeps rising where it is convex
-    for it in range(30):
-        if it >= 6 and fbest < clear:  # out of contact the scan prunes against the clearance anyway
-            break
-        if d2 < 0.0:
-            stp = max(-cell, min(cell, -d1 / d2))
-        else:
-            stp = walk if d1 > 0.0 else -walk
-            walk = min(2.0 * walk, 16.0 * cell)
-        et = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best + stp)
-        for _ in range(3):
-            if et[0] > fbest:
-                break
-            stp *= 0.25
-            et = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best + stp)
-        if et[0] <= fbest:
-            break
-        best, fbest, d1, d2, ev = best + stp, et[0], et[1], et[2], et
-        if abs(stp) < 1e-4 * cell:
-            break
-    # 2. the best midpoint sample, outward from alpha in blocks of 8 intervals
-    rj = nj / (2.0 * math.pi)
-    ia = math.floor((alpha - thi) / cell - 0.5)
-    sampled = False  # the best is a table sample (ev is not its overlap tuple)
-    for sign in (-1, 1):
-        first = ia if sign > 0 else ia - 8
-        while first + 8 > i0 and first < i0 + m:
-            for i in range(max(first, i0), min(first + 8, i0 + m)):
-                f = buf[i - i0]
-                if f > fbest:
-                    lo_b = (i + 0.5) * cell + thi
-                    if f > clear or _interval_bound(sb, nb, sj, nj, emag, alpha, thj, rj, lo_b, cell, i) > clear:
-                        best, fbest, sampled = lo_b + 0.5 * cell, f, True
-            first += sign * 8
-    if sampled:  # its overlap exactly
-        ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best)
-    if fbest < clear - 1e-6:  # no contact by a wide margin: its exact place does not matter
+    top = _largest(buf, m)
+    t = 0
+    while buf[t] < top:
+        t += 1
+    best = (i0 + t + 1.0) * cell + thi
+    ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, best)
+    if ev[0] < clear - (emag + curv) * cell * cell / 8.0 - 1e-6:  # out of contact by a wide margin
         return best, ev[0], ev[3], ev[4], ev[5], ev[6]
-    fbest = ev[0]
-    psi, ep = _polish_peak(tb, tj, nb, nj, emag, alpha, thi, thj, best, ev, cell)
-    if ep[0] < fbest:  # Newton left the best sample's value behind (flat cell): keep the sample
+    psi, ep = _polish_peak(tb, tj, nb, nj, emag, alpha, xb, xj, best, ev, cell)
+    if ep[0] < ev[0]:  # Newton left the best sample's value behind (flat cell): keep the sample
         psi, ep = best, ev
     return psi, ep[0], ep[3], ep[4], ep[5], ep[6]
 
@@ -207,6 +174,7 @@ def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, b
     if emag <= floor:
         return psi1, -math.inf, -math.inf, 0.0, 0.0, 0.0, 0.0
     cell = 2.0 * math.pi / nb
+    xb, xj = region_coordinate(alpha - thi, nb), region_coordinate(alpha - thj, nj)
     reach = math.acos(floor / emag) + 8.0 * cell
     ec_end = emag * math.cos(reach) if reach < 0.5 * math.pi else 0.0  # the walk ends at |e| cos(dm) <= this
     ex = emag * math.cos(alpha - thi)  # e in the bearing frame: |e| cos(dm) = e' . (cos, sin)(midpoint)
@@ -217,11 +185,7 @@ def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, b
     # window that does not wrap, where the samples hold every midpoint the walk can reach)
     t_lo, t_hi = -nb, m + nb
     if m < nb:
-        t_lo, t_hi = 0, m - 1
-        while t_hi >= 0 and buf[t_hi] <= floor:
-            t_hi -= 1
-        while t_lo < m and buf[t_lo] <= floor:
-            t_lo += 1
+        t_lo, t_hi = _above(buf, m, floor)
     best_psi, best_f, best_s, best_s_at = psi1, -math.inf, -math.inf, math.nan
     for sign in (-1, 1):
         valley, valley_at = f1, math.nan  # valley_at: the midpoint it was sampled at, if any
@@ -235,7 +199,7 @@ def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, b
             if past or ex * tb[2, k] + ey * tb[3, k] <= ec_end:
                 break
             mid = (i + 1.0) * cell + thi
-            f = buf[t] if 0 <= t < m else _off_window(tb, tj, nb, nj, emag, alpha, thi, thj, i)
+            f = buf[t] if 0 <= t < m else _off_window(tb, tj, nb, nj, emag, alpha, xb, xj, mid)
             if f < prev:
                 if rising and prev > best_f:  # passed a peak at the previous sample
                     best_psi, best_f, best_s, best_s_at = prev_psi, prev, valley, valley_at
@@ -256,9 +220,9 @@ def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, b
     if best_f <= floor:
         return psi1, -math.inf, -math.inf, 0.0, 0.0, 0.0, 0.0
     if not math.isnan(best_s_at):  # the saddle and the peak are samples: their values exactly
-        best_s = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best_s_at)[0]
-    eb = _overlap_tab(tb, tj, nb, nj, emag, alpha, thi, thj, best_psi)
-    psi, ev = _polish_peak(tb, tj, nb, nj, emag, alpha, thi, thj, best_psi, eb, cell)
+        best_s = _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, best_s_at)[0]
+    eb = _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, best_psi)
+    psi, ev = _polish_peak(tb, tj, nb, nj, emag, alpha, xb, xj, best_psi, eb, cell)
     if ev[0] < eb[0]:
         psi, ev = best_psi, eb
     if abs((psi - psi1 + math.pi) % (2.0 * math.pi) - math.pi) < cell:
@@ -267,15 +231,17 @@ def search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi1, f1, b
 
 
 @njit(cache=True)
-def contact_zones(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf):
+def contact_zones(tb, tj, nb, nj, emag, alpha, thi, thj, clear, curv, buf):
     """Both contact zones of a worn joint: (psi1, f1, h_b, h_j, h_b', h_j') of
     :func:`search_top_zone` and (psi2, f2, saddle, h_b, h_j, h_b', h_j') of
-    :func:`search_second_zone` (f2 = -inf: none; searched only when f1 exceeds the clearance). Samples the overlap at the bearing midpoints
-    within reach once (``midpoints.fill_midpoints`` into ``buf``, at least nb long) for both."""
+    :func:`search_second_zone` (f2 = -inf: none; searched only when f1 exceeds the clearance).
+    Samples the overlap at the bearing midpoints within reach once (``midpoints.fill_midpoints``
+    into ``buf``, at least nb long) for both. ``curv``: the largest |h_b''| + |h_j''| (m/rad^2,
+    ``midpoints.surface_curvature``)."""
     i0, m = midpoint_window(nb, emag, alpha, thi, clear)
     if emag > clear:  # else no direction can overlap the clearance: the top zone returns at once
         fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf)
-    psi, f, hb, hj, db, dj = search_top_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf, i0, m)
+    psi, f, hb, hj, db, dj = search_top_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, curv, buf, i0, m)
     second = (psi, -math.inf, -math.inf, 0.0, 0.0, 0.0, 0.0)
     if f > clear:
         second = search_second_zone(tb, tj, nb, nj, emag, alpha, thi, thj, clear, psi, f, buf, i0, m)
@@ -283,10 +249,11 @@ def contact_zones(tb, tj, nb, nj, emag, alpha, thi, thj, clear, hint, buf):
 
 
 @njit(cache=True)
-def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear, hint):
+def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear):
     """:func:`search_top_zone` on bare depth arrays (builds the tables: O(n) per call)."""
-    return contact_zones(surface_tables(sb, nb), surface_tables(sj, nj), nb, nj, emag, alpha, thi, thj, clear,
-                         hint, np.empty(nb))[:6]
+    tb, tj = surface_tables(sb, nb), surface_tables(sj, nj)
+    curv = surface_curvature(tb, nb) + surface_curvature(tj, nj)
+    return contact_zones(tb, tj, nb, nj, emag, alpha, thi, thj, clear, curv, np.empty(nb))[:6]
 
 
 @njit(cache=True)

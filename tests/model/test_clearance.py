@@ -157,11 +157,17 @@ def test_unworn_surfaces_reproduce_the_even_clearance_model(slider_crank):
 
 
 def test_uniform_bearing_wear_acts_as_a_larger_clearance(slider_crank):
-    h = 1e-4
-    worn = JointSurfaces(np.full(100, h), np.zeros(100))
+    """In contact and near it the penetration is |e| - (c + h) exactly; a gap wider than the
+    search's margin is the best bearing midpoint's, at most |e| (1 - cos(cell / 2)) smaller."""
+    h, n = 1e-4, 100
+    worn = JointSurfaces(np.full(n, h), np.zeros(n))
     a = simulate(build_scene(slider_crank, surfaces={"S": worn}), revolutions=0.3, output_rate=1e5)
-    assert (np.hypot(a.table["S_ex"], a.table["S_ey"]) - a.table["S_pen"]).to_numpy() == pytest.approx(
-        0.5e-3 + h, abs=1e-12)
+    emag = np.hypot(a.table["S_ex"], a.table["S_ey"]).to_numpy()
+    excess = emag - a.table["S_pen"].to_numpy() - (0.5e-3 + h)
+    near = a.table["S_pen"].to_numpy() > -1e-6
+    assert near.sum() > 100 and (~near).sum() > 100
+    assert np.abs(excess[near]).max() < 1e-12
+    assert excess.min() > -1e-12 and (excess - emag * (1 - np.cos(np.pi / n))).max() < 1e-12
 
 
 def test_record_contacts_gives_one_row_per_accepted_step(slider_crank):

@@ -27,7 +27,7 @@ from numba.core import config
 from wearbench.model.worn_contact import worn_contact
 assert wearbench.model.__file__.startswith(sys.argv[1]), wearbench.model.__file__
 depths = np.full(100, 1e-5)  # uniform wear 10 um on the bearing, new journal
-psi, f, hb, hj, sb, sj = worn_contact(depths, 100, np.zeros(100), 100, 7e-4, 0.3, 0.0, 0.0, 6e-4, 0.0)
+psi, f, hb, hj, sb, sj = worn_contact(depths, 100, np.zeros(100), 100, 7e-4, 0.3, 0.0, 0.0, 6e-4)
 print(json.dumps({"overlap": f, "hb": hb, "cache": config.CACHE_DIR,
                   "loaded": sorted(str(k) for k in worn_contact.stats.cache_hits)}))
 """

@@ -54,7 +54,7 @@ def test_circular_journal_rests_on_the_rims_of_a_narrow_pit(bench):
     from wearbench.model.surfaces import depth_at
 
     for emag, alpha in ((c + 5e-6, centre), (c + 20e-6, centre + 0.004), (c + 2e-6, centre - 0.02)):
-        _, f, hb, _, _, _ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, 0.0)
+        _, f, hb, _, _, _ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c)
         brute = (emag * np.cos(phi - alpha) - depth_at(pit, phi)).max()
         assert brute - 1e-12 <= f <= brute + 2e-9  # a true maximum, at least every grid sample
         assert hb < 0.05 * pit.max()  # on a rim, not in the pit
@@ -78,7 +78,7 @@ def test_second_zone_is_the_other_rim_of_a_bridged_pit():
     n, c = pit.size, 0.6e-3
     phi = np.linspace(centre - 0.5, centre + 0.5, 200_001)
     for emag, alpha in ((c + 5e-6, centre + 1e-4), (c + 20e-6, centre - 0.002)):
-        psi1, f1, *_ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, 0.0)
+        psi1, f1, *_ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c)
         psi2, f2, sad = second_zone(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, psi1, f1)
         f = emag * np.cos(phi - alpha) - depth_at(pit, phi)
         peaks = np.flatnonzero((f[1:-1] > f[:-2]) & (f[1:-1] >= f[2:])) + 1
@@ -103,7 +103,7 @@ def test_two_zone_force_is_continuous_when_the_zones_trade_places():
     emag = c + 10e-6
     one, two = [], []
     for alpha in centre + np.linspace(-2e-3, 2e-3, 401):
-        psi1, f1, *_ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, 0.0)
+        psi1, f1, *_ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c)
         psi2, f2, sad = second_zone(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c, psi1, f1)
         u1, u2 = np.array([np.cos(psi1), np.sin(psi1)]), np.array([np.cos(psi2), np.sin(psi2)])
         one.append((f1 - c) ** 1.5 * u1)

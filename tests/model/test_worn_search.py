@@ -5,8 +5,8 @@
 contact, 146 with a second zone) and the outputs of the previous contact search (branch and bound
 over blocks of bearing intervals, each midpoint evaluated with ``overlap_at``; commit 1af6b74),
 made by running that code on these inputs. Columns: inputs (kind, seed, |e|, alpha, th_b, th_j,
-hint, sum of bearing depths, sum of journal depths); outputs (psi1, f1, h_b, h_j, h_b', h_j', psi2,
-f2, saddle).
+hint (the previous search's starting point), sum of bearing depths, sum of journal depths);
+outputs (psi1, f1, h_b, h_j, h_b', h_j', psi2, f2, saddle).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from wearbench.model.contact import depth_eval, node_slopes, table_depth_eval
-from wearbench.model.midpoints import fill_midpoints, midpoint_window, surface_tables
+from wearbench.model.midpoints import fill_midpoints, midpoint_window, surface_curvature, surface_tables
 from wearbench.model.surfaces import depth_at
 from wearbench.model.worn_contact import SECOND_ZONE_RATIO, overlap_at, second_zone, worn_contact
 
@@ -119,26 +119,43 @@ def _cases():
         yield b, j, row[2:7], out
 
 
-def _search(b, j, emag, alpha, thi, thj, hint):
-    top = worn_contact(b, b.size, j, j.size, emag, alpha, thi, thj, CLEAR, hint)
+def _search(b, j, emag, alpha, thi, thj):
+    top = worn_contact(b, b.size, j, j.size, emag, alpha, thi, thj, CLEAR)
     sec = (top[0], -np.inf, -np.inf)
     if top[1] > CLEAR:
         sec = second_zone(b, b.size, j, j.size, emag, alpha, thi, thj, CLEAR, top[0], top[1])
     return np.array(top + sec)
 
 
-def test_search_reproduces_the_previous_branch_and_bound():
-    """Same contact zones as the previous search, to rounding (here: bit for bit), on flat
-    conformal wear, narrow and bridged pits, noise, a coarse surface and mixed region counts."""
-    worst = 0.0
-    for b, j, (emag, alpha, thi, thj, hint), ref in _cases():
-        got = _search(b, j, emag, alpha, thi, thj, hint)
-        assert np.isfinite(got[7]) == np.isfinite(ref[7])
-        fin = np.isfinite(ref)
-        # the saddle only matters above the clearance (zone_penetrations uses max(s, clear))
-        got[8], ref[8] = max(got[8], CLEAR), max(ref[8], CLEAR)
-        worst = max(worst, float(np.max(np.abs(got[fin] - ref[fin]), initial=0.0)))
-    assert worst <= 1e-15
+def _sag(b: np.ndarray, j: np.ndarray, emag: float) -> float:
+    """The most the overlap can rise between two bearing midpoints (m): (|e| + max |h_b''| +
+    max |h_j''|) cell^2 / 8, from a dense numpy evaluation of the PCHIP's second derivative."""
+    curv = 0.0
+    for d in (b, j):
+        phi = 2 * np.pi * (np.arange(8 * d.size) + 0.5) / (8 * d.size)
+        curv += max(abs(depth_eval(d, d.size, p)[2]) for p in phi)
+    return (emag + curv) * (2 * math.pi / b.size) ** 2 / 8
+
+
+def test_search_agrees_with_the_previous_branch_and_bound():
+    """Against the previous search (a climb from the last contact direction, then branch and bound
+    over the midpoints): the same contact decision in every case; where both pick the same zone the
+    same overlap to rounding; and the higher of the two zones' overlaps within the sag (the most the
+    overlap can rise between two midpoints), the bound of both searches' error on peaks narrower
+    than an interval (measured: at most 0.24 um, 5 % of the sag, below the previous one)."""
+    same, contact = 0, 0
+    for b, j, (emag, alpha, thi, thj, _), ref in _cases():
+        got = _search(b, j, emag, alpha, thi, thj)
+        assert (got[1] > CLEAR) == (ref[1] > CLEAR)
+        if ref[1] <= CLEAR:
+            continue
+        contact += 1
+        if abs(math.remainder(got[0] - ref[0], 2 * math.pi)) < 1e-6:
+            same += 1
+            assert got[1] == pytest.approx(ref[1], abs=1e-15)
+        assert max(got[1], got[7]) == pytest.approx(max(ref[1], ref[7]), abs=_sag(b, j, emag))
+    # the others are near ties of two zones, where this search's second zone is the previous top zone
+    assert same >= 0.9 * contact
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -151,7 +168,7 @@ def test_top_zone_is_the_best_midpoint_and_a_maximum_of_the_dense_overlap(kind):
         b, j = surfaces(kind, seed)
         rng = np.random.default_rng(seed)
         for emag, alpha, thi, thj in states(rng, b, 12):
-            psi, f, *_ = worn_contact(b, b.size, j, j.size, emag, alpha, thi, thj, CLEAR, alpha)
+            psi, f, *_ = worn_contact(b, b.size, j, j.size, emag, alpha, thi, thj, CLEAR)
             if emag <= CLEAR:
                 continue
             mids = midpoints(b.size, alpha, thi)
@@ -185,7 +202,7 @@ def test_second_zone_matches_a_plain_walk_over_exact_samples(kind):
         nb, cell = b.size, 2 * math.pi / b.size
         rng = np.random.default_rng(seed)
         for emag, alpha, thi, thj in states(rng, b, 12):
-            psi1, f1, *_ = worn_contact(b, nb, j, j.size, emag, alpha, thi, thj, CLEAR, alpha)
+            psi1, f1, *_ = worn_contact(b, nb, j, j.size, emag, alpha, thi, thj, CLEAR)
             if f1 <= CLEAR:
                 continue
             psi2, f2, sad = second_zone(b, nb, j, j.size, emag, alpha, thi, thj, CLEAR, psi1, f1)
@@ -212,8 +229,9 @@ def test_second_zone_matches_a_plain_walk_over_exact_samples(kind):
 
 
 def test_tables_give_the_values_of_the_pchip():
-    """The node-slope tables reproduce depth_eval bit for bit; the midpoint samples equal
-    overlap_at to rounding, for equal and for different bearing and journal region counts."""
+    """The node-slope tables reproduce depth_eval bit for bit; the largest curvature is depth_eval's
+    at the nodes; the midpoint samples equal overlap_at to rounding, for equal and for different
+    bearing and journal region counts."""
     rng = np.random.default_rng(7)
     for nb, nj in ((1000, 1000), (1000, 720), (24, 24)):
         b, j = 1e-4 * rng.random(nb) ** 4, 1e-4 * rng.random(nj) ** 4
@@ -221,6 +239,10 @@ def test_tables_give_the_values_of_the_pchip():
         for phi in rng.uniform(-50, 50, 200):
             assert table_depth_eval(b, mb, nb, phi) == depth_eval(b, nb, phi)
         tb, tj = surface_tables(b, nb), surface_tables(j, nj)
+        # the largest |h''|: h'' is linear on an interval, so at its ends (both sides of each node)
+        node = 2 * np.pi * (np.arange(nb) + 0.5) / nb
+        ends = [abs(depth_eval(b, nb, p)[2]) for p in np.concatenate([node - 1e-9, node + 1e-9])]
+        assert surface_curvature(tb, nb) == pytest.approx(max(ends), rel=1e-5)
         buf = np.empty(nb)
         for _ in range(20):
             emag, alpha, thi, thj = CLEAR + 2e-4 * rng.random(), *rng.uniform(-30, 30, 3)
