@@ -276,8 +276,7 @@ def table_eval(depths: np.ndarray, slopes: np.ndarray, n: int, x: float) -> tupl
 def table_depth_eval(depths: np.ndarray, slopes: np.ndarray, n: int, phi: float) -> tuple[float, float, float]:
     """:func:`depth_eval` (the same values) with the node slopes read from the :func:`node_slopes`
     table instead of computed."""
-    i0, i1, f = _locate(n, phi)
-    return _hermite_eval(depths[i0], slopes[i0], depths[i1], slopes[i1], f, n)
+    return table_eval(depths, slopes, n, region_coordinate(phi, n))
 
 
 @njit(cache=True)

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 from numba import njit
-from wearbench.model.contact import hermite, node_slopes, table_depth
+from wearbench.model.contact import hermite, node_slopes, region_coordinate, region_interval, table_depth
 
 __all__ = ["TABLE_ROWS", "fill_midpoints", "midpoint_window", "surface_curvature", "surface_tables"]
 
@@ -87,12 +87,7 @@ def fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf):
     # views starting at the window's first entries: indices from 0 up let LLVM vectorise the loops
     cb, sb, hb = tb[2, k0:k0 + m], tb[3, k0:k0 + m], tb[4, k0:k0 + m]
     if nj == nb:  # the same fraction of a journal interval at every midpoint
-        x = ((i0 + 1.0) * cell + thi - thj) * rj - 0.5
-        x -= nj * math.floor(x / nj)
-        j0 = int(x)
-        fr = x - j0
-        if j0 >= nj:
-            j0 -= nj
+        j0, _, fr = region_interval(region_coordinate((i0 + 1.0) * cell + thi - thj, nj), nj)
         w0 = hermite(1.0, 0.0, 0.0, 0.0, fr)
         w1 = hermite(0.0, 1.0, 0.0, 0.0, fr)
         w2 = hermite(0.0, 0.0, 1.0, 0.0, fr)

@@ -33,7 +33,7 @@ from wearbench.model.contact import (
     region_coordinate,
     region_interval,
     rewrap,
-    table_depth_eval,
+    table_eval,
     table_value,
 )
 from wearbench.model.surfaces import JointSurfaces
@@ -231,13 +231,13 @@ def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, lengt
     cos_step, sin_step = math.cos(step), math.sin(step)
     wts = np.zeros(2 * smax + 1)
     for r in range(pen.size):
-        hb, db, _ = table_depth_eval(sb, mb, nb, phib[r])
-        hj, dj, _ = table_depth_eval(sj, mj, nj, phij[r])
+        xb, xj = region_coordinate(phib[r], nb), region_coordinate(phij[r], nj)
+        hb, db, _ = table_eval(sb, mb, nb, xb)
+        hj, dj, _ = table_eval(sj, mj, nj, xj)
         a = pen[r] + clear + hb + hj
         b = -(db + dj)
         emag = np.sqrt(a * a + b * b)
         gamma = np.arctan2(b, a)
-        xb, xj = region_coordinate(phib[r], nb), region_coordinate(phij[r], nj)
         wts[smax] = max(pen[r], 0.0)
         lo = smax
         hi = smax
