@@ -9,7 +9,6 @@ import math
 import shutil
 from pathlib import Path
 
-import mcap_readers
 import numpy as np
 import pytest
 from wearbench.acquisition.backends import open_rig
@@ -20,6 +19,7 @@ from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import blocks, read_session, scan_mcap
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.load import load_bench, shipped_bench
+from wearbench.testing import mcap_readers
 
 LAYOUT1 = Path(__file__).parents[1] / "acquisition" / "data" / "session_layout1.mcap"
 PLOTTED = {"/acceleration": {"acceleration": "array", "clipped": "number", "device_time": "number"},

@@ -1,7 +1,9 @@
 """Reading session files with the readers other tools use: ``@mcap/core``'s indexed reader under node
 (the reader Foxglove opens files with; messages decoded by protobufjs) and the Python ``mcap``
-readers with CRC validation. Used by the suite-wide check in ``tests/conftest.py`` and by
-``test_readers.py``.
+readers with CRC validation, and the log-time order ``mcap doctor --strict-message-order`` demands
+(every message's log time at or after every earlier message's, in file order, across channels).
+Used by :func:`wearbench.testing.assert_valid_mcap`, the project suite's check of every file it
+writes (``tests/conftest.py``) and ``tests/interop/test_readers.py``.
 
 The node packages are installed with npm into a cache folder outside the repository
 (``$WEARBENCH_CACHE/node``, default ``~/.cache/wearbench/node``), once per package set, under a
@@ -74,12 +76,25 @@ def read_with_node(paths: list[Path], folder: Path) -> list[dict]:
     return json.loads(r.stdout)
 
 
+class OutOfOrder(ValueError):
+    """A message whose log time is before an earlier message's (``mcap doctor --strict-message-order``)."""
+
+
 def read_with_python(path: Path) -> dict[str, int]:
     """Messages per topic through the summary and indexes (chunk CRCs checked), after a record-
-    by-record pass that checks every chunk CRC and the data-section CRC. Raises on any mismatch."""
+    by-record pass that checks every chunk CRC, the data-section CRC and that log times never go
+    back in file order (:class:`OutOfOrder`). Raises on any mismatch."""
+    latest, late = 0, []
     with open(path, "rb") as fh:
-        for _ in NonSeekingReader(fh, validate_crcs=True).iter_messages():
-            pass
+        for _, channel, message in NonSeekingReader(fh, validate_crcs=True).iter_messages():
+            if message.log_time < latest:
+                late.append((channel.topic, (latest - message.log_time) * 1e-9))
+            latest = max(latest, message.log_time)
+    if late:
+        worst = max(late, key=lambda t: t[1])
+        raise OutOfOrder(f"{len(late)} messages logged before an earlier message's log time (mcap doctor "
+                         f"--strict-message-order rejects the file); first on {late[0][0]!r}, worst "
+                         f"{worst[1] * 1e3:.1f} ms on {worst[0]!r}")
     counts: dict[str, int] = {}
     with open(path, "rb") as fh:
         for _, channel, _ in SeekingReader(fh, validate_crcs=True).iter_messages(log_time_order=False):
