@@ -9,7 +9,12 @@ for code outside pytest: :class:`FaultPlan`, :func:`start_bench`/:class:`Emulate
 :func:`assert_identifies`. The top layer, like the command line: it imports every layer below.
 """
 
-from wearbench.testing.assertions import assert_identifies, assert_no_sample_lost, assert_valid_mcap, event_time
+from wearbench.testing.assertions import (
+    assert_identifies,
+    assert_no_sample_lost,
+    assert_valid_mcap,
+    event_time,
+)
 from wearbench.testing.emulated import EmulatedBench, close_all, open_benches, start_bench
 from wearbench.testing.faults import FaultPlan
 from wearbench.testing.recording import (

@@ -14,7 +14,13 @@ from typing import Any
 import numpy as np
 from wearbench.acquisition.session_file import Session, read_session
 from wearbench.testing import mcap_readers
-from wearbench.testing.recording import STREAMS, RecordedSession, Sent, assert_same_blocks, recorded_blocks
+from wearbench.testing.recording import (
+    STREAMS,
+    RecordedSession,
+    Sent,
+    assert_same_blocks,
+    recorded_blocks,
+)
 
 __all__ = ["assert_identifies", "assert_no_sample_lost", "assert_valid_mcap", "event_time"]
 

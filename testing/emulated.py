@@ -20,7 +20,7 @@ import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import Rig
@@ -123,7 +123,7 @@ class EmulatedBench:
                     p.unlink(missing_ok=True)
                 self._tmp.rmdir()
 
-    def __enter__(self) -> EmulatedBench:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:

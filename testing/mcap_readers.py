@@ -40,8 +40,10 @@ def cache_dir() -> Path:
     return Path(root) / "node"
 
 
-def install(folder: Path | None = None) -> Path:
-    """The folder holding the packages and the reader script, installing what is missing."""
+def install(folder: Path | None = None, packages: tuple[str, ...] = PACKAGES,
+            scripts: tuple[Path, ...] = (SCRIPT,)) -> Path:
+    """The folder holding ``packages`` and ``scripts``, installing what is missing (one package set
+    per folder: another set in the same folder is installed over it)."""
     if shutil.which("node") is None:
         raise NodeMissing("node is not on PATH: the @mcap/core reader check needs Node.js (>= 18)")
     folder = folder or cache_dir()
@@ -49,19 +51,20 @@ def install(folder: Path | None = None) -> Path:
     marker = folder / "installed.txt"
     with open(folder / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        if not (marker.exists() and marker.read_text() == " ".join(PACKAGES)):
+        if not (marker.exists() and marker.read_text() == " ".join(packages)):
             npm = shutil.which("npm")
             if npm is None:
-                raise NodeSetupError("npm is not on PATH: cannot install " + " ".join(PACKAGES))
+                raise NodeSetupError("npm is not on PATH: cannot install " + " ".join(packages))
             if not (folder / "package.json").exists():
                 (folder / "package.json").write_text('{"private": true, "type": "module"}\n')
-            r = subprocess.run([npm, "install", "--no-audit", "--no-fund", "--loglevel=error", *PACKAGES],
+            r = subprocess.run([npm, "install", "--no-audit", "--no-fund", "--loglevel=error", *packages],
                                cwd=folder, capture_output=True, text=True, timeout=600, check=False)
             if r.returncode:
-                raise NodeSetupError(f"npm install {' '.join(PACKAGES)} into {folder} failed "
+                raise NodeSetupError(f"npm install {' '.join(packages)} into {folder} failed "
                                      f"(exit {r.returncode}): {r.stderr.strip()[-2000:]}")
-            marker.write_text(" ".join(PACKAGES))
-        shutil.copyfile(SCRIPT, folder / SCRIPT.name)  # beside node_modules, so its imports resolve
+            marker.write_text(" ".join(packages))
+        for script in scripts:
+            shutil.copyfile(script, folder / script.name)  # beside node_modules, so its imports resolve
     return folder
 
 

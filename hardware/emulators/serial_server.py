@@ -32,7 +32,13 @@ from wearbench.bench.content import bench_key
 from wearbench.bench.load import load_bench
 from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import EmulatorConfig
-from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, DeviceError, EncoderBlock, MonotonicClock
+from wearbench.hardware.emulators.device import (
+    AccelBlock,
+    BenchDevice,
+    DeviceError,
+    EncoderBlock,
+    MonotonicClock,
+)
 from wearbench.hardware.protocol import messages as m
 from wearbench.hardware.protocol.frames import FrameParser
 
