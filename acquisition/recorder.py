@@ -90,6 +90,7 @@ class Recorder:
         self._cpu: dict[str, float] = {}
         self._acc_rate = (0.0, time.monotonic(), 0)  # (rate, t, samples at t)
         self._device_now: float | None = None  # latest device time seen (drive state)
+        self._recorded_until = -math.inf  # device time: blocks stamped before it are kept after recording ends
         self._overflow: list = []
         self._lost = 0  # items the writer could not encode
         self._signal: str | None = None  # SIGINT/SIGTERM seen by the handler
@@ -140,12 +141,12 @@ class Recorder:
                     last_block = now
                 elif now - last_block > self.plan.silence_timeout:
                     raise DeviceTimeout(f"{source.name}: no data for {now - last_block:.1f} s")
-                recording = self._recording.is_set()
+                recording, until = self._recording.is_set(), self._recorded_until
                 for item in items:
                     if isinstance(item, Block):
                         if item.host_time == 0.0:
                             item.host_time = time.time()
-                        if not recording:
+                        if not recording and not item.device_time < until:  # queued before the stop: kept
                             continue
                         if item.stream == ENCODER and item.index is not None and len(item.index):
                             high = np.asarray(item.index, dtype=bool)
@@ -379,6 +380,8 @@ class Recorder:
             rig.clock.sleep(p.state_interval)
 
     def _shutdown(self, prog: Progress) -> None:
+        if self._recording.is_set() and self._device_now is not None:
+            self._recorded_until = self._device_now  # what the device sent up to the stop is still recorded
         self._recording.clear()
         prog.phase = "ramp-down"
         drive, clock = self.rig.drive, self.rig.clock

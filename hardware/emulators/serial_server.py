@@ -209,6 +209,7 @@ def serve(bench: Bench, config: EmulatorConfig | None = None, *, announce=print,
                     n = 0
                 if sent_log is not None and n:
                     sent_log.write(out[:n])
+                    sent_log.flush()  # readable while the emulator runs (a test compares it mid-session)
                 del out[:n]
             if engine.disconnected and not out:
                 time.sleep(0.2)  # let the host read the last frames before the port vanishes
