@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 from wearbench.acquisition.backends import open_rig
+from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.session import SessionPlan
-from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.session_file import Session, blocks, read_session, scan_mcap
 from wearbench.bench.load import load_bench
 from wearbench.bench.schema import Bench
