@@ -3,7 +3,8 @@
 One run of the test bed at a speed, recorded to MCAP with the wearbench recorder, and the lab's
 rules for what a run is worth: a run that ends early is kept and reported with its reason (never
 retried or overwritten), and a run is *usable* for the lab's analysis only when it completed, lost
-no block, read no garbage, and its index pulse kept coming (the lab cuts cycles at it).
+no block, read no garbage, its index pulse kept coming (the lab cuts cycles at it) and the
+accelerometer's clock kept to the encoder's (the lab aligns them by time).
 
     python lab_recorder.py BENCH.toml --port /dev/ttyACM0 --seconds 60 --out run.mcap
     python lab_recorder.py BENCH.toml --can socketcan:can0 --seconds 60 --out run.mcap
@@ -18,12 +19,14 @@ from pathlib import Path
 
 import numpy as np
 from wearbench.acquisition.backends import open_rig
-from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.session import SessionPlan
-from wearbench.acquisition.session_file import Session, blocks, read_session, scan_mcap
+from wearbench.acquisition.session_file import Session, read_session
 from wearbench.bench.load import load_bench
 from wearbench.bench.schema import Bench
+
+
+DRIFT_LIMIT = 200e-6  # the lab's limit on the accelerometer's clock drift against the encoder
 
 
 @dataclass
@@ -38,12 +41,12 @@ class RunReport:
     dropped_blocks: int
     malformed: int
     index_gap: float  # longest stretch without an index pulse, in revolutions
-    clock_ratio: float  # accelerometer clock / encoder clock, from the blocks' arrival times
+    clock_drift: float  # accelerometer clock against the encoder's (fraction, + = fast)
 
     @property
     def usable(self) -> bool:
         return (self.completed and self.dropped_blocks == 0 and self.malformed == 0
-                and self.index_gap < 1.5)
+                and self.index_gap < 1.5 and abs(self.clock_drift) < DRIFT_LIMIT)
 
 
 def index_gap(session: Session) -> float:
@@ -55,23 +58,26 @@ def index_gap(session: Session) -> float:
     return float(np.max(np.diff(marks)))
 
 
-def clock_ratio(path: str | Path) -> float:
-    """How fast the accelerometer's sample clock runs against the encoder's (1 + drift): each
-    stream's block stamps (at the nominal rate) against the host's arrival times, acceleration over
-    encoder. A block arrives some time after it was complete; in each of 16 stretches of the run the
-    block that arrived soonest stands for the device clock, and a line through those is its rate."""
-    scan = scan_mcap(path)
-
-    def rate(stream: str) -> float:
-        got = blocks(scan, stream)
-        host = np.array([b.host_time for b in got])
-        done = np.array([b.device_time + len(b.samples) / b.sample_rate for b in got])  # block complete
-        host, done = host - host[0], done - done[0]
-        k = np.polyfit(host, done, 1)[0]
-        soonest = [i[np.argmax(done[i] - k * host[i])] for i in np.array_split(np.argsort(host), 16)]
-        return float(np.polyfit(host[soonest], done[soonest], 1)[0])
-
-    return rate(ACCELERATION) / rate(ENCODER)
+def clock_drift(session: Session) -> float:
+    """How fast the accelerometer's sample clock runs against the encoder's (a fraction, + = fast),
+    from the signal itself: the acceleration is periodic in crank angle, so with a drifting sample
+    clock (samples stamped at the nominal rate) the phase of its once-per-revolution component
+    against the encoder's angle moves by -drift radians per radian turned. Fitted over every whole
+    revolution of the run (NaN below three)."""
+    enc, acc = session.encoder, session.acceleration
+    t = acc.time.to_numpy()
+    inside = (t >= enc.time.iloc[0]) & (t <= enc.time.iloc[-1])  # samples the encoder's angle covers
+    angle = np.interp(t[inside], enc.time.to_numpy(), enc.angle.to_numpy())
+    a = acc.acc.to_numpy()[inside]
+    turned = np.abs(angle - angle[0])
+    revolution = np.floor(turned / (2 * math.pi)).astype(int)
+    whole = revolution < revolution[-1]  # the last revolution is incomplete
+    if revolution[-1] < 3:
+        return math.nan
+    k, a, angle, turned = revolution[whole], a[whole], angle[whole], turned[whole]
+    z = np.bincount(k, weights=a * np.cos(angle)) - 1j * np.bincount(k, weights=a * np.sin(angle))
+    mid = np.bincount(k, weights=turned) / np.bincount(k)
+    return -float(np.polyfit(mid, np.unwrap(np.angle(z)), 1)[0])
 
 
 def record_run(bench: Bench, backend: str, options: dict, out: str | Path, *, speed: float, seconds: float,
@@ -86,7 +92,7 @@ def record_run(bench: Bench, backend: str, options: dict, out: str | Path, *, sp
     session = read_session(out)
     return RunReport(Path(out), result.completed, result.reason, result.duration, len(session.acceleration),
                      sum(result.dropped_blocks.values()), result.malformed, index_gap(session),
-                     clock_ratio(out))
+                     clock_drift(session))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -108,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     report = record_run(bench, backend, options, args.out, speed=args.speed, seconds=args.seconds)
     print(f"{report.path}: {'usable' if report.usable else 'NOT usable'}: {report.reason}, "
           f"{report.seconds:.2f} s, {report.samples} samples, {report.dropped_blocks} blocks dropped, "
-          f"{report.malformed} malformed, index gap {report.index_gap:.2f} rev")
+          f"{report.malformed} malformed, index gap {report.index_gap:.2f} rev, "
+          f"clock drift {report.clock_drift * 1e6:.0f} ppm")
     return 0 if report.usable else 1
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from wearbench.acquisition.session_file import read_session
 from wearbench.hardware.emulators.config import EmulatorConfig
-from wearbench.testing import FaultPlan, assert_no_sample_lost, assert_valid_mcap
+from wearbench.testing import FaultPlan, assert_identifies, assert_no_sample_lost, assert_valid_mcap
 
 FIXTURES = ("wearbench_bench", "serial_bench", "can_bench", "canopen_bench", "record_session", "wearbench_speedup")
 
@@ -168,3 +168,23 @@ def test_real_hardware_options_point_the_fixtures_at_the_bench(tmp_path):
     assert r.returncode == 0, r.stdout
     assert "2 passed, 1 skipped" in r.stdout and "fault injection needs the emulator" in r.stdout
     assert "wearbench: serial /dev/ttyBENCH, CAN socketcan:can0" in r.stdout
+
+
+@pytest.mark.slow
+def test_a_non_twin_session_on_the_pty_identifies_as_its_state(serial_bench, record_session, wearbench_bench):
+    """The model's physics through the serial emulator (a bench drawn with a seed no ensemble
+    uses), recorded, then assert_identifies against small ensembles of two candidates: the true
+    state passes, the other fails with a message naming its probability."""
+    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
+
+    states = [s for s in wearbench_bench.states if s.name in ("0.3 mm new", "0.6 mm new")]
+    ensembles = build_ensembles(wearbench_bench, states, settings=EnsembleSettings(realisations=4, cycles=6),
+                                shipped=False, progress=None)
+    bench = serial_bench(state="0.6 mm new", seed=7021, table={"signal": "model", "revolutions": 14})
+    rec = record_session(bench, cycles=8)
+    assert rec.completed, rec.reason
+    assert_valid_mcap(rec)
+    r = assert_identifies(rec, "0.6 mm new", p_min=0.9, ensembles=ensembles)
+    assert r.verdict == "0.6 mm new"
+    with pytest.raises(AssertionError, match=r"identifies as '0.3 mm new' with p 0\.\d+ < 0.5"):
+        assert_identifies(rec, "0.3 mm new", p_min=0.5, ensembles=ensembles)
