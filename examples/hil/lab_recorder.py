@@ -25,7 +25,6 @@ from wearbench.acquisition.session_file import Session, read_session
 from wearbench.bench.load import load_bench
 from wearbench.bench.schema import Bench
 
-
 DRIFT_LIMIT = 200e-6  # the lab's limit on the accelerometer's clock drift against the encoder
 
 
