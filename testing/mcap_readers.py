@@ -89,7 +89,7 @@ def read_with_python(path: Path) -> dict[str, int]:
     back in file order (:class:`OutOfOrder`). Raises on any mismatch."""
     latest, late = 0, []
     with open(path, "rb") as fh:
-        for _, channel, message in NonSeekingReader(fh, validate_crcs=True).iter_messages():
+        for _, channel, message in NonSeekingReader(fh, validate_crcs=True).iter_messages(log_time_order=False):
             if message.log_time < latest:
                 late.append((channel.topic, (latest - message.log_time) * 1e-9))
             latest = max(latest, message.log_time)
