@@ -35,7 +35,7 @@ class RunReport:
     path: Path
     completed: bool
     reason: str
-    seconds: float  # recorded, device clock
+    seconds: float  # of acceleration in the file, device clock
     samples: int  # acceleration samples in the file
     dropped_blocks: int
     malformed: int
@@ -89,7 +89,9 @@ def record_run(bench: Bench, backend: str, options: dict, out: str | Path, *, sp
     finally:
         rig.close()
     session = read_session(out)
-    return RunReport(Path(out), result.completed, result.reason, result.duration, len(session.acceleration),
+    acc = session.acceleration
+    seconds = float(acc.time.iloc[-1] - acc.time.iloc[0]) if len(acc) else 0.0
+    return RunReport(Path(out), result.completed, result.reason, seconds, len(acc),
                      sum(result.dropped_blocks.values()), result.malformed, index_gap(session),
                      clock_drift(session))
 

@@ -33,7 +33,7 @@ def test_a_clean_run_is_usable(serial_bench, tmp_path):
     bench = serial_bench(signal=SIGNAL)
     report = run(bench, tmp_path)
     assert report.completed and report.usable, report
-    assert report.seconds >= SECONDS
+    assert report.seconds >= SECONDS - 0.05  # to the last block
     rate = bench.bench.sensor("accelerometer").sample_rate
     assert report.samples >= SECONDS * rate
     assert_valid_mcap(report.path)
@@ -89,7 +89,7 @@ def test_motor_fault(canopen_bench, tmp_path):
     bench = canopen_bench(signal=SIGNAL, faults=FaultPlan(motor_fault_at=FAULT_AT))
     report = run(bench, tmp_path, seconds=10)
     assert not report.completed and report.reason == "drive fault: stall"
-    assert 0.3 < report.seconds < FAULT_AT
+    assert 0.3 < report.seconds < FAULT_AT + 1  # recorded on until the stream stopped
     assert_valid_mcap(report.path)
     from wearbench.acquisition.session_file import read_session
 
