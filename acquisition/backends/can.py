@@ -4,8 +4,8 @@ Any python-can interface works (socketcan, pcan, kvaser, slcan, virtual); frames
 ``hardware/protocol/wearbench.dbc``. A ``can.Notifier`` thread feeds :class:`BenchFrames`, which
 routes replies to the waiting command and blocks and events to the source (python-can's
 listener pattern); a second listener, :class:`FrameLog`, keeps every frame received and every
-frame the host sends, in the order they happened, which the source hands to the recorder for the session's ``/can/frames`` channel, and :func:`replay` feeds
-recorded frames back into a fresh decoder. The ``canopen`` backend reuses :class:`BenchFrames`,
+frame the host sends, in the order they happened, which the source hands to the recorder for the
+session's ``/can/frames`` channel, and :func:`replay` feeds the received ones back into a fresh decoder. The ``canopen`` backend reuses :class:`BenchFrames`,
 :class:`FrameLog` and :class:`CanSource` for the acceleration stream. Options (``[hardware.can]``): ``interface`` (default "virtual"),
 ``channel`` (default "wearbench"), ``bitrate``, ``data_bitrate``, ``fd`` (default true),
 ``reply_timeout`` (s, default 1.0), ``log_frames`` (default true: every frame received or sent goes to the
