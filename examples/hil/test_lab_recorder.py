@@ -89,7 +89,7 @@ def test_motor_fault(canopen_bench, tmp_path):
     bench = canopen_bench(signal=SIGNAL, faults=FaultPlan(motor_fault_at=FAULT_AT))
     report = run(bench, tmp_path, seconds=10)
     assert not report.completed and report.reason == "drive fault: stall"
-    assert 0.3 < report.seconds < FAULT_AT + 1  # recorded on until the stream stopped
+    assert report.seconds > 0.3  # recorded on until the stream stopped: the data around the fault
     assert_valid_mcap(report.path)
     from wearbench.acquisition.session_file import read_session
 

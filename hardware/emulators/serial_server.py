@@ -297,8 +297,11 @@ def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None 
     table = None
     if config is not None:  # as a JSON file would carry it
         table = json.loads(json.dumps(config.to_table() if isinstance(config, EmulatorConfig) else dict(config)))
-    # spawn, not fork: the caller may hold threads (a recorder per session, a compute client)
-    context = multiprocessing.get_context("spawn")
+    # not fork: the caller may hold threads (a recorder per session, a compute client). A fork
+    # server (one clean process, this module imported once) forks each emulator in milliseconds
+    # where spawn imports numpy and scipy again for every one (seconds).
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload([__name__])
     receive, send = context.Pipe(duplex=False)
     process = context.Process(target=_serve_from_file, name=f"wearbench-emulator-{bench.name}", daemon=True,
                               args=(str(bench_path), table, None if sent_log is None else str(sent_log), send,
