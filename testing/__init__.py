@@ -9,39 +9,26 @@ for code outside pytest: :class:`FaultPlan`, :func:`start_bench`/:class:`Emulate
 :func:`assert_identifies`. The top layer, like the command line: it imports every layer below.
 """
 
-from wearbench.testing.assertions import (
-    assert_identifies,
-    assert_no_sample_lost,
-    assert_valid_mcap,
-    event_time,
-)
-from wearbench.testing.emulated import EmulatedBench, close_all, open_benches, start_bench
-from wearbench.testing.faults import FaultPlan
-from wearbench.testing.recording import (
-    RecordedSession,
-    assert_same_blocks,
-    record,
-    recorded_blocks,
-    sent_from_blocks,
-    sent_from_device,
-    sent_from_serial_log,
-)
+from importlib import import_module
+from typing import Any
 
-__all__ = [
-    "EmulatedBench",
-    "FaultPlan",
-    "RecordedSession",
-    "assert_identifies",
-    "assert_no_sample_lost",
-    "assert_same_blocks",
-    "assert_valid_mcap",
-    "close_all",
-    "event_time",
-    "open_benches",
-    "record",
-    "recorded_blocks",
-    "sent_from_blocks",
-    "sent_from_device",
-    "sent_from_serial_log",
-    "start_bench",
-]
+_WHERE = {
+    "assertions": ("assert_identifies", "assert_no_sample_lost", "assert_valid_mcap", "event_time"),
+    "emulated": ("EmulatedBench", "close_all", "open_benches", "start_bench"),
+    "faults": ("FaultPlan",),
+    "recording": ("RecordedSession", "assert_same_blocks", "record", "recorded_blocks", "sent_from_blocks",
+                  "sent_from_device", "sent_from_serial_log"),
+}
+_MODULE = {name: module for module, names in _WHERE.items() for name in names}
+
+__all__ = [*_WHERE["assertions"], *_WHERE["emulated"], *_WHERE["faults"], *_WHERE["recording"]]
+
+
+def __getattr__(name: str) -> Any:
+    """Names load with their module on first use: the pytest plugin is imported by every pytest
+    run, and wearbench's acquisition stack only when a test uses it."""
+    if name not in _MODULE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f"{__name__}.{_MODULE[name]}"), name)
+    globals()[name] = value
+    return value

@@ -11,18 +11,19 @@ passed, failed or was interrupted, and again at the end of the run and at exit.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
-from wearbench.acquisition.session import SessionPlan
-from wearbench.bench.load import load_bench, shipped_bench
-from wearbench.bench.schema import Bench
-from wearbench.testing.emulated import EmulatedBench, close_all, start_bench
-from wearbench.testing.faults import FaultPlan
-from wearbench.testing.recording import RecordedSession, record
+
+if TYPE_CHECKING:  # the plugin loads with every pytest run: wearbench itself only when a fixture is used
+    from wearbench.bench.schema import Bench
+    from wearbench.testing.emulated import EmulatedBench
+    from wearbench.testing.faults import FaultPlan
+    from wearbench.testing.recording import RecordedSession
 
 DEFAULT_BENCH = "ninebar-testbed"
 
@@ -78,18 +79,26 @@ def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
                                     f"{wall:.1f} s (speed-up {config.getoption('--wearbench-speedup'):g}x)")
 
 
+def _close_all() -> None:
+    emulated = sys.modules.get("wearbench.testing.emulated")
+    if emulated is not None:  # benches were started in this run
+        emulated.close_all()
+
+
 def pytest_sessionfinish(session: pytest.Session) -> None:
-    close_all()
+    _close_all()
 
 
 def pytest_keyboard_interrupt(excinfo) -> None:
-    close_all()
+    _close_all()
 
 
 @pytest.fixture(scope="session")
 def wearbench_bench(pytestconfig: pytest.Config) -> Bench:
     """The bench under test: ``--wearbench-bench BENCH.toml``, else the shipped ninebar test bed.
     Override this fixture in a conftest.py to test another bench."""
+    from wearbench.bench.load import load_bench, shipped_bench
+
     path = pytestconfig.getoption("--wearbench-bench")
     return load_bench(path if path else shipped_bench(DEFAULT_BENCH))
 
@@ -102,6 +111,8 @@ def wearbench_speedup(request: pytest.FixtureRequest) -> float:
 
 def _factory(request: pytest.FixtureRequest, bench: Bench, transport: str, hardware: str | None,
              speedup: float) -> Iterator[Callable[..., EmulatedBench]]:
+    from wearbench.testing.emulated import start_bench
+
     started: list[EmulatedBench] = []
 
     def start(*, state=None, seed: int | None = None, speed: float | None = None, faults: FaultPlan | None = None,
@@ -160,6 +171,9 @@ def record_session(tmp_path: Path) -> Callable[..., RecordedSession]:
     rad/s, default the bench handle's; other keywords go to ``SessionPlan``) and returns the
     :class:`~wearbench.testing.RecordedSession` (``.path``, ``.result``, ``.session`` read back).
     The file is finished whatever happens; a Ctrl-C finishes it and stops the run."""
+
+    from wearbench.acquisition.session import SessionPlan
+    from wearbench.testing.recording import record
 
     def run(bench: EmulatedBench, *, duration: float | None = None, cycles: float | None = None,
             speed: float | None = None, name: str = "session", **plan: Any) -> RecordedSession:
