@@ -21,7 +21,7 @@ _WHERE = {
 }
 _MODULE = {name: module for module, names in _WHERE.items() for name in names}
 
-__all__ = [*_WHERE["assertions"], *_WHERE["emulated"], *_WHERE["faults"], *_WHERE["recording"]]
+__all__ = [*_WHERE["assertions"], *_WHERE["emulated"], *_WHERE["faults"], *_WHERE["recording"]]  # noqa: PLE0604
 
 
 def __getattr__(name: str) -> Any:
