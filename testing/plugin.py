@@ -105,12 +105,13 @@ def wearbench_bench(pytestconfig: pytest.Config) -> Bench:
 
 @pytest.fixture
 def wearbench_speedup(request: pytest.FixtureRequest) -> float:
-    """The emulator speed-up in effect (``--wearbench-speedup``; 1 against real hardware)."""
+    """The emulated benches' speed-up (``--wearbench-speedup``, default 1; real hardware always runs
+    in real time)."""
     return float(request.config.getoption("--wearbench-speedup"))
 
 
-def _factory(request: pytest.FixtureRequest, bench: Bench, transport: str, hardware: str | None,
-             speedup: float) -> Iterator[Callable[..., EmulatedBench]]:
+def _factory(bench: Bench, transport: str, hardware: str | None, speedup: float
+             ) -> Iterator[Callable[..., EmulatedBench]]:
     from wearbench.testing.emulated import start_bench
 
     started: list[EmulatedBench] = []
@@ -141,7 +142,7 @@ def serial_bench(request, wearbench_bench, wearbench_speedup) -> Iterator[Callab
     :class:`~wearbench.testing.FaultPlan`; ``signal="harmonic"`` skips the model run. With
     ``--wearbench-port`` it is the real bench on that port (tests with faults skip). Closed
     (process ended, pty gone) at teardown, also when the test fails or is interrupted."""
-    yield from _factory(request, wearbench_bench, "serial", request.config.getoption("--wearbench-port"),
+    yield from _factory(wearbench_bench, "serial", request.config.getoption("--wearbench-port"),
                         wearbench_speedup)
 
 
@@ -150,7 +151,7 @@ def can_bench(request, wearbench_bench, wearbench_speedup) -> Iterator[Callable[
     """Factory like ``serial_bench`` for the bench speaking its raw CAN (FD) frames
     (``hardware/protocol/wearbench.dbc``) on a python-can ``virtual`` bus (``.channel``; in-process).
     With ``--wearbench-can INTERFACE:CHANNEL`` it is the real bench on that bus."""
-    yield from _factory(request, wearbench_bench, "can", request.config.getoption("--wearbench-can"),
+    yield from _factory(wearbench_bench, "can", request.config.getoption("--wearbench-can"),
                         wearbench_speedup)
 
 
@@ -159,7 +160,7 @@ def canopen_bench(request, wearbench_bench, wearbench_speedup) -> Iterator[Calla
     """Factory like ``serial_bench`` for the bench as a CANopen CiA 402 drive (profile velocity mode)
     with the accelerometer's raw frames on the same python-can ``virtual`` bus. With
     ``--wearbench-can INTERFACE:CHANNEL`` it is the real drive on that bus."""
-    yield from _factory(request, wearbench_bench, "canopen", request.config.getoption("--wearbench-can"),
+    yield from _factory(wearbench_bench, "canopen", request.config.getoption("--wearbench-can"),
                         wearbench_speedup)
 
 
