@@ -88,9 +88,10 @@ class Block:
 
 @dataclass(frozen=True)
 class BusFrame:
-    """One raw frame as a bus backend received it (python-can's ``Message`` fields that matter for
-    replaying it into the decoder); ``time`` is the bus timestamp (s), ``host_time`` the host
-    clock at arrival (s, Unix epoch)."""
+    """One raw frame as a bus backend received or sent it (python-can's ``Message`` fields that
+    matter for replaying it into the decoder); ``time`` is the bus timestamp (s; the host clock
+    for a frame the host sent), ``host_time`` the host clock at arrival or sending (s, Unix
+    epoch), ``transmitted`` true for a frame the host sent (commands, SDO requests, RPDOs, NMT)."""
 
     time: float
     arbitration_id: int
@@ -101,6 +102,7 @@ class BusFrame:
     is_error: bool = False
     is_remote: bool = False
     host_time: float = 0.0
+    transmitted: bool = False
 
 
 @dataclass

@@ -11,13 +11,17 @@ viewer (Foxglove, ``mcap cat``, protobufjs) decodes and plots the fields with no
   index pulse positions ``index_at``.
 - ``/motor/state`` (``wearbench.MotorState``), ``/motor/command`` (``wearbench.MotorCommand``; a speed
   or acceleration not given is NaN), ``/can/frames`` (``wearbench.CanFrame``, raw bus frames of the
-  CAN backends) and ``/events`` (the well-known ``foxglove.Log``: ``name`` is the event kind).
+  CAN backends in both directions: ``transmitted`` marks the host's own frames, ``host_time`` the
+  host clock at arrival or sending) and ``/events`` (the well-known ``foxglove.Log``: ``name`` is the event kind).
 
 Protobuf over JSON numeric arrays by measurement (``benchmarks/session_format.py``, 20 kHz, zstd):
 148 against 161 MB per hour and 2.6x less write CPU; besides, float32 samples stay exact and a NaN
 sample stays a valid message (JSON has no NaN). Layout 1 (JSON, base64 samples) is read by
-``layout1``. ``log_time`` is the host time of arrival (ns since the Unix epoch), ``publish_time`` the
-device time (ns on the device clock; equal to ``log_time`` for a message that has none).
+``layout1``. ``log_time`` is the host time of arrival (ns since the Unix epoch), made non-decreasing
+in file order (a message that reaches the writer after a later-stamped one gets that one's log time;
+its own arrival time stays in its ``host_time`` field), as ``mcap doctor --strict-message-order``
+demands; ``publish_time`` the device time (ns on the device clock; equal to ``log_time`` for a
+message that has none).
 
 The metadata records (:data:`METADATA`) are written and read back by name here too:
 :func:`session_records`, :func:`record_crank`, :func:`record_stream` and :func:`result_record` for
@@ -215,7 +219,8 @@ _MESSAGES: dict[str, list[tuple]] = {
                    ("index_count", _S64), ("enabled", _BOOL), ("fault", _STR)],
     "MotorCommand": [("host_time", _DOUBLE), ("command", _STR), ("speed", _DOUBLE), ("acceleration", _DOUBLE)],
     "CanFrame": [("time", _DOUBLE), ("id", _U32), ("data", _BYTES), ("extended", _BOOL), ("fd", _BOOL),
-                 ("bitrate_switch", _BOOL), ("error", _BOOL), ("remote", _BOOL)],
+                 ("bitrate_switch", _BOOL), ("error", _BOOL), ("remote", _BOOL), ("transmitted", _BOOL),
+                 ("host_time", _DOUBLE)],
 }
 _KEYS = {ACCELERATION: "AccelerationBlock", ENCODER: "EncoderBlock", "state": "MotorState",
          "command": "MotorCommand", "frames": "CanFrame"}
@@ -392,11 +397,12 @@ def decode_event(data: bytes, publish: int, log_time: int) -> Event:
 def encode_frame(f: BusFrame) -> bytes:
     return _CLASSES["frames"](time=f.time, id=f.arbitration_id, data=bytes(f.data), extended=f.is_extended,
                               fd=f.is_fd, bitrate_switch=f.bitrate_switch, error=f.is_error,
-                              remote=f.is_remote).SerializeToString()
+                              remote=f.is_remote, transmitted=f.transmitted,
+                              host_time=f.host_time).SerializeToString()
 
 
 def decode_frame(data: bytes, log_time: int = 0) -> BusFrame:
     m = _CLASSES["frames"].FromString(data)
     return BusFrame(time=m.time, arbitration_id=m.id, data=bytes(m.data), is_extended=m.extended, is_fd=m.fd,
                     bitrate_switch=m.bitrate_switch, is_error=m.error, is_remote=m.remote,
-                    host_time=log_time * 1e-9)
+                    host_time=m.host_time or log_time * 1e-9, transmitted=m.transmitted)

@@ -5,21 +5,37 @@ advertises one channel per session topic with the session's own schemas, and pub
 messages the :class:`~wearbench.acquisition.session_writer.SessionWriter` offers it, bytes as they
 went to the file. The recording never waits for a viewer: ``offer`` puts into a bounded queue and
 counts what does not fit, a thread of its own hands messages to the server, and the server keeps a
-bounded backlog per client and drops the oldest for a slow one. Imports foxglove and the layout.
+bounded backlog per client and drops the oldest for a slow one.
+
+Subprotocols: the SDK's server speaks ``foxglove.sdk.v1`` only, which Foxglove (the app, since the
+SDK's protocol) connects with; Lichtblick, Foxglove Studio before the SDK and clients built on
+``@foxglove/ws-protocol`` offer ``foxglove.websocket.v1``, the same protocol under its older name.
+So the address the user is given is a :class:`SubprotocolBridge` (``websockets``) that accepts
+either name and relays each viewer, frame for frame, to the SDK server on a loopback port of its
+own. The relay reads from the server only as fast as the viewer takes, so a slow viewer still
+meets the server's bounded backlog, never a queue of the relay's. Imports foxglove, websockets and
+the layout.
 """
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import queue
 import threading
 from typing import Self
 
 import foxglove
 from wearbench.acquisition.layout import ENCODING, SCHEMAS, TOPICS
+from websockets.asyncio.client import connect
+from websockets.asyncio.server import ServerConnection, serve
+from websockets.exceptions import ConnectionClosed
 
-__all__ = ["DEFAULT_ADDRESS", "LiveView", "parse_address"]
+__all__ = ["DEFAULT_ADDRESS", "SUBPROTOCOLS", "LiveView", "SubprotocolBridge", "parse_address"]
 
 DEFAULT_ADDRESS = "127.0.0.1:8765"
+SDK_SUBPROTOCOL = "foxglove.sdk.v1"
+SUBPROTOCOLS = (SDK_SUBPROTOCOL, "foxglove.websocket.v1")  # the same protocol under both names
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -37,18 +53,75 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, number
 
 
+class SubprotocolBridge:
+    """A WebSocket server on ``host:port`` accepting every name in :data:`SUBPROTOCOLS`, relaying
+    each client to the SDK server at ``ws://127.0.0.1:upstream`` (which speaks only
+    ``foxglove.sdk.v1``). Runs its own event loop thread; ``port`` 0 picks a free port."""
+
+    def __init__(self, host: str, port: int, upstream: int):
+        self._upstream = f"ws://127.0.0.1:{upstream}"
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="live-view-bridge", daemon=True)
+        self._thread.start()
+        try:
+            self._server = asyncio.run_coroutine_threadsafe(self._start(host, port), self._loop).result(10)
+        except BaseException:
+            self._stop_loop()
+            raise
+        self.port = self._server.sockets[0].getsockname()[1]
+
+    async def _start(self, host: str, port: int):
+        return await serve(self._relay, host, port, subprotocols=list(SUBPROTOCOLS),
+                           max_size=None, max_queue=16, compression=None)
+
+    async def _relay(self, viewer: ServerConnection) -> None:
+        try:
+            async with connect(self._upstream, subprotocols=[SDK_SUBPROTOCOL], max_size=None, max_queue=16,
+                               compression=None) as server:
+                async def pump(source, sink) -> None:
+                    with contextlib.suppress(ConnectionClosed):
+                        async for message in source:
+                            await sink.send(message)  # waits while the viewer's socket is full
+
+                tasks = [asyncio.ensure_future(pump(viewer, server)), asyncio.ensure_future(pump(server, viewer))]
+                await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+                for task in tasks:
+                    task.cancel()
+        except (OSError, ConnectionClosed):
+            pass  # the SDK server is gone (the view is closing) or the viewer left
+
+    def _stop_loop(self) -> None:
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(timeout=2.0)
+
+    def close(self) -> None:
+        async def shut() -> None:
+            self._server.close()
+            await self._server.wait_closed()
+
+        with contextlib.suppress(Exception):
+            asyncio.run_coroutine_threadsafe(shut(), self._loop).result(3)
+        self._stop_loop()
+
+
 class LiveView:
-    """A Foxglove WebSocket server for one session; ``port`` 0 picks a free port (see ``.port``)."""
+    """A Foxglove WebSocket server for one session; ``port`` 0 picks a free port (see ``.port``).
+    Viewers connect with either subprotocol of :data:`SUBPROTOCOLS` (module docstring)."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, name: str = "wearbench",
                  queue_size: int = 4096, backlog: int = 1024):
         self._context = foxglove.Context()
         try:
-            self.server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
+            self.server = foxglove.start_server(name=name, host="127.0.0.1", port=0, context=self._context,
                                                 message_backlog_size=backlog)
         except Exception as exc:  # noqa: BLE001 - the SDK raises its own error type for a port in use
+            raise OSError(f"live view: cannot start the Foxglove server: {exc}") from None
+        try:
+            self.bridge = SubprotocolBridge(host, port, self.server.port)
+        except OSError as exc:
+            self.server.stop()
             raise OSError(f"live view: cannot serve on {host}:{port}: {exc}") from None
-        self.host, self.port = host, self.server.port
+        self.host, self.port = host, self.bridge.port
         self._channels = {
             key: foxglove.Channel(TOPICS[key], schema=foxglove.Schema(name=name_, encoding=ENCODING, data=data),
                                   message_encoding=ENCODING, context=self._context)
@@ -92,6 +165,7 @@ class LiveView:
         self._thread.join(timeout=1.0)
         for channel in self._channels.values():
             channel.close()
+        self.bridge.close()
         self.server.stop()
 
     def __enter__(self) -> Self:

@@ -1,6 +1,8 @@
 """The session recorder: warm-up, steady speed, record, ramp down, and a valid MCAP whatever happens.
 
-Threads: one reader per acceleration source (``source.read`` -> bounded queue), one writer (queue
+Threads: one reader per acceleration source (``source.read`` -> bounded queue; blocks the device
+stamped before a completed session's end are kept, after any other stop every block until the
+stream stops, also those still waiting in the source when it halts), one writer (queue
 -> :class:`SessionWriter`, counts dropped and repeated block sequence numbers), and the calling
 thread, which commands the drive, polls its state and watches the stop conditions. Any thread
 that fails calls :meth:`Recorder.stop` with the reason; the first reason wins, is written as an
@@ -90,6 +92,7 @@ class Recorder:
         self._cpu: dict[str, float] = {}
         self._acc_rate = (0.0, time.monotonic(), 0)  # (rate, t, samples at t)
         self._device_now: float | None = None  # latest device time seen (drive state)
+        self._recorded_until = -math.inf  # device time: blocks stamped before it are kept after recording ends
         self._overflow: list = []
         self._lost = 0  # items the writer could not encode
         self._signal: str | None = None  # SIGINT/SIGTERM seen by the handler
@@ -132,20 +135,24 @@ class Recorder:
 
     def _reader(self, source) -> None:
         last_block = self.rig.clock.now()  # silence counts on the bench's clock (sim: device time)
+        drain_until: float | None = None  # monotonic deadline of the last reads after the halt
         try:
-            while not self._halt.is_set():
-                items = source.read(timeout=0.1)
-                now = self.rig.clock.now()
-                if any(isinstance(i, Block) for i in items):
+            while True:
+                if drain_until is None and self._halt.is_set():  # what the source still holds from
+                    drain_until = time.monotonic() + 2.0  # before the stop is recorded too (bounded)
+                items = source.read(timeout=0.1 if drain_until is None else 0.0)
+                now, got_blocks = self.rig.clock.now(), any(isinstance(i, Block) for i in items)
+                drained = drain_until is not None and (not got_blocks or time.monotonic() > drain_until)
+                if got_blocks:
                     last_block = now
-                elif now - last_block > self.plan.silence_timeout:
+                elif drain_until is None and now - last_block > self.plan.silence_timeout:
                     raise DeviceTimeout(f"{source.name}: no data for {now - last_block:.1f} s")
-                recording = self._recording.is_set()
+                recording, until = self._recording.is_set(), self._recorded_until
                 for item in items:
                     if isinstance(item, Block):
                         if item.host_time == 0.0:
                             item.host_time = time.time()
-                        if not recording:
+                        if not recording and not item.device_time < until:  # queued before the stop: kept
                             continue
                         if item.stream == ENCODER and item.index is not None and len(item.index):
                             high = np.asarray(item.index, dtype=bool)
@@ -165,6 +172,8 @@ class Recorder:
                     except queue.Full:
                         self.stop("the writer cannot keep up: the recording queue stayed full", "error")
                         return
+                if drained:
+                    return
         except Exception as exc:  # noqa: BLE001 - any failure ends the session cleanly
             self.stop(_failure_reason(exc, f"{source.name} reader"), "error")
         finally:
@@ -379,6 +388,11 @@ class Recorder:
             rig.clock.sleep(p.state_interval)
 
     def _shutdown(self, prog: Progress) -> None:
+        if self._recording.is_set():  # what the device sent up to the stop is still recorded; after
+            # a fault or an interruption also what comes until the stream stops (the data around a
+            # fault is what a lab looks at first; the drive may report it before the blocks arrive)
+            completed = self._reason == "completed" and self._device_now is not None
+            self._recorded_until = self._device_now if completed else math.inf
         self._recording.clear()
         prog.phase = "ramp-down"
         drive, clock = self.rig.drive, self.rig.clock

@@ -253,6 +253,7 @@ class SessionWriter:
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression,
                               index_types=IndexType.ALL, enable_crcs=True, enable_data_crcs=True)
         self._channels: dict[str, int] = {}
+        self._log_time = 0  # ns: the latest log time written (log times never go back in file order)
         self._flush_interval = flush_interval
         self._last_flush = time.monotonic()
         self.live = live
@@ -311,7 +312,7 @@ class SessionWriter:
 
     def _add(self, key: str, data: bytes, host_time: float, device_time: float | None,
              sequence: int = 0) -> None:
-        log_time = ns(host_time)
+        log_time = self._log_time = max(ns(host_time), self._log_time)  # log-time order (layout)
         channel = self._channels.get(key) or self._register(key)
         self._writer.add_message(channel, log_time=log_time, data=data,
                                  publish_time=publish_time(device_time, log_time),

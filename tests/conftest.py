@@ -2,8 +2,9 @@
 
 - Every test gets its own result cache (unless a module fixture chose one) and no user compute config.
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
-  (``tests/interop/mcap_readers.py``): @mcap/core's indexed reader under node and the Python mcap
-  readers with CRC validation. Unfinished files (killed or cut on purpose) are left to the tests that
+  (``wearbench.testing.mcap_readers``): @mcap/core's indexed reader under node and the Python mcap
+  readers with CRC validation, which also hold it to ``mcap doctor --strict-message-order`` (log
+  times never go back in file order). Unfinished files (killed or cut on purpose) are left to the tests that
   recover them; the recovered files are checked here too. The node packages go to one folder for the
   whole run (the user's cache, chosen before any test moves ``$WEARBENCH_CACHE``).
 """
@@ -11,13 +12,10 @@
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import pytest
-
-sys.path.insert(0, str(Path(__file__).parent / "interop"))
-import mcap_readers
+from wearbench.testing import mcap_readers
 
 NODE_FOLDER = mcap_readers.cache_dir()
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("bench", "model", "hardware", "acquisition", "validation", "cli")
+PACKAGES = ("bench", "model", "hardware", "acquisition", "validation", "cli", "testing")
 
 # layer -> the layers it may import (itself always allowed)
 ALLOWED: dict[str, set[str]] = {
@@ -26,6 +26,9 @@ ALLOWED: dict[str, set[str]] = {
     "validation": {"bench", "model", "acquisition"},
     "cli": {"bench", "model", "hardware", "hardware.protocol", "hardware.emulators", "acquisition",
             "validation"},
+    # the pytest plugin: emulators, recorder and identification together, like the command line
+    "testing": {"bench", "model", "hardware", "hardware.protocol", "hardware.emulators", "acquisition",
+                "validation"},
 }
 # the one sanctioned exception: the simulated device of the sim backend runs in-process
 EXCEPTIONS: dict[str, set[str]] = {"wearbench.acquisition.backends.sim": {"hardware.emulators"}}

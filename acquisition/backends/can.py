@@ -3,18 +3,19 @@
 Any python-can interface works (socketcan, pcan, kvaser, slcan, virtual); frames are those of
 ``hardware/protocol/wearbench.dbc``. A ``can.Notifier`` thread feeds :class:`BenchFrames`, which
 routes replies to the waiting command and blocks and events to the source (python-can's
-listener pattern); a second listener, :class:`FrameLog`, keeps every frame received, which the
-source hands to the recorder for the session's ``/can/frames`` channel, and :func:`replay` feeds
-recorded frames back into a fresh decoder. The ``canopen`` backend reuses :class:`BenchFrames`,
+listener pattern); a second listener, :class:`FrameLog`, keeps every frame received and every
+frame the host sends, in the order they happened, which the source hands to the recorder for the
+session's ``/can/frames`` channel, and :func:`replay` feeds the received ones back into a fresh decoder. The ``canopen`` backend reuses :class:`BenchFrames`,
 :class:`FrameLog` and :class:`CanSource` for the acceleration stream. Options (``[hardware.can]``): ``interface`` (default "virtual"),
 ``channel`` (default "wearbench"), ``bitrate``, ``data_bitrate``, ``fd`` (default true),
-``reply_timeout`` (s, default 1.0), ``log_frames`` (default true: every frame received goes to the
+``reply_timeout`` (s, default 1.0), ``log_frames`` (default true: every frame received or sent goes to the
 session's ``/can/frames``, about 130 MB per hour at 10 kHz). Imports python-can and the CAN codec only.
 """
 
 from __future__ import annotations
 
 import collections
+import heapq
 import math
 import queue
 import threading
@@ -163,21 +164,41 @@ class BenchFrames(can.Listener):
 
 
 class FrameLog(can.Listener):
-    """Every frame received, as :class:`BusFrame` records, until :meth:`drain` hands them out."""
+    """Every frame on the bus in both directions, as :class:`BusFrame` records in the order they
+    happened, until :meth:`drain` hands them out. It listens for received frames and, once
+    attached to the bus (:meth:`attach`), records every frame the host sends (commands, SDO requests,
+    RPDOs, NMT) after the bus accepted it."""
 
     def __init__(self) -> None:
         self._frames: collections.deque[BusFrame] = collections.deque()
+        self._lock = threading.Lock()  # the notifier thread and the sending threads append
+
+    def _append(self, msg: can.Message, transmitted: bool) -> None:
+        with self._lock:  # host time taken under the lock: the log is in host-time order
+            now = time.time()
+            self._frames.append(BusFrame(
+                time=now if transmitted or not msg.timestamp else msg.timestamp,
+                arbitration_id=msg.arbitration_id, data=bytes(msg.data), is_extended=msg.is_extended_id,
+                is_fd=msg.is_fd, bitrate_switch=msg.bitrate_switch, is_error=msg.is_error_frame,
+                is_remote=msg.is_remote_frame, host_time=now, transmitted=transmitted))
 
     def on_message_received(self, msg: can.Message) -> None:
-        self._frames.append(BusFrame(
-            time=msg.timestamp, arbitration_id=msg.arbitration_id, data=bytes(msg.data),
-            is_extended=msg.is_extended_id, is_fd=msg.is_fd, bitrate_switch=msg.bitrate_switch,
-            is_error=msg.is_error_frame, is_remote=msg.is_remote_frame, host_time=time.time()))
+        self._append(msg, False)
+
+    def attach(self, bus: can.BusABC) -> None:
+        """Log every frame sent through ``bus.send`` from now on (python-can has no send listener)."""
+        send = bus.send
+
+        def logged_send(msg: can.Message, timeout: float | None = None) -> None:
+            send(msg, timeout)
+            self._append(msg, True)
+
+        bus.send = logged_send  # type: ignore[method-assign]
 
     def drain(self) -> list[BusFrame]:
-        out = []
-        while self._frames:
-            out.append(self._frames.popleft())
+        with self._lock:
+            out = list(self._frames)
+            self._frames.clear()
         return out
 
 
@@ -199,6 +220,8 @@ def replay(frames: Iterable[BusFrame], bench: Bench, calibration: Mapping[str, s
     decoder.sample_rate = float(calibration["acceleration.sample_rate"])
     decoder.encoder_rate = float(calibration["encoder.sample_rate"])
     for f in frames:
+        if f.transmitted:
+            continue  # the host's own frames: the device never sent them
         decoder.on_message_received(can.Message(
             timestamp=f.time, arbitration_id=f.arbitration_id, data=f.data, is_extended_id=f.is_extended,
             is_fd=f.is_fd, bitrate_switch=f.bitrate_switch, is_error_frame=f.is_error,
@@ -275,8 +298,8 @@ class CanSource(AccelerationSource):
                 item = self.frames.inbox.get_nowait()
         except queue.Empty:
             pass
-        if self.log is not None:
-            out += self.log.drain()
+        if self.log is not None:  # both lists are in host-time order: merge them
+            out = list(heapq.merge(out, self.log.drain(), key=lambda item: item.host_time))
         return out
 
 
@@ -360,6 +383,8 @@ def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     bus = open_bus(options)
     frames, log = BenchFrames.for_bench(bench), frame_log(options)
     notifier = can.Notifier(bus, [frames, *([log] if log else [])], timeout=0.1)
+    if log is not None:
+        log.attach(bus)
     closer = _Bus(bus, notifier)
     drive, source = CanDrive(bus, frames, reply_timeout), CanSource(bus, frames, bench, reply_timeout, log)
     drive.close = source.close = closer.close  # type: ignore[method-assign]

@@ -183,6 +183,8 @@ def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     network = canopen.Network(bus)
     log = frame_log(options)
     network.listeners += [frames, *([log] if log else [])]
+    if log is not None:
+        log.attach(bus)  # SDO requests, RPDOs and NMT commands go to /can/frames too
     network.NOTIFIER_CYCLE = 0.1
     network.connect()
     closed = {"done": False}

@@ -59,7 +59,7 @@ class SerialLink:
         self._status_count = 0
         self._info: m.Info | None = None
         self.inbox: collections.deque = collections.deque()  # AccelData, EncoderData, Event
-        self._errors = (0, 0)  # parser header/crc errors already reported
+        self._errors = (0, 0, 0)  # parser header/CRC errors and bytes skipped already reported
         self.closed = False
         self.dead: str | None = None
 
@@ -83,11 +83,12 @@ class SerialLink:
                 for frame in frames:
                     self._route(frame)
                 s = self.parser.stats
-                if (s.header_errors, s.crc_errors) != self._errors:
+                if (s.header_errors, s.crc_errors, s.bytes_skipped) != self._errors:  # line noise counts too
                     dh, dc = s.header_errors - self._errors[0], s.crc_errors - self._errors[1]
-                    self._errors = (s.header_errors, s.crc_errors)
-                    self.inbox.append(Event("malformed", f"serial: {dh} bad header(s), {dc} CRC error(s); "
-                                            f"{s.bytes_skipped} bytes skipped so far"))
+                    ds = s.bytes_skipped - self._errors[2]
+                    self._errors = (s.header_errors, s.crc_errors, s.bytes_skipped)
+                    self.inbox.append(Event("malformed", f"serial: {dh} bad header(s), {dc} CRC error(s), "
+                                            f"{ds} bytes skipped; {s.bytes_skipped} bytes skipped so far"))
                 self._cond.notify_all()
         finally:
             self._rx.release()

@@ -6,8 +6,10 @@ profile velocity mode: a ``canopen.LocalNode`` built from ``cia402_drive.eds`` w
 machine Switch-on-disabled -> Ready-to-switch-on -> Switched-on -> Operation-enabled (controlword
 0x6040, statusword 0x6041), target velocity 0x60FF and TPDOs of statusword, velocity and position.
 Injected faults: dropped blocks (device), corrupted frames (an error frame replaces the frame),
-bus-off (an error frame, then silence for ``bus_off_duration``, then an Event), disconnect (silence
-from then on), stalled motor (latched fault, EMCY 0x7121), late replies. ``sent`` holds every block
+bus-off (an error frame, then silence for ``bus_off_duration``, then an Event), disconnect and hung
+firmware (``freeze_at``; both silence from then on), stalled motor (latched fault, EMCY 0x7121),
+late replies, garbage (``garbage_bytes`` / 8 classic frames of random bytes on the AccelBlock
+identifier, which the host must refuse as malformed) and a lost index pulse (by the device). ``sent`` holds every block
 as the host must decode it. Only the ``virtual`` interface is allowed.
 """
 
@@ -83,6 +85,7 @@ class CanEmulator:
         self._off_until: float | None = None
         self._bus_off_done = False
         self._silent = False
+        self._garbage_sent = False
         self._rng = np.random.default_rng([config.seed, 4])
         self._last_controlword = 0
         self.bus: can.BusABC | None = None
@@ -132,7 +135,7 @@ class CanEmulator:
     # ---- sending ------------------------------------------------------------------------------
 
     def _off(self) -> bool:
-        return self._silent or (self._off_until is not None and time.monotonic() < self._off_until)
+        return self._silent or self.device.frozen or (self._off_until is not None and time.monotonic() < self._off_until)
 
     def _send(self, msg: can.Message, corruptible: bool = False) -> bool:
         if self._off() or self.bus is None:
@@ -212,6 +215,12 @@ class CanEmulator:
             return
         if f.disconnect_after is not None and st >= f.disconnect_after:
             self._silent = True
+        if not self._garbage_sent and self.device.fault_due(f.garbage_at) and not self._off():
+            self._garbage_sent = True
+            frame_id = cf.load_dbc().get_message_by_name("AccelBlock").frame_id
+            noise = self._rng.integers(0, 256, max(8, f.garbage_bytes), dtype=np.uint8).tobytes()
+            for i in range(0, len(noise) - 7, 8):
+                self.bus.send(can.Message(arbitration_id=frame_id, data=noise[i:i + 8], is_extended_id=False))
         if f.bus_off_at is not None and st >= f.bus_off_at and not self._bus_off_done:
             self._bus_off_done = True
             self.bus.send(can.Message(arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True, data=bytes(8)))

@@ -44,6 +44,10 @@ Example::
     bus_off_at = "2 s"          # CAN controller goes bus-off ...
     bus_off_duration = "0.2 s"  # ... for this long
     reply_delay = "0.3 s"       # every command reply is late by this much
+    garbage_at = "2 s"          # a burst of random bytes on the line (CAN: malformed frames) ...
+    garbage_bytes = 256         # ... this many bytes
+    freeze_at = "2 s"           # the device firmware hangs: no data, no replies, the link stays open
+    index_lost_at = "2 s"       # the encoder's index pulse stops (broken index line); counts go on
 """
 
 from __future__ import annotations
@@ -130,6 +134,10 @@ class Faults:
     bus_off_at: float | None = None
     bus_off_duration: float = 0.2
     reply_delay: float = 0.0  # s
+    garbage_at: float | None = None
+    garbage_bytes: int = 256
+    freeze_at: float | None = None
+    index_lost_at: float | None = None
 
 
 @dataclass(frozen=True)
@@ -156,8 +164,8 @@ class EmulatorConfig:
         a, m, e, t, f = self.accelerometer, self.motor, self.encoder, self.truth, self.faults
         faults: dict[str, Any] = {"drop_rate": f.drop_rate, "corrupt_rate": f.corrupt_rate,
                                   "bus_off_duration": f"{f.bus_off_duration!r} s",
-                                  "reply_delay": f"{f.reply_delay!r} s"}
-        for name in ("disconnect_after", "stall_at", "bus_off_at"):
+                                  "reply_delay": f"{f.reply_delay!r} s", "garbage_bytes": f.garbage_bytes}
+        for name in ("disconnect_after", "stall_at", "bus_off_at", "garbage_at", "freeze_at", "index_lost_at"):
             if getattr(f, name) is not None:
                 faults[name] = f"{getattr(f, name)!r} s"
         return {
@@ -331,7 +339,8 @@ def _named_state(r: _Reader, d: dict, k: str, bench: Bench | None) -> WearState:
 def _faults(r: _Reader, d: dict) -> Faults:
     k = "emulator.faults"
     r.keys(d, k, set(), {"drop_rate", "corrupt_rate", "disconnect_after", "stall_at", "bus_off_at",
-                         "bus_off_duration", "reply_delay"})
+                         "bus_off_duration", "reply_delay", "garbage_at", "garbage_bytes", "freeze_at",
+                         "index_lost_at"})
 
     def when(name: str) -> float | None:
         return r.quantity(d, k, name, "time", nonnegative=True) if name in d else None
@@ -344,6 +353,10 @@ def _faults(r: _Reader, d: dict) -> Faults:
         bus_off_at=when("bus_off_at"),
         bus_off_duration=r.quantity(d, k, "bus_off_duration", "time", positive=True, default=0.2),
         reply_delay=r.quantity(d, k, "reply_delay", "time", nonnegative=True, default=0.0),
+        garbage_at=when("garbage_at"),
+        garbage_bytes=int(r.number(d, k, "garbage_bytes", low=1, high=1 << 20, default=256, integer=True)),
+        freeze_at=when("freeze_at"),
+        index_lost_at=when("index_lost_at"),
     )
 
 

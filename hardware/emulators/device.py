@@ -19,6 +19,9 @@ the sensor chain's internal rate, then the chain of :mod:`wearbench.hardware.emu
 (mounting resonance, anti-alias filter, sampling, bias, noise, clipping, ADC). The sample clock runs
 at ``rate (1 + drift)`` while blocks are stamped at the nominal rate. Clipped samples are counted
 (:attr:`BenchDevice.clipped_samples`) and reported as INFO events, at most one a second.
+Faults of the device itself: dropped blocks, a stalled motor, a hung firmware (``freeze_at``: no
+blocks and no events from then on; the transports stop replying too) and a lost index pulse
+(``index_lost_at``: the encoder blocks carry no index pulse from then on).
 Imports the bench, the protocol records and codes, config, signal and sensor, lazily the model's
 realisation; not the transports.
 """
@@ -89,13 +92,15 @@ class ManualClock:
 
 
 class MonotonicClock:
-    """Seconds since construction, from ``time.monotonic``."""
+    """Seconds since construction, from ``time.monotonic``, ``speedup`` times faster than real time."""
 
-    def __init__(self) -> None:
-        self._t0 = time.monotonic()
+    def __init__(self, speedup: float = 1.0) -> None:
+        if not (math.isfinite(speedup) and speedup > 0):
+            raise ValueError(f"speedup = {speedup!r}: expected a finite number > 0")
+        self._t0, self.speedup = time.monotonic(), float(speedup)
 
     def __call__(self) -> float:
-        return time.monotonic() - self._t0
+        return (time.monotonic() - self._t0) * self.speedup
 
 
 @dataclass
@@ -324,9 +329,22 @@ class BenchDevice:
         """Seconds since the first START_STREAM (fault times count from there), or None."""
         return None if self._first_stream is None else self.clock() - self._first_stream
 
+    def fault_due(self, after: float | None) -> bool:
+        """Whether a fault set ``after`` s into streaming (None: never) is due now."""
+        st = self.stream_time()
+        return after is not None and st is not None and st >= after
+
+    @property
+    def frozen(self) -> bool:
+        """The firmware hangs (``freeze_at``): no blocks, no events, no replies from now on."""
+        return self.fault_due(self.config.faults.freeze_at)
+
     def read(self) -> list[AccelBlock | EncoderBlock]:
-        """Every block completed up to the clock's now, in time order (dropped blocks leave gaps)."""
+        """Every block completed up to the clock's now, in time order (dropped blocks leave gaps);
+        nothing once the device is :attr:`frozen`."""
         now = self._catch_up()
+        if self.frozen:
+            return []
         out: list[AccelBlock | EncoderBlock] = []
         if self._accel is not None:
             out += self._read_accel(now)
@@ -337,8 +355,10 @@ class BenchDevice:
         return out
 
     def events(self) -> list[DeviceEvent]:
-        """Faults and events since the last call."""
+        """Faults and events since the last call (none once the device is :attr:`frozen`)."""
         self._catch_up()
+        if self.frozen:
+            return []
         ev, self._events = self._events, []
         return ev
 
@@ -528,6 +548,9 @@ class BenchDevice:
         counts, idx_k = self._encoder_state(theta)
         prev = np.concatenate(([self._enc_last_k], idx_k[:-1]))
         index = (idx_k != prev) & self.config.encoder.index
+        lost = self.config.faults.index_lost_at
+        if lost is not None:  # a broken index line: the pulse never reaches the counter again
+            index &= t < self._first_stream + lost
         self._enc_last_k = int(idx_k[-1])
         out = []
         for b in range(due):

@@ -5,7 +5,9 @@ emulate BENCH.toml --serial`` runs it and prints the port path). :func:`start_se
 it in its own process from Python (multiprocessing, no command line) and returns (process, port path). Injected faults: late replies
 (``reply_delay``), corrupted frames (``corrupt_rate``: one byte of the frame flipped), dropped blocks
 (by the device), a disconnect ``disconnect_after`` s into streaming (the pty closes, the process
-exits with code 3), a stalled motor (EVENT frame). ``sent_log`` receives every byte written, so a
+exits with code 3), a stalled motor (EVENT frame), a burst of ``garbage_bytes`` random bytes at
+``garbage_at``, a hung firmware at ``freeze_at`` (silence; the pty stays open) and a lost index
+pulse (by the device). ``speedup`` runs the device clock that many times faster than real time. ``sent_log`` receives every byte written, so a
 test can parse exactly what was sent. Imports the device, config and the protocol; POSIX only.
 """
 
@@ -30,7 +32,13 @@ from wearbench.bench.content import bench_key
 from wearbench.bench.load import load_bench
 from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import EmulatorConfig
-from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, DeviceError, EncoderBlock
+from wearbench.hardware.emulators.device import (
+    AccelBlock,
+    BenchDevice,
+    DeviceError,
+    EncoderBlock,
+    MonotonicClock,
+)
 from wearbench.hardware.protocol import messages as m
 from wearbench.hardware.protocol.frames import FrameParser
 
@@ -51,6 +59,7 @@ class SerialEmulator:
         cfg = device.config
         self._rng = np.random.default_rng([cfg.seed, 3])
         self.disconnected = False
+        self._garbage_sent = False
 
     def _frame(self, msg: m.Message, corruptible: bool = True) -> bytes:
         data = msg.frame(self._seq)
@@ -67,6 +76,8 @@ class SerialEmulator:
         """Handle host bytes; returns the replies due now (late ones are queued)."""
         out = bytearray()
         now = time.monotonic()
+        if self.device.frozen:  # a hung firmware reads nothing and answers nothing
+            return b""
         for frame in self.parser.feed(data):
             replies = b"".join(self._frame(r) for r in self._handle(frame))
             delay = self.device.config.faults.reply_delay
@@ -139,12 +150,18 @@ class SerialEmulator:
         """Stream blocks, events and late replies that are due now."""
         out = bytearray()
         now = time.monotonic()
+        if self.device.frozen:
+            return b""
         while self._delayed and self._delayed[0][0] <= now:
             out += self._delayed.pop(0)[1]
         for block in self.device.read():
             out += self._frame(self.block_message(block))
         for ev in self.device.events():
             out += self._frame(m.Event(ev.time, ev.code, ev.message))
+        f = self.device.config.faults
+        if not self._garbage_sent and self.device.fault_due(f.garbage_at):
+            self._garbage_sent = True  # line noise between two frames
+            out += self._rng.integers(0, 256, f.garbage_bytes, dtype=np.uint8).tobytes()
         after = self.device.config.faults.disconnect_after
         st = self.device.stream_time()
         if after is not None and st is not None and st >= after:
@@ -155,9 +172,9 @@ class SerialEmulator:
 
 
 def serve(bench: Bench, config: EmulatorConfig | None = None, *, announce=print,
-          sent_log: BinaryIO | None = None, period: float = 0.002) -> int:
+          sent_log: BinaryIO | None = None, period: float = 0.002, speedup: float = 1.0) -> int:
     """Run the serial emulator on a new pty until SIGTERM/SIGINT (returns 0) or an injected disconnect (3)."""
-    device = BenchDevice(bench, config)
+    device = BenchDevice(bench, config, MonotonicClock(speedup))
     device.prepare(bench.speed)
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -192,6 +209,7 @@ def serve(bench: Bench, config: EmulatorConfig | None = None, *, announce=print,
                     n = 0
                 if sent_log is not None and n:
                     sent_log.write(out[:n])
+                    sent_log.flush()  # readable while the emulator runs (a test compares it mid-session)
                 del out[:n]
             if engine.disconnected and not out:
                 time.sleep(0.2)  # let the host read the last frames before the port vanishes
@@ -237,7 +255,7 @@ class EmulatorProcess:
         return self._process.exitcode
 
 
-def _serve_from_file(bench_path: str, table: dict | None, sent_log: str | None, conn) -> None:
+def _serve_from_file(bench_path: str, table: dict | None, sent_log: str | None, conn, speedup: float) -> None:
     """Child process: read the bench file, build the device, serve; the port path goes to ``conn``."""
     bench = load_bench(bench_path)
     config = (EmulatorConfig.from_table(table, bench=bench, source="start_serial_emulator")
@@ -248,13 +266,13 @@ def _serve_from_file(bench_path: str, table: dict | None, sent_log: str | None, 
         conn.close()
 
     if sent_log is None:
-        sys.exit(serve(bench, config, announce=announce))
+        sys.exit(serve(bench, config, announce=announce, speedup=speedup))
     with open(sent_log, "ab") as log:
-        sys.exit(serve(bench, config, announce=announce, sent_log=log))
+        sys.exit(serve(bench, config, announce=announce, sent_log=log, speedup=speedup))
 
 
 def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None = None, *,
-                          sent_log: str | Path | None = None, timeout: float = 120.0
+                          sent_log: str | Path | None = None, timeout: float = 120.0, speedup: float = 1.0
                           ) -> tuple[EmulatorProcess, str]:
     """Run :func:`serve` for ``bench`` in its own process; returns (process, port path).
 
@@ -279,11 +297,15 @@ def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None 
     table = None
     if config is not None:  # as a JSON file would carry it
         table = json.loads(json.dumps(config.to_table() if isinstance(config, EmulatorConfig) else dict(config)))
-    # spawn, not fork: the caller may hold threads (a recorder per session, a compute client)
-    context = multiprocessing.get_context("spawn")
+    # not fork: the caller may hold threads (a recorder per session, a compute client). A fork
+    # server (one clean process, this module imported once) forks each emulator in milliseconds
+    # where spawn imports numpy and scipy again for every one (seconds).
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload([__name__])
     receive, send = context.Pipe(duplex=False)
     process = context.Process(target=_serve_from_file, name=f"wearbench-emulator-{bench.name}", daemon=True,
-                              args=(str(bench_path), table, None if sent_log is None else str(sent_log), send))
+                              args=(str(bench_path), table, None if sent_log is None else str(sent_log), send,
+                                    float(speedup)))
     process.start()
     send.close()
     port = ""

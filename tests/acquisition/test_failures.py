@@ -23,15 +23,14 @@ from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import read_session, scan_mcap
 from wearbench.acquisition.session_writer import SessionWriter
+from wearbench.testing import FaultPlan
 
 from .conftest import (
     FAST,
     HARMONIC,
     assert_same_blocks,
     recorded_blocks,
-    sent_from_can,
     sent_from_device,
-    sent_from_serial_log,
 )
 
 
@@ -126,46 +125,27 @@ def test_sigkill_leaves_a_recoverable_file(bench, tmp_path):
 # ---- devices that fail ------------------------------------------------------------------------
 
 
-def test_serial_disconnect_mid_stream(bench, tmp_path):
-    from wearbench.hardware.emulators.serial_server import start_serial_emulator
-
-    log = tmp_path / "sent.bin"
-    proc, port = start_serial_emulator(bench, {**HARMONIC, "faults": {"disconnect_after": "1.5 s"}},
-                                       sent_log=log)
-    out = tmp_path / "disconnect.mcap"
-    try:
-        result = _run(open_rig(bench, "serial", {"port": port}), bench,
-                      SessionPlan(speed=FAST, cycles=100), out)
-    finally:
-        proc.terminate()
-        proc.wait(timeout=10)
-    assert "device disconnected" in result.reason
-    _assert_stopped(out, "device disconnected")
-    assert_same_blocks(out, sent_from_serial_log(log), min_blocks=3)
+def test_serial_disconnect_mid_stream(serial_bench, record_session):
+    emulator = serial_bench(table=HARMONIC, faults=FaultPlan(drop_link_at=1.5))
+    rec = record_session(emulator, speed=FAST, cycles=100)
+    assert "device disconnected" in rec.reason
+    _assert_stopped(rec.path, "device disconnected")
+    assert_same_blocks(rec.path, emulator.sent(), min_blocks=3)
     # the device's last word before the link went down was read and recorded too
-    assert read_session(out).events.message.str.contains("link going down").any()
+    assert rec.session.events.message.str.contains("link going down").any()
 
 
-def test_serial_malformed_frames_are_counted(bench, tmp_path):
-    from wearbench.hardware.emulators.serial_server import start_serial_emulator
-
-    log = tmp_path / "sent.bin"
-    proc, port = start_serial_emulator(bench, {**HARMONIC, "faults": {"corrupt_rate": 0.03}}, sent_log=log)
-    out = tmp_path / "corrupt.mcap"
-    try:
-        result = _run(open_rig(bench, "serial", {"port": port}), bench, SessionPlan(speed=FAST, cycles=20), out)
-    finally:
-        proc.terminate()
-        proc.wait(timeout=10)
-    s = read_session(out)
+def test_serial_malformed_frames_are_counted(serial_bench, record_session):
+    emulator = serial_bench(table=HARMONIC, faults=FaultPlan(corrupt_rate=0.03))
+    rec = record_session(emulator, speed=FAST, cycles=20)
+    s, result = rec.session, rec.result
     assert s.finished
     assert result.completed, result.reason  # lost replies were asked for again
     assert result.malformed > 0 and (s.events.kind == "malformed").any()
     # corrupted blocks are missing, never garbage: what was recorded is what was sent intact
-    sent = sent_from_serial_log(log)
-    assert_same_blocks(out, sent, min_blocks=3)
-    rec = recorded_blocks(out)[ACCELERATION]
-    assert result.dropped_blocks[ACCELERATION] == max(rec) - min(rec) + 1 - len(rec)
+    assert_same_blocks(rec.path, emulator.sent(), min_blocks=3)
+    rec_blocks = recorded_blocks(rec.path)[ACCELERATION]
+    assert result.dropped_blocks[ACCELERATION] == max(rec_blocks) - min(rec_blocks) + 1 - len(rec_blocks)
     assert s.quality[ACCELERATION]["dropped"] == result.dropped_blocks[ACCELERATION]
 
 
@@ -308,21 +288,15 @@ def test_repeated_blocks_are_counted(bench, tmp_path):
 # ---- CAN faults -------------------------------------------------------------------------------
 
 
-def test_can_bus_off_is_recorded_and_counted(bench, tmp_path):
-    from wearbench.hardware.emulators.can_server import CanEmulator
-
-    channel = f"wearbench-test-busoff-{tmp_path.name}"
-    out = tmp_path / "busoff.mcap"
-    config = {**HARMONIC, "faults": {"bus_off_at": "1.2 s", "bus_off_duration": "0.2 s"}}
-    with CanEmulator(bench, channel=channel, config=config) as emulator:
-        rig = open_rig(bench, "can", {"channel": channel})
-        result = _run(rig, bench, SessionPlan(speed=FAST, cycles=20), out)
+def test_can_bus_off_is_recorded_and_counted(can_bench, record_session):
+    emulator = can_bench(table=HARMONIC, faults=FaultPlan(bus_off_at=1.2))
+    rec = record_session(emulator, speed=FAST, cycles=20)
+    result, s = rec.result, rec.session
     assert result.completed, result.reason
-    s = read_session(out)
     assert (s.events.kind == "bus_off").sum() >= 2  # the error frame and the bench's Event after it
-    assert_same_blocks(out, sent_from_can(emulator))
-    rec = recorded_blocks(out)[ACCELERATION]
-    missing = max(rec) - min(rec) + 1 - len(rec)
+    assert_same_blocks(rec.path, emulator.sent())
+    got = recorded_blocks(rec.path)[ACCELERATION]
+    missing = max(got) - min(got) + 1 - len(got)
     assert missing > 0 and result.dropped_blocks[ACCELERATION] == missing
 
 

@@ -5,19 +5,24 @@ never reads and one that disconnects cost the recording nothing."""
 from __future__ import annotations
 
 import asyncio
+import base64
 import json
 import struct
+import subprocess
 import threading
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 from wearbench.acquisition.backends import open_rig
-from wearbench.acquisition.drivers import ACCELERATION
-from wearbench.acquisition.layout import decode_block, decode_event
-from wearbench.acquisition.live import LiveView, parse_address
+from wearbench.acquisition.drivers import ACCELERATION, Event
+from wearbench.acquisition.layout import TOPICS, decode_block, decode_event, encode_event
+from wearbench.acquisition.live import SUBPROTOCOLS, LiveView, parse_address
 from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_writer import SessionWriter
+from wearbench.testing import mcap_readers
 
 from .conftest import FAST, HARMONIC, assert_same_blocks, recorded_blocks, sent_from_device
 
@@ -103,7 +108,6 @@ def test_parse_address():
 
 
 def test_record_cli_live(tmp_path):
-    import subprocess
     import sys
 
     config = tmp_path / "emulator.json"
@@ -117,3 +121,83 @@ def test_record_cli_live(tmp_path):
     assert r.stdout.startswith("live view: ws://127.0.0.1:") and "completed" in r.stdout
     published = int(r.stdout.split("live view: ")[2].split()[0])
     assert published > 30  # every message went to the (viewerless) server too
+
+
+# ---- the subprotocols viewers offer -----------------------------------------------------------
+
+WS_PACKAGES = ("@foxglove/ws-protocol@0.8.0", "ws@8.18.3")
+WS_SCRIPT = Path(__file__).parents[1] / "interop" / "ws_client.mjs"
+WS_FOLDER = mcap_readers.cache_dir().with_name("node-ws")  # the user's cache, chosen at import (as conftest)
+
+
+def _publishing(live: LiveView, stop: threading.Event) -> list[bytes]:
+    """Offer numbered /events messages every 10 ms until ``stop``; returns what was offered."""
+    offered: list[bytes] = []
+
+    def run():
+        i = 0
+        while not stop.is_set():
+            data = encode_event(Event("phase", f"message {i}", device_time=i * 0.01))
+            offered.append(data)
+            live.offer("events", data, time.time_ns())
+            i += 1
+            time.sleep(0.01)
+
+    threading.Thread(target=run, daemon=True).start()
+    return offered
+
+
+@pytest.mark.parametrize("subprotocol", SUBPROTOCOLS)
+def test_a_websockets_client_connects_with_either_subprotocol(subprotocol):
+    """Foxglove (the SDK's foxglove.sdk.v1) and Lichtblick / Foxglove Studio before the SDK
+    (foxglove.websocket.v1) both get the session; a name the view does not speak is refused."""
+
+    async def watch(url: str) -> tuple[str, list[bytes]]:
+        async with websockets.connect(url, subprotocols=[subprotocol]) as ws:
+            subs = await _subscribe(ws, ["/events"])
+            got = []
+            while len(got) < 5:
+                data = await asyncio.wait_for(ws.recv(), 5)
+                if isinstance(data, bytes) and data[0] == 1:
+                    assert struct.unpack_from("<I", data, 1)[0] in subs
+                    got.append(data[13:])
+            return ws.subprotocol, got
+
+    stop = threading.Event()
+    with LiveView(port=0) as live:
+        offered = _publishing(live, stop)
+        try:
+            agreed, got = asyncio.run(watch(live.url))
+            with pytest.raises(websockets.InvalidStatus, match="400"):
+                asyncio.run(websockets.connect(live.url, subprotocols=["foxglove.websocket.v2"]).__aenter__())
+        finally:
+            stop.set()
+    assert agreed == subprotocol
+    assert all(g in offered for g in got)
+    assert [decode_event(g, 0, 0).message for g in got] == sorted({decode_event(g, 0, 0).message for g in got},
+                                                                 key=lambda m: int(m.split()[1]))
+
+
+@pytest.mark.parametrize("subprotocol", SUBPROTOCOLS)
+def test_the_foxglove_ws_protocol_client_connects(subprotocol):
+    """@foxglove/ws-protocol's FoxgloveClient (npm), the viewers' own client library, offering each
+    subprotocol: it agrees on it, sees the session's topics and gets the messages as published."""
+    try:
+        folder = mcap_readers.install(WS_FOLDER, WS_PACKAGES, (WS_SCRIPT,))
+    except mcap_readers.NodeMissing as exc:
+        pytest.skip(str(exc))
+    stop = threading.Event()
+    with LiveView(port=0) as live:
+        offered = _publishing(live, stop)
+        try:
+            r = subprocess.run(["node", str(folder / WS_SCRIPT.name), live.url, subprotocol, "/events", "5"],
+                               cwd=folder, capture_output=True, text=True, timeout=60, check=False)
+        finally:
+            stop.set()
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert "error" not in out, out
+    assert out["subprotocol"] == subprotocol and out["server"] == "wearbench"
+    assert {"/acceleration", "/encoder", "/events"} <= set(out["topics"]) <= set(TOPICS.values())
+    got = [base64.b64decode(m) for m in out["messages"]]
+    assert len(got) == 5 and all(g in offered for g in got)

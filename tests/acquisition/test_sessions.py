@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+from mcap.reader import NonSeekingReader
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block
 from wearbench.acquisition.recorder import Recorder
@@ -105,6 +106,19 @@ def test_can_session_equals_emulator(bench, tmp_path, backend):
     assert result.completed, result.reason
     assert_same_blocks(out, sent_from_can(emulator))
     _check_session(out, bench)
+    # /can/frames holds the bus in both directions, in log-time order (mcap doctor --strict-message-order)
+    logged = frames(scan_mcap(out))
+    sent_ids = {f.arbitration_id for f in logged if f.transmitted}
+    host = {"can": {0x020, 0x030},  # MotorCommand, StreamControl
+            "canopen": {0x000, 0x605, 0x205, 0x030}}[backend]  # NMT, SDO request, RPDO1, StreamControl
+    assert host <= sent_ids, f"host frames missing from /can/frames: {sorted(host - sent_ids)}"
+    assert not sent_ids & {0x031, 0x585, 0x185}  # replies and TPDOs are the device's, never the host's
+    assert any(not f.transmitted for f in logged)
+    host_times = [f.host_time for f in logged]
+    assert host_times == sorted(host_times)
+    with open(out, "rb") as fh:
+        log_times = [m.log_time for _, _, m in NonSeekingReader(fh).iter_messages(log_time_order=False)]  # file order
+    assert log_times == sorted(log_times)
     # the session's raw frames, replayed into a fresh decoder, give the recorded blocks again
     from wearbench.acquisition.backends.can import replay
 

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import pytest
-from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.hardware.emulators.config import EmulatorConfig
 
 
 @pytest.fixture(scope="session")
-def testbed():
-    return load_bench(shipped_bench("ninebar-testbed"))
+def testbed(wearbench_bench):
+    """The shipped test bed (the plugin's ``wearbench_bench``)."""
+    return wearbench_bench
 
 
 @pytest.fixture

@@ -192,6 +192,23 @@ def test_stall_latches_a_fault(testbed, make_config):
     assert d.motor_status().speed == pytest.approx(1.0)
 
 
+def test_lost_index_pulse_and_hung_firmware(testbed, make_config):
+    """index_lost_at: the encoder's index flags stop at that stream time while its counts go on;
+    freeze_at: from then on the device hands out no block and no event."""
+    d, clock = spinning(testbed, make_config(faults={"index_lost_at": "2 s", "freeze_at": "4 s",
+                                                     "stall_at": "4.5 s"}), speed=9.0)
+    _, enc = run(d, clock, 3.9)
+    t = np.concatenate([b.times for b in enc]) - 0.5  # stream time (the stream started at 0.5 s)
+    index = np.concatenate([b.index for b in enc])
+    counts = np.concatenate([b.counts for b in enc])
+    assert index[t < 2.0].sum() >= 2 and index[t >= 2.0].sum() == 0  # 9 rad/s: a pulse every 0.7 s
+    assert np.polyfit(t[t >= 2.0], counts[t >= 2.0], 1)[0] == pytest.approx(9.0 * 4000 / (2 * math.pi), rel=1e-3)
+    assert not d.frozen
+    acc, enc = run(d, clock, 1.0)
+    assert d.frozen and max(b.time for b in acc + enc) < 4.5  # nothing stamped after the hang
+    assert d.events() == []  # the stall at 4.5 s happened, but a hung device reports nothing
+
+
 def test_overrun_when_the_host_stops_reading(testbed, make_config):
     d, clock = spinning(testbed, make_config(buffer="1 s"))
     clock.advance(10.0)

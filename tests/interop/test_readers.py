@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import math
 import shutil
+import tempfile
 from pathlib import Path
 
-import mcap_readers
 import numpy as np
 import pytest
 from wearbench.acquisition.backends import open_rig
@@ -20,6 +20,7 @@ from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import blocks, read_session, scan_mcap
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.load import load_bench, shipped_bench
+from wearbench.testing import mcap_readers
 
 LAYOUT1 = Path(__file__).parents[1] / "acquisition" / "data" / "session_layout1.mcap"
 PLOTTED = {"/acceleration": {"acceleration": "array", "clipped": "number", "device_time": "number"},
@@ -86,3 +87,44 @@ def test_layout1_needs_recovery_for_the_indexed_reader(tmp_path, node_readers):
     assert results[fixed.name]["ok"], results[fixed.name].get("error")
     assert mcap_readers.read_with_python(fixed) == {t: v["messages"] for t, v in results[fixed.name]["topics"].items()}
     old.unlink()  # the suite-wide check would flag it: it is the layout this issue replaces
+
+
+def test_the_order_check_catches_a_message_logged_back_in_time():
+    """The suite's log-time check (mcap doctor --strict-message-order) fails a file whose messages
+    go back in time across channels; written outside the run's temporary folder, whose files must pass."""
+    from mcap.writer import Writer
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "back-in-time.mcap"
+        with open(path, "wb") as fh:
+            w = Writer(fh)
+            w.start()
+            a = w.register_channel("/a", "json", w.register_schema("A", "jsonschema", b"{}"))
+            b = w.register_channel("/b", "json", w.register_schema("B", "jsonschema", b"{}"))
+            for channel, t in ((a, 10), (b, 30), (a, 20), (b, 40)):  # /a at 20 after /b at 30
+                w.add_message(channel, log_time=t, publish_time=t, data=b"{}")
+            w.finish()
+        with pytest.raises(mcap_readers.OutOfOrder, match=r"1 messages .* first on '/a', worst 0.0 ms"):
+            mcap_readers.read_with_python(path)
+        problems = mcap_readers.check([path], None)
+        assert len(problems) == 1 and "strict-message-order" in problems[0]
+
+
+def test_the_writer_keeps_log_times_in_order(tmp_path):
+    """Messages handed to the writer out of host-time order (threads, a late frame) get log times
+    that never go back; each keeps its own arrival time in its host_time field."""
+    from wearbench.acquisition.drivers import Block, BusFrame
+    from wearbench.acquisition.session_file import frames
+
+    out = tmp_path / "order.mcap"
+    writer = SessionWriter(out)
+    writer.start({}, {})
+    writer.write_block(Block(ACCELERATION, 0, 0.0, 1000.0, np.zeros(10, np.float32), 100.0))
+    writer.write_frame(BusFrame(99.0, 0x20, b"\x01", host_time=99.5, transmitted=True))  # sent before
+    writer.write_block(Block(ACCELERATION, 1, 0.01, 1000.0, np.zeros(10, np.float32), 100.2))
+    writer.finish()
+    mcap_readers.read_with_python(out)  # raises OutOfOrder otherwise
+    scan = scan_mcap(out)
+    assert [m.log_time for m in scan.messages] == [100_000_000_000, 100_000_000_000, 100_200_000_000]
+    (frame,) = frames(scan)
+    assert frame.host_time == 99.5 and frame.transmitted and frame.time == 99.0

@@ -1,7 +1,9 @@
 """Reading session files with the readers other tools use: ``@mcap/core``'s indexed reader under node
 (the reader Foxglove opens files with; messages decoded by protobufjs) and the Python ``mcap``
-readers with CRC validation. Used by the suite-wide check in ``tests/conftest.py`` and by
-``test_readers.py``.
+readers with CRC validation, and the log-time order ``mcap doctor --strict-message-order`` demands
+(every message's log time at or after every earlier message's, in file order, across channels).
+Used by :func:`wearbench.testing.assert_valid_mcap`, the project suite's check of every file it
+writes (``tests/conftest.py``) and ``tests/interop/test_readers.py``.
 
 The node packages are installed with npm into a cache folder outside the repository
 (``$WEARBENCH_CACHE/node``, default ``~/.cache/wearbench/node``), once per package set, under a
@@ -38,8 +40,10 @@ def cache_dir() -> Path:
     return Path(root) / "node"
 
 
-def install(folder: Path | None = None) -> Path:
-    """The folder holding the packages and the reader script, installing what is missing."""
+def install(folder: Path | None = None, packages: tuple[str, ...] = PACKAGES,
+            scripts: tuple[Path, ...] = (SCRIPT,)) -> Path:
+    """The folder holding ``packages`` and ``scripts``, installing what is missing (one package set
+    per folder: another set in the same folder is installed over it)."""
     if shutil.which("node") is None:
         raise NodeMissing("node is not on PATH: the @mcap/core reader check needs Node.js (>= 18)")
     folder = folder or cache_dir()
@@ -47,19 +51,20 @@ def install(folder: Path | None = None) -> Path:
     marker = folder / "installed.txt"
     with open(folder / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        if not (marker.exists() and marker.read_text() == " ".join(PACKAGES)):
+        if not (marker.exists() and marker.read_text() == " ".join(packages)):
             npm = shutil.which("npm")
             if npm is None:
-                raise NodeSetupError("npm is not on PATH: cannot install " + " ".join(PACKAGES))
+                raise NodeSetupError("npm is not on PATH: cannot install " + " ".join(packages))
             if not (folder / "package.json").exists():
                 (folder / "package.json").write_text('{"private": true, "type": "module"}\n')
-            r = subprocess.run([npm, "install", "--no-audit", "--no-fund", "--loglevel=error", *PACKAGES],
+            r = subprocess.run([npm, "install", "--no-audit", "--no-fund", "--loglevel=error", *packages],
                                cwd=folder, capture_output=True, text=True, timeout=600, check=False)
             if r.returncode:
-                raise NodeSetupError(f"npm install {' '.join(PACKAGES)} into {folder} failed "
+                raise NodeSetupError(f"npm install {' '.join(packages)} into {folder} failed "
                                      f"(exit {r.returncode}): {r.stderr.strip()[-2000:]}")
-            marker.write_text(" ".join(PACKAGES))
-        shutil.copyfile(SCRIPT, folder / SCRIPT.name)  # beside node_modules, so its imports resolve
+            marker.write_text(" ".join(packages))
+        for script in scripts:
+            shutil.copyfile(script, folder / script.name)  # beside node_modules, so its imports resolve
     return folder
 
 
@@ -74,12 +79,25 @@ def read_with_node(paths: list[Path], folder: Path) -> list[dict]:
     return json.loads(r.stdout)
 
 
+class OutOfOrder(ValueError):
+    """A message whose log time is before an earlier message's (``mcap doctor --strict-message-order``)."""
+
+
 def read_with_python(path: Path) -> dict[str, int]:
     """Messages per topic through the summary and indexes (chunk CRCs checked), after a record-
-    by-record pass that checks every chunk CRC and the data-section CRC. Raises on any mismatch."""
+    by-record pass that checks every chunk CRC, the data-section CRC and that log times never go
+    back in file order (:class:`OutOfOrder`). Raises on any mismatch."""
+    latest, late = 0, []
     with open(path, "rb") as fh:
-        for _ in NonSeekingReader(fh, validate_crcs=True).iter_messages():
-            pass
+        for _, channel, message in NonSeekingReader(fh, validate_crcs=True).iter_messages(log_time_order=False):
+            if message.log_time < latest:
+                late.append((channel.topic, (latest - message.log_time) * 1e-9))
+            latest = max(latest, message.log_time)
+    if late:
+        worst = max(late, key=lambda t: t[1])
+        raise OutOfOrder(f"{len(late)} messages logged before an earlier message's log time (mcap doctor "
+                         f"--strict-message-order rejects the file); first on {late[0][0]!r}, worst "
+                         f"{worst[1] * 1e3:.1f} ms on {worst[0]!r}")
     counts: dict[str, int] = {}
     with open(path, "rb") as fh:
         for _, channel, _ in SeekingReader(fh, validate_crcs=True).iter_messages(log_time_order=False):
