@@ -6,10 +6,12 @@ the band (5-95 % per crank angle over the realisations' cycles), single realisat
 statistics of held-out realisations, which calibrate the verdict.
 
 Alignment: the encoder's crank angle aligns the two; what is left is the sensor chain's delay (the
-accelerometer late behind the encoder: anti-alias filter, mounting, DAQ). It is fitted per window,
-limited to ``0 <= delay <= max_delay``, by minimising the mean squared standardised deviation from
-the ensemble's per-angle mean (the measured signal re-sampled at the crank's times plus the delay,
-from the full-rate record), and reported.
+accelerometer late behind the encoder: anti-alias filter, mounting, DAQ), one for the session. It is
+fitted on all the session's windows at once, limited to ``0 <= delay <= max_delay``, by minimising
+the mean squared standardised deviation from the realisations' per-angle mean, both low-passed at
+``delay_lowpass`` (the measured signal re-sampled at the crank's times plus the delay, from the
+full-rate record), and reported. Below 10 Hz the impacts' chaos leaks least into the fit; the
+realisations' own spread still limits it to about +/- 1 ms per window (README).
 
 Scores of a window against a state (see README "How sessions are scored" for the measurement behind
 the choice of the verdict's statistic):
@@ -62,7 +64,7 @@ class WindowOptions:
     statistic: str = "features"  # the verdict's statistic, one of STATISTICS
     max_delay: float = 2e-3      # s, the sensor chain's delay is fitted in [0, max_delay]
     delay_step: float = 2.5e-5   # s, grid of the delay search (then refined by a parabola)
-    delay_lowpass: float = 50.0  # Hz, the delay is fitted on both signals low-passed here
+    delay_lowpass: float = 10.0  # Hz, the delay is fitted on both signals low-passed here (README: why)
     iso_realisations: int = 4    # realisations each window is rated against (ISO/TS 18571)
     reference_realisations: int = 16  # held-out realisations whose first window gives the curve scores' null
     lowpass: float = 10.0        # Hz, for iso_lowpass
@@ -90,14 +92,14 @@ class MeasuredCurves:
     peaks: np.ndarray      # (cycles,) peak |filtered| in each cycle (m/s^2)
     slow: np.ndarray       # (samples,) m/s^2, the same low-passed at ``WindowOptions.delay_lowpass``
 
-    def at(self, delay: float, cycles: slice = slice(None), *, slow: bool = False) -> np.ndarray:
+    def at(self, delay: float, cycles: slice | np.ndarray = slice(None), *, slow: bool = False) -> np.ndarray:
         """The cycles' curves with the accelerometer read ``delay`` s later than the crank angle
         (``slow``: of the low-passed signal the delay is fitted on)."""
         return np.interp(self.times[cycles] + delay, self.t, self.slow if slow else self.filtered)
 
 
 def measured_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int, filter_spec: str,
-                    speed_tolerance: float = 0.02, lowpass: float = 50.0) -> MeasuredCurves:
+                    speed_tolerance: float = 0.02, lowpass: float = 10.0) -> MeasuredCurves:
     """``MeasuredCurves`` of a record (times t, absolute crank angle at t, acceleration), filtered as
     ``validation.features.cycle_curves`` filters the ensemble's (bias over whole cycles removed), and
     low-passed at ``lowpass`` Hz for the delay fit."""
@@ -348,7 +350,7 @@ class SessionWindows:
                 "window_details": [w.as_dict() for w in self.windows]}
 
 
-def _fit_delay(m: MeasuredCurves, cycles: slice, ref: _Reference, options: WindowOptions) -> float:
+def _fit_delay(m: MeasuredCurves, cycles: np.ndarray, ref: _Reference, options: WindowOptions) -> float:
     """Delay in [0, max_delay] minimising the window's mean squared standardised deviation from the
     realisations, both low-passed at ``delay_lowpass`` (below the impacts' chaos)."""
     if options.max_delay == 0:
@@ -386,9 +388,12 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory,
                          "curves; compute both from the same record")
     table = pd.DataFrame({"steady": measured.steady})
     out = []
-    for s in choose_windows(table, WindowSpec("all", cycles=n)):
+    starts = choose_windows(table, WindowSpec("all", cycles=n))
+    # one delay per session: the sensor chain's, fitted on all its windows' cycles at once
+    delay = _fit_delay(measured, np.concatenate([np.arange(s, s + n) for s in starts]), theory.reference,
+                       opts) if starts else 0.0
+    for s in starts:
         cyc = slice(s, s + n)
-        delay = _fit_delay(measured, cyc, theory.reference, opts)
         x = measured.at(delay, cyc)
         values, sub, bins = theory.statistics(x, theory.reference, theory.iso_pool)
         p = {k: _p_value(theory.null[k], v) for k, v in values.items()}
