@@ -65,8 +65,8 @@ class WindowOptions:
     max_delay: float = 2e-3      # s, the sensor chain's delay is fitted in [0, max_delay]
     delay_step: float = 2.5e-5   # s, grid of the delay search (then refined by a parabola)
     delay_lowpass: float = 10.0  # Hz, the delay is fitted on both signals low-passed here (README: why)
-    iso_realisations: int = 4    # realisations each window is rated against (ISO/TS 18571)
-    reference_realisations: int = 16  # held-out realisations whose first window gives the curve scores' null
+    iso_realisations: int = 3    # realisations each window is rated against (ISO/TS 18571)
+    reference_realisations: int = 12  # held-out realisations whose windows give the ISO scores' null
     lowpass: float = 10.0        # Hz, for iso_lowpass
 
     def __post_init__(self) -> None:
@@ -144,13 +144,14 @@ class _Reference:
 
     @classmethod
     def of(cls, curves: np.ndarray, scale: np.ndarray, cycles: int, fs_grid: float, lowpass: float,
-           delay_lowpass: float | None = None) -> _Reference:
+           delay_lowpass: float | None = None, self_term: float | None = None) -> _Reference:
         flat = curves.reshape(-1, curves.shape[-1])
         lo, hi = np.percentile(flat, [5.0, 95.0], axis=0)
         mean = flat.mean(axis=0)
         sd = np.maximum(flat.std(axis=0), 1e-6)
         cells = _binned(flat) / scale
-        ref = cls(lo, hi, mean, sd, cells, _pairwise(cells, cells), _lowpass(np.tile(mean, cycles), fs_grid, lowpass))
+        self_term = _pairwise(cells, cells) if self_term is None else self_term
+        ref = cls(lo, hi, mean, sd, cells, self_term, _lowpass(np.tile(mean, cycles), fs_grid, lowpass))
         if delay_lowpass:
             m, c, grid = curves.shape
             slow = _lowpass(curves.reshape(m, c * grid), fs_grid, delay_lowpass)[:, grid:-grid].reshape(-1, grid)
@@ -215,20 +216,25 @@ class WindowTheory:
         flags[mod.columns] = np.abs(z) > stats.norm.isf(self.options.alpha / (2 * z.size))
         return feature_ranges(flags, spec)
 
-    def statistics(self, x: np.ndarray, ref: _Reference, pool: np.ndarray) -> tuple[dict[str, float], dict, np.ndarray]:
-        """Every statistic of window ``x`` (cycles, grid) against ``ref``; ISO sub-scores; per-bin outside."""
+    def statistics(self, x: np.ndarray, ref: _Reference,
+                   pool: np.ndarray | None) -> tuple[dict[str, float], dict, np.ndarray]:
+        """Every statistic of window ``x`` (cycles, grid) against ``ref`` (the ISO ones against the
+        realisations ``pool``, none when None); ISO sub-scores; per-bin fraction outside the band."""
         flat = x.ravel()
         out = (x < ref.lo) | (x > ref.hi)
         cells = _binned(x) / self.scale
         energy = 2 * _pairwise(cells, ref.cells) - _pairwise(cells, cells) - ref.self_term
-        isos = [_iso(flat, self.windows[r, 0], self.grid) for r in pool]
-        sub = {k: float(np.mean([getattr(s, k) for s in isos])) for k in ("rating", "corridor", "phase",
-                                                                         "magnitude", "slope")}
-        low = _iso(_lowpass(flat, self.fs_grid, self.options.lowpass), ref.lowpassed, self.grid)
         values = {"outside": float(out.mean()), "z2": float(np.mean(((x - ref.mean) / ref.sd) ** 2)),
-                 "energy": float(energy), "iso": 1.0 - sub["rating"], "iso_lowpass": 1.0 - low.rating}
-        sub["lowpass_rating"] = float(low.rating)
-        sub["ratings"] = [float(i.rating) for i in isos]
+                  "energy": float(energy)}
+        sub: dict = {}
+        if pool is not None:
+            isos = [_iso(flat, self.windows[r, 0], self.grid) for r in pool]
+            sub = {k: float(np.mean([getattr(s, k) for s in isos])) for k in ("rating", "corridor", "phase",
+                                                                             "magnitude", "slope")}
+            low = _iso(_lowpass(flat, self.fs_grid, self.options.lowpass), ref.lowpassed, self.grid)
+            values.update(iso=1.0 - sub["rating"], iso_lowpass=1.0 - low.rating)
+            sub["lowpass_rating"] = float(low.rating)
+            sub["ratings"] = [float(i.rating) for i in isos]
         return values, sub, _binned(out.astype(float)).mean(axis=0)
 
 
@@ -267,14 +273,22 @@ def window_theory(ensemble: Ensemble, *, crank_speed: float, models: StateModels
                           np.arange(k), {}, np.zeros((0, BINS)), np.zeros(0), models)
     null: dict[str, list[float]] = {s: [] for s in STATISTICS if s != "features"}
     bins, iso = [], []
-    for r in range(min(m, options.reference_realisations)):
-        ref = _Reference.of(np.delete(curves, r, axis=0), scale, n, fs_grid, options.lowpass)
-        pool = np.array([i for i in range(m) if i != r][:k])
-        st, sub, b = theory.statistics(windows[r, 0].reshape(n, grid), ref, pool)
-        for key, values in null.items():
-            values.append(st[key])
-        bins.append(b)
-        iso.append(sub["rating"])
+    cells = _binned(curves.reshape(-1, grid)) / scale
+    dist = np.sqrt(((cells[:, None, :] - cells[None, :, :]) ** 2).sum(-1))  # between all cycles, once
+    for r in range(m):
+        keep = np.repeat(np.arange(m) != r, c)
+        ref = _Reference.of(np.delete(curves, r, axis=0), scale, n, fs_grid, options.lowpass,
+                            self_term=float(dist[np.ix_(keep, keep)].mean()))
+        rated = r < options.reference_realisations  # ISO/TS 18571 (the costly part) on the first ones only
+        pool = np.array([i for i in range(m) if i != r][:k]) if rated else None
+        for w in windows[r]:
+            st, sub, b = theory.statistics(w.reshape(n, grid), ref, pool)
+            for key, values in null.items():
+                if key in st:
+                    values.append(st[key])
+            bins.append(b)
+            if rated:
+                iso.append(sub["rating"])
     theory.null = {key: np.asarray(v) for key, v in null.items()}
     if models is not None:
         theory.null["features"] = _min_p(models.window_null[ensemble.state])
