@@ -61,7 +61,7 @@ def window_figure(w: WindowVerdict, band: tuple[np.ndarray, np.ndarray, np.ndarr
     ax.set_ylabel("slider acceleration, CFC 180 (m/s$^2$)")
     ax.legend(loc="upper right", fontsize=8)
     axes[1, 0].plot(t, _outside(w.measured, lo, hi).ravel(), color="tab:blue", lw=0.6)
-    axes[1, 0].set_ylabel("outside band")
+    axes[1, 0].set_ylabel("outside band (m/s$^2$)")
     axes[1, 0].set_xlabel(f"time from window start (s; accelerometer read {w.delay_s * 1e3:.2f} ms late)")
     ax = axes[0, 1]
     ax.fill_between(deg, lo, hi, color="tab:red", alpha=0.2, lw=0)
