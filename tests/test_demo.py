@@ -82,6 +82,7 @@ def test_sessions_record_the_declared_state_readably(demo):
         assert s.clearances == pytest.approx({"A": expected, "B": expected})
         worn = "wear" in path.stem
         assert all((state != "new") == worn for state in s.wear_state.values()), s.wear_state
+        assert bool(s.surface_files) == worn  # worn surfaces travel with the session (compare scores it anywhere)
 
 
 def test_window_verdicts_differ_between_the_true_state_and_a_wrong_one(demo):

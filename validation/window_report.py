@@ -29,9 +29,9 @@ NOTES = (
      "20 deg bins, as the identification uses them) lie no further from the state, in all features and "
      "along the directions to the other candidates, than the same windows of held-out realisations at the "
      "stated false-alarm rate alpha (smaller of the two empirical p-values, itself calibrated on the "
-     "held-out windows). It departs at the crank angles where a feature of the window lies beyond the "
-     "Bonferroni limit of the state's spread, or where more of it is outside the band than in any held-out "
-     "realisation window. ISO/TS 18571 is reported against single realisations (mean rating and "
+     "held-out windows). An inconsistent window departs at the crank angles where a feature of the window "
+     "lies beyond the Bonferroni limit of the state's spread, or where more of it is outside the band than "
+     "in any held-out realisation window. ISO/TS 18571 is reported against single realisations (mean rating and "
      "sub-scores) with the ratings of held-out realisations against the same ones as reference; it does "
      "not decide (measured in README 'How sessions are scored')."),
 )

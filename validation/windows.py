@@ -27,8 +27,9 @@ the choice of the verdict's statistic):
 Each statistic of each held-out realisation's windows (statistics from the other realisations)
 gives its null distribution; a window's p-value is the fraction of null values at least as bad. The
 verdict "consistent" holds at p >= ``alpha`` (the false-alarm rate) for the chosen ``statistic``;
-the crank angles where the window departs are the 10 deg bins where more of it lies outside the
-band than in any held-out realisation window.
+the crank angles where an inconsistent window departs are those of the features beyond the
+Bonferroni limit of the state's spread, and the 10 deg bins where more of it lies outside the band
+than in any held-out realisation window.
 
 Imports validation.ensemble, features, filters, metrics, cycles, identify (angle ranges).
 """
@@ -313,7 +314,7 @@ class WindowVerdict:
     percentile: float                # of the verdict statistic among held-out realisation windows (0-100)
     verdict_statistic: str
     consistent: bool
-    departs: list[str]               # crank-angle ranges where the window leaves the band too often
+    departs: list[str]               # crank-angle ranges where an inconsistent window departs (empty if consistent)
     measured: np.ndarray = field(repr=False)   # (cycles, grid) after the delay
     times: np.ndarray = field(repr=False)      # (cycles, grid) s from the window's start
     realisation: int = 0             # the realisation shown beside it (median ISO rating of the pool)
@@ -421,6 +422,8 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory,
             p["features"] = float((1 + np.sum(theory.null["features"] <= -values["features"]))
                                   / (1 + theory.null["features"].size))
             departs = theory.feature_departures(features.values[cyc], features.spec) + departs
+        consistent = p[opts.statistic] >= opts.alpha
+        departs = [] if consistent else departs  # where an inconsistent window departs; none otherwise
         null = theory.null[opts.statistic]
         v = values[opts.statistic]
         percentile = float(100.0 * np.mean(-null < v)) if opts.statistic == "features" else float(
@@ -429,6 +432,6 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory,
         t0 = float(measured.times[s, 0])
         out.append(WindowVerdict(theory.state, s, t0, float(measured.times[s + n - 1, -1]), delay, values, p, sub,
                                  float(100.0 * np.mean(theory.null_iso <= sub["rating"])), percentile,
-                                 opts.statistic, p[opts.statistic] >= opts.alpha, departs, x,
+                                 opts.statistic, consistent, departs, x,
                                  measured.times[cyc] - t0, shown, theory.windows[shown, 0]))
     return SessionWindows(theory.state, opts, out, theory.band)
