@@ -17,9 +17,11 @@ from wearbench.cli.options import nonnegative_number, positive_int, positive_num
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "compare", help="score session MCAPs against theory; write report.html, scores.json and figures",
-        description="Align, filter and score five-cycle windows of recorded sessions against the theory "
-        "(simulated from the bench file in each session at its measured speed, clearances and wear state, "
-        "or given with --theory), and write report.html (self-contained), scores.json and PNG figures.")
+        description="When each session's bench file names candidate states, identify the session among them "
+        "and judge its five-cycle windows against the identified state's ensemble windows (one verdict per "
+        "session, or 'cannot decide'); otherwise, or with --theory, align, filter and score its windows against "
+        "one theory (simulated from the bench file at the measured speed, clearances and wear state, or the "
+        "--theory table). Writes report.html (self-contained), scores.json and PNG figures.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="recorded session file(s)")
     p.add_argument("--out", default="report", help="output folder (default: report/)")
     p.add_argument("--theory", action="append", metavar="RUN.parquet",
