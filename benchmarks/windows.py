@@ -117,9 +117,11 @@ def report(bench, states, truths, args) -> None:
     ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), progress=None)
     options = WindowOptions(alpha=args.alpha)
     sessions = [load_session(p, label=f"{name} #{p.stem}") for name, p, _ in truths]
-    t0, c0 = time.perf_counter(), time.process_time()
-    assess_sessions([sessions[0]], ensembles=ensembles, window_options=options, progress=None)
-    t_one, c_one = time.perf_counter() - t0, time.process_time() - c0
+    timings = []  # the calibration (fit, window nulls) is computed the first time, then cached
+    for _ in range(2):
+        t0, c0 = time.perf_counter(), time.process_time()
+        assess_sessions([sessions[0]], ensembles=ensembles, window_options=options, progress=None)
+        timings.append((time.perf_counter() - t0, time.process_time() - c0))
     t0 = time.perf_counter()
     assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, progress=None)
     t_all = time.perf_counter() - t0
@@ -134,9 +136,11 @@ def report(bench, states, truths, args) -> None:
           f"{len(right)} five-cycle windows against their true state; ensembles "
           f"{next(iter(ensembles.values())).realisations} realisations x {next(iter(ensembles.values())).curves.shape[1]} "
           f"cycles; false-alarm rate alpha = {args.alpha}")
-    print(f"time: assess one {args.cycles}-cycle session against 4 cached ensembles (fit, window nulls, identify, "
-          f"windows against every state): {t_one:.1f} s wall, {c_one:.1f} s CPU; all {len(assessed)} sessions: "
-          f"{t_all:.1f} s wall (load average now {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)")
+    (t_cold, c_cold), (t_one, c_one) = timings
+    print(f"time: judge one {args.cycles}-cycle session against 4 cached ensembles (identify, windows against every "
+          f"state): {t_one:.1f} s wall, {c_one:.1f} s CPU; the first time, with the calibration (fit and window "
+          f"nulls, then cached): {t_cold:.1f} s wall, {c_cold:.1f} s CPU; all {len(assessed)} sessions: {t_all:.1f} s "
+          f"wall (load average now {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)")
     print("\nstatistic        consistent with   inconsistent with wrong   inconsistent with wrong   KS p of true-state")
     print("                 true state        clearance (0.3/0.6 mm)    0.3 mm wear state         percentiles")
     for stat in (*STATISTICS[:1], "features_all", "features_direction", *STATISTICS[1:]):

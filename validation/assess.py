@@ -10,8 +10,9 @@ the ensembles.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,7 @@ from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_feat
 from wearbench.validation.identify import (
     Identification,
     IdentifyOptions,
+    StateModels,
     fit_states,
     identify_features,
 )
@@ -32,12 +34,13 @@ from wearbench.validation.windows import (
     MeasuredCurves,
     SessionWindows,
     WindowOptions,
+    WindowTheory,
     measured_curves,
     score_windows,
     window_theory,
 )
 
-__all__ = ["Assessment", "assess_sessions", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "calibration", "session_features"]
 
 
 @dataclass
@@ -104,6 +107,36 @@ def _states(bench, candidates) -> tuple[WearState, ...]:
     return states
 
 
+def _source_digest() -> str:
+    """Digest of the validation code a calibration depends on (a change of it is a cache miss)."""
+    here = Path(__file__).parent
+    text = b"".join((here / f"{m}.py").read_bytes() for m in ("identify", "statistics", "windows", "features"))
+    return hashlib.sha256(text).hexdigest()
+
+
+def calibration(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, window_options: WindowOptions,
+                crank_speed: float) -> tuple[StateModels, dict[str, WindowTheory]]:
+    """The fitted state statistics (``identify.fit_states``) and every state's window theory (their
+    held-out nulls): the costly part of judging a session, computed once per ensembles' content,
+    options and code, and kept in the result cache (``$WEARBENCH_CACHE``)."""
+    from wearbench.model.task_cache import MISSING, cache_load, cache_store, task_key
+
+    key = task_key("window-calibration", _source_digest(),
+                   {n: (e.features, e.curves, e.speed) for n, e in ensembles.items()}, asdict(options),
+                   asdict(window_options), round(float(crank_speed), 9))
+    hit = cache_load(key)
+    if hit is not MISSING:
+        return hit
+    models = fit_states(ensembles, options, window_cycles=window_options.cycles)
+    theories = {name: window_theory(e, crank_speed=crank_speed, models=models, options=window_options)
+                for name, e in ensembles.items()}
+    try:
+        cache_store(key, (models, theories))
+    except OSError:  # a read-only or full cache: computed again next time
+        pass
+    return models, theories
+
+
 def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                     candidates: str | Path | Sequence[WearState] | None = None,
                     settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
@@ -131,12 +164,10 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
         ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
                                            speed=commanded_speed(first), settings=settings, scheduler=scheduler,
                                            workers=workers, progress=progress)
-        models = fit_states(ens, options, window_cycles=window_options.cycles)
         st = next(iter(ens.values())).settings
         bench = first.bench
         crank = next(iter(ens.values())).speed * (bench.encoder_driver.ratio if bench is not None else 1.0)
-        theories = {name: window_theory(e, crank_speed=crank, models=models, options=window_options)
-                    for name, e in ens.items()}
+        models, theories = calibration(ens, options, window_options, crank)
         for i in idx:
             s = loaded[i]
             arrays = _arrays(s)
@@ -154,8 +185,6 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
 def write_assessment_report(assessments: Sequence[Assessment], out_dir: str | Path, *, threshold: float = 0.9,
                             title: str = "wearbench: which state explains each session"):
     """``report.html``, ``scores.json`` and figures for assessed sessions (``validation.report``)."""
-    from dataclasses import asdict
-
     from wearbench.validation.identify_report import IdentifiedSession
     from wearbench.validation.report import write_report
 

@@ -154,3 +154,24 @@ def test_report_has_one_window_verdict_per_session_and_a_theory_with_impacts(ass
 
 def ensembles_peaks(a) -> np.ndarray:
     return a.bands.peaks_theory
+
+
+def test_calibration_is_computed_once_per_ensembles_content(ensembles, monkeypatch, tmp_path):
+    """The costly part (fitted statistics, window nulls) comes from the result cache the second time,
+    with the same verdicts; other ensembles are a miss."""
+    from wearbench.validation import assess
+
+    monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path))
+    s = session("soft", 5100)
+    first = assess.assess_sessions([s], ensembles=ensembles, progress=None)[0]
+
+    def refit(*args, **kwargs):
+        raise AssertionError("fitted again")
+
+    monkeypatch.setattr(assess, "fit_states", refit)
+    again = assess.assess_sessions([s], ensembles=ensembles, progress=None)[0]
+    for state in STATES:
+        assert [w.p for w in again.windows[state].windows] == [w.p for w in first.windows[state].windows]
+    other = {k: Ensemble(e.state, e.settings, e.features, e.curves * 1.01, e.peaks, e.speed) for k, e in ensembles.items()}
+    with pytest.raises(AssertionError, match="fitted again"):
+        assess.assess_sessions([s], ensembles=other, progress=None)
