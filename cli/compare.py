@@ -1,6 +1,9 @@
 """`wearbench compare`: score recorded sessions against theory and write a report.
 
-Thin front of ``wearbench.validation.report.compare_sessions``; prints the summary table.
+A session whose bench file declares candidate states is identified among them and its five-cycle
+windows are judged against the identified state's ensemble windows (``validation.assess``): one
+verdict per session. With ``--theory`` (or a bench without states) each session is scored against
+that one theory (``validation.compare``) and the summary table printed.
 """
 
 from __future__ import annotations
@@ -14,9 +17,11 @@ from wearbench.cli.options import nonnegative_number, positive_int, positive_num
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "compare", help="score session MCAPs against theory; write report.html, scores.json and figures",
-        description="Align, filter and score five-cycle windows of recorded sessions against the theory "
-        "(simulated from the bench file in each session at its measured speed, clearances and wear state, "
-        "or given with --theory), and write report.html (self-contained), scores.json and PNG figures.")
+        description="When each session's bench file names candidate states, identify the session among them "
+        "and judge its five-cycle windows against the identified state's ensemble windows (one verdict per "
+        "session, or 'cannot decide'); otherwise, or with --theory, align, filter and score its windows against "
+        "one theory (simulated from the bench file at the measured speed, clearances and wear state, or the "
+        "--theory table). Writes report.html (self-contained), scores.json and PNG figures.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="recorded session file(s)")
     p.add_argument("--out", default="report", help="output folder (default: report/)")
     p.add_argument("--theory", action="append", metavar="RUN.parquet",
@@ -28,12 +33,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cycles", type=positive_int, default=5, help="crank cycles per window (default 5)")
     p.add_argument("--max-shift", type=nonnegative_number, default=0.2, metavar="CYCLES",
                    help="residual time-shift search, fraction of a crank cycle, < 0.5 (default 0.2)")
-    p.add_argument("--max-delay", default="5ms", metavar="TIME",
-                   help="hold the shift search to the sensor chain's plausible delay (default 5ms)")
+    p.add_argument("--max-delay", default="2ms", metavar="TIME",
+                   help="the sensor chain's delay (accelerometer behind the encoder) is fitted up to this "
+                        "(default 2ms)")
     p.add_argument("--candidates", metavar="STATES.toml|bench",
-                   help="also identify each session among candidate states ([[state]] tables of a file, or "
-                        "'bench' for those of the session's bench file) against theory ensembles, and score its "
-                        "windows against the identified state's ensemble instead of one simulation")
+                   help="identify each session among candidate states ([[state]] tables of a file, or 'bench' "
+                        "for those of the session's bench file, the default when it has any and no --theory is "
+                        "given) against theory ensembles, and judge its five-cycle windows against the "
+                        "identified state's ensemble windows (or say it cannot decide)")
+    p.add_argument("--alpha", type=positive_number, default=0.05,
+                   help="false-alarm rate of the window verdicts (default 0.05)")
     p.add_argument("--dtw-band", type=nonnegative_number, default=0.05, metavar="CYCLES",
                    help="DTW band half-width, fraction of a crank cycle (default 0.05)")
     p.add_argument("--no-shift", action="store_true", help="report the residual shift but do not remove it")
@@ -46,6 +55,41 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "plus margins) instead of its last revolution repeated")
     p.add_argument("--label", action="append", help="label per session (default: file name)")
     p.set_defaults(func=run)
+
+
+def _with_states(paths) -> list | None:
+    """The sessions, loaded, when every one's recorded bench declares candidate states (then plain
+    ``compare`` judges each against its identified state: one verdict per session); else None."""
+    from wearbench.validation.measured import load_session
+
+    try:
+        sessions = [load_session(p) for p in paths]
+    except (OSError, ValueError, KeyError):
+        return None  # the classic path reports the unreadable file and scores the others
+    return sessions if all(s.bench is not None and s.bench.states for s in sessions) else None
+
+
+def _assess(args: argparse.Namespace, options, sessions) -> int:
+    from wearbench.validation.assess import assess_sessions, write_assessment_report
+    from wearbench.validation.windows import WindowOptions
+
+    windows = WindowOptions(cycles=args.cycles, alpha=args.alpha, max_delay=options.max_delay)
+    assessed = assess_sessions(sessions, candidates=None if args.candidates in (None, "bench") else args.candidates,
+                               window_options=windows)
+    report = write_assessment_report(assessed, args.out)
+    for a in assessed:
+        r = a.identification
+        line = f"{r.session}: {r.verdict} (" + ", ".join(f"{s} {p:.3f}" for s, p in r.posterior.items()) + "); "
+        if a.decided:
+            own = a.windows[a.state]
+            delay = sorted(w.delay_s for w in own.windows)
+            line += f"windows against {a.state}: {own.label}" + (
+                f", sensor delay {1e3 * delay[len(delay) // 2]:.2f} ms" if delay else "")
+        else:
+            line += "windows: cannot decide which state to judge them against"
+        print(line)
+    print(f"report: {report.html}  scores: {report.scores_json}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -66,19 +110,12 @@ def run(args: argparse.Namespace) -> int:
         windows=parse_windows(args.windows, cycles=args.cycles), max_shift_cycles=args.max_shift,
         dtw_band_cycles=args.dtw_band, apply_shift=not args.no_shift, revolutions=args.revolutions,
         periodic_theory=not args.contiguous_theory, max_delay=parse_quantity(args.max_delay, "time"))
+    if args.candidates and args.theory:
+        raise ValueError("--candidates and --theory exclude each other: the theory is the candidates' ensembles")
     if args.candidates:
-        from wearbench.validation.assess import assess_sessions, write_assessment_report
-
-        if args.theory:
-            raise ValueError("--candidates and --theory exclude each other: the theory is the candidates' ensembles")
-        assessed = assess_sessions(args.sessions, candidates=None if args.candidates == "bench" else args.candidates,
-                                   compare_options=options)
-        report = write_assessment_report(assessed, args.out)
-        for a in assessed:
-            r = a.identification
-            print(f"{r.session}: {r.verdict} (" + ", ".join(f"{s} {p:.3f}" for s, p in r.posterior.items()) + ")")
-        print(f"report: {report.html}  scores: {report.scores_json}")
-        return 0
+        return _assess(args, options, args.sessions)
+    if not args.theory and (loaded := _with_states(args.sessions)) is not None:
+        return _assess(args, options, loaded)
     theories = args.theory or [None]
     if len(theories) == 1:
         theories = theories * len(args.sessions)

@@ -7,8 +7,8 @@ friction, speed and start differ from the file: not a twin) and seen through a r
 A session of each is recorded through the acquisition drivers (the serial protocol on a
 pseudo-terminal, or the in-process device with ``--quick``). The theory of every state is an
 ensemble of realisations (shipped precomputed for this bench, or built on the compute layer), and
-each session gets the posterior probability of every state, a band comparison and window scores
-against the identified state's ensemble, in one report. ``--twin`` plays the nominal model instead
+each session gets the posterior probability of every state, a band comparison and a verdict for
+each five-cycle window against every state's ensemble windows, in one report. ``--twin`` plays the nominal model instead
 (the demo of earlier versions, for comparison).
 """
 
@@ -77,7 +77,7 @@ def record_state(bench, state, seed: int | None, out: Path, *, backend: str, cyc
     table = emulator_config(bench, state, seed, **emulator).to_table()
     plan = SessionPlan(speed=bench.speed, cycles=cycles, operator="wearbench demo",
                        clearances=dict(state.clearances),
-                       wear={j: p.name for j, p in state.surfaces.items()})
+                       wear={j: str(p) for j, p in state.surfaces.items()})  # the files: attached
     proc = None
     if backend == "serial":
         from wearbench.hardware.emulators.serial_server import start_serial_emulator
@@ -175,17 +175,22 @@ def run(args: argparse.Namespace) -> int:
 
 
 def summary_text(truths, assessed) -> str:
-    """Per session: its true state, the posterior of every state, the verdict, the window score
-    against the verdict's ensemble and the model's own reference, as a plain-text table."""
+    """Per session: its true state, the posterior of every state, the verdict, how many of its
+    five-cycle windows are consistent with each state's ensemble windows, the fitted sensor delay and
+    the peaks, as a plain-text table."""
+    import numpy as np
+
     states = list(assessed[0].identification.posterior)
-    rows = [("true state", *(f"p({s})" for s in states), "verdict", "ISO R (model p50)", "peak |a| CFC180 meas./theory")]
+    rows = [("true state", *(f"p({s})" for s in states), "verdict", *(f"windows ok ({s})" for s in states),
+             "delay ms", "peak |a| CFC180 meas./theory")]
     for truth, a in zip(truths, assessed, strict=True):
         r, b = a.identification, a.bands.summary()
         verdict = r.verdict + (f" ({r.cycles_needed} cycles would decide)" if r.verdict == "undecided"
                                and r.cycles_needed else "")
-        iso = b["iso_rating_measured_median"]
+        own = a.windows[a.state].windows
+        delay = f"{1e3 * float(np.median([w.delay_s for w in own])):.2f}" if own else "-"
         rows.append((truth, *(f"{r.posterior[s]:.3f}" for s in states), verdict,
-                     f"{iso:.3f} ({b['iso_rating_model_p5_p50_p95'][1]:.3f})" if iso is not None else "-",
+                     *(f"{a.windows[s].consistent}/{len(a.windows[s].windows)}" for s in states), delay,
                      f"{b['peak_acc_measured_median']:.0f} / {b['peak_acc_theory_p5_p50_p95'][1]:.0f} m/s^2"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows)

@@ -82,16 +82,35 @@ def test_sessions_record_the_declared_state_readably(demo):
         assert s.clearances == pytest.approx({"A": expected, "B": expected})
         worn = "wear" in path.stem
         assert all((state != "new") == worn for state in s.wear_state.values()), s.wear_state
+        assert bool(s.surface_files) == worn  # worn surfaces travel with the session (compare scores it anywhere)
+
+
+def test_window_verdicts_differ_between_the_true_state_and_a_wrong_one(demo):
+    """One verdict per session: its windows are judged against the identified state; against every
+    state they are in scores.json, and a wrong clearance is called inconsistent where the true state
+    is not. The theory beside each window is a realisation, impacts and all (its peak is an impact's)."""
+    out, stdout = demo
+    scores = json.loads((out / "report" / "scores.json").read_text())
+    for case, row in zip(CASES, scores["identification"], strict=True):
+        wrong = "0.3 mm new" if case == "0.6 mm new" else "0.6 mm new"
+        windows = row["windows"]
+        assert windows[case]["consistent_windows"] > windows[wrong]["consistent_windows"], (case, windows)
+        assert windows[wrong]["consistent_windows"] == 0
+        assert row["window_verdict"].startswith(("consistent", "mixed", "cannot decide"))
+        w = windows[case]["window_details"][0]
+        assert 0 <= w["iso"]["corridor"] <= 1 and 0 <= w["delay_s"] <= 2e-3
+    assert "windows ok (0.6 mm new)" in stdout
 
 
 def test_every_figure_exists_and_is_in_the_report(demo):
     out, _ = demo
     report = out / "report"
     html = (report / "report.html").read_text()
-    expected = ["posteriors.png", "sessions_measured.png", "sessions_comparison.png"]
+    expected = ["posteriors.png"]
     for case in CASES:
         slug = case.replace(" ", "_")
-        expected += [f"band_{slug}.png", f"overlay_{slug}.png", f"angle_{slug}.png", f"spectrum_{slug}.png"]
+        expected += [f"band_{slug}.png", f"windows_{slug}.png"]
+        expected += [f"window_{slug}_{state.replace(' ', '_')}.png" for state in CASES]
     for name in expected:
         data = (report / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000, name

@@ -5,7 +5,9 @@ Public API: :func:`compare_session`, :func:`compare_sessions` (writes the report
 :func:`load_session`, :func:`score_window`, :func:`iso18571`, :func:`parse_filter`,
 :func:`parse_windows`. Module map: filters (CFC/Butterworth), dtw (banded DTW), alignment (lag
 search), metrics (scores), cycles (crank cycles, windows), measured (session data), theory
-(simulated or loaded theory by crank angle), compare (pipeline), report (HTML/JSON/PNG).
+(simulated or loaded theory by crank angle), compare (pipeline), report (HTML/JSON/PNG), windows
+(five-cycle windows against an ensemble's own windows, with a verdict), window_report (their
+figures and tables).
 """
 
 from wearbench.validation.compare import (

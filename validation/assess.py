@@ -3,50 +3,68 @@
 The workflow behind ``wearbench identify``, ``wearbench compare --candidates`` and the demo: load
 the sessions, build (or load) one ensemble per candidate state for each bench and commanded speed
 on the compute layer, identify each session (``identify.py``), compare its cycles with the band of
-the identified state (``bands.py``), score its five-cycle windows against that state's ensemble
-median, and write the report when asked. Imports the validation modules; the model only through
+the identified state (``bands.py``), judge its five-cycle windows against every state's ensemble
+windows (``windows.py``), and write the report when asked. Imports the validation modules; the model only through
 the ensembles.
 """
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
-from wearbench.validation.bands import BandComparison, compare_bands, ensemble_theory
-from wearbench.validation.compare import (
-    CompareOptions,
-    SessionComparison,
-    compare_session,
-    motor_speed,
-)
+from wearbench.validation.bands import BandComparison, compare_bands
+from wearbench.validation.compare import motor_speed
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
-from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_curves, cycle_features
-from wearbench.validation.filters import parse_filter
+from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_features
 from wearbench.validation.identify import (
     Identification,
     IdentifyOptions,
+    StateModels,
     fit_states,
     identify_features,
 )
 from wearbench.validation.measured import MeasuredSession, load_session
+from wearbench.validation.windows import (
+    MeasuredCurves,
+    SessionWindows,
+    WindowOptions,
+    WindowTheory,
+    measured_curves,
+    score_windows,
+    window_theory,
+)
 
-__all__ = ["Assessment", "assess_sessions", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "calibration", "session_features"]
 
 
 @dataclass
 class Assessment:
     """One session: its identification, its band against the identified (or top) state, and its
-    windows scored against that state's ensemble median."""
+    five-cycle windows against every candidate state (``windows[state]``; the identified or top
+    state is ``state``)."""
 
     session: MeasuredSession
     identification: Identification
     bands: BandComparison
-    comparison: SessionComparison | None  # None when no five-cycle window could be scored
+    windows: dict[str, SessionWindows]
+    measured: MeasuredCurves
+
+    @property
+    def state(self) -> str:
+        """The state the session's windows are judged against: the verdict, else the most probable."""
+        r = self.identification
+        return r.verdict if r.verdict in r.posterior else max(r.posterior, key=r.posterior.get)
+
+    @property
+    def decided(self) -> bool:
+        """Whether the identification named a state (else the windows are shown, not a verdict)."""
+        return self.identification.verdict in self.identification.posterior
 
 
 def _arrays(session: MeasuredSession) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -89,10 +107,40 @@ def _states(bench, candidates) -> tuple[WearState, ...]:
     return states
 
 
+def _source_digest() -> str:
+    """Digest of the validation code a calibration depends on (a change of it is a cache miss)."""
+    here = Path(__file__).parent
+    text = b"".join((here / f"{m}.py").read_bytes() for m in ("identify", "statistics", "windows", "features"))
+    return hashlib.sha256(text).hexdigest()
+
+
+def calibration(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, window_options: WindowOptions,
+                crank_speed: float) -> tuple[StateModels, dict[str, WindowTheory]]:
+    """The fitted state statistics (``identify.fit_states``) and every state's window theory (their
+    held-out nulls): the costly part of judging a session, computed once per ensembles' content,
+    options and code, and kept in the result cache (``$WEARBENCH_CACHE``)."""
+    from wearbench.model.task_cache import MISSING, cache_load, cache_store, task_key
+
+    key = task_key("window-calibration", _source_digest(),
+                   {n: (e.features, e.curves, e.speed) for n, e in ensembles.items()}, asdict(options),
+                   asdict(window_options), round(float(crank_speed), 9))
+    hit = cache_load(key)
+    if hit is not MISSING:
+        return hit
+    models = fit_states(ensembles, options, window_cycles=window_options.cycles)
+    theories = {name: window_theory(e, crank_speed=crank_speed, models=models, options=window_options)
+                for name, e in ensembles.items()}
+    try:
+        cache_store(key, (models, theories))
+    except OSError:  # a read-only or full cache: computed again next time
+        pass
+    return models, theories
+
+
 def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                     candidates: str | Path | Sequence[WearState] | None = None,
                     settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
-                    compare_options: CompareOptions | None = None,
+                    window_options: WindowOptions | None = None,
                     ensembles: Mapping[str, Ensemble] | None = None, scheduler: str | None = None,
                     workers: int | None = None, progress: str | None = "theory ensembles") -> list[Assessment]:
     """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
@@ -100,10 +148,10 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
     recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
     layer and cached; ``ensembles`` ({state: Ensemble}) uses those instead. Defaults: the default
-    ensemble settings, identification options and comparison options.
+    ensemble settings, identification options and window options.
     """
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
-    compare_options = compare_options or CompareOptions()
+    window_options = window_options or WindowOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
     groups: dict[tuple, list[int]] = {}
     for i, s in enumerate(loaded):
@@ -116,21 +164,21 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
         ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
                                            speed=commanded_speed(first), settings=settings, scheduler=scheduler,
                                            workers=workers, progress=progress)
-        models = fit_states(ens, options)
         st = next(iter(ens.values())).settings
+        bench = first.bench
+        crank = next(iter(ens.values())).speed * (bench.encoder_driver.ratio if bench is not None else 1.0)
+        models, theories = calibration(ens, options, window_options, crank)
         for i in idx:
             s = loaded[i]
             arrays = _arrays(s)
-            ident = identify_features(session_features(s, st.features, arrays), models, label=s.label)
+            feats = session_features(s, st.features, arrays)
+            ident = identify_features(feats, models, label=s.label)
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
-            curves, peaks = cycle_curves(*arrays, grid=st.grid,
-                                         filter_spec=parse_filter(st.curve_filter, remove_bias=False))
-            bands = compare_bands(curves, peaks, ens[state], window=compare_options.windows.cycles)
-            comparison = None
-            if len(s.cycles) >= compare_options.windows.cycles:
-                comparison = compare_session(s, ensemble_theory(ens[state], s.bench or first.bench),
-                                             options=compare_options)
-            out[i] = Assessment(s, ident, bands, comparison)
+            mc = measured_curves(*arrays, grid=st.grid, filter_spec=st.curve_filter,
+                                 lowpass=window_options.delay_lowpass)
+            bands = compare_bands(mc.at(0.0), mc.peaks, ens[state])
+            windows = {name: score_windows(mc, th, feats) for name, th in theories.items()}
+            out[i] = Assessment(s, ident, bands, windows, mc)
     return out
 
 
@@ -140,8 +188,12 @@ def write_assessment_report(assessments: Sequence[Assessment], out_dir: str | Pa
     from wearbench.validation.identify_report import IdentifiedSession
     from wearbench.validation.report import write_report
 
-    scored = [a for a in assessments if a.comparison is not None]
-    if not scored:
-        raise ValueError("report: no session has a scorable five-cycle window")
-    return write_report([a.comparison for a in scored], out_dir, title=title, threshold=threshold,
-                        identified=[IdentifiedSession(a.identification, a.bands) for a in assessments])
+    if not assessments:
+        raise ValueError("report: no assessed session")
+    first = next(iter(assessments[0].windows.values()))
+    st = first.options
+    options = {"filter": "CFC 180 (the ensemble's curves)",
+               "windows": f"all consecutive {st.cycles}-cycle windows of steady cycles", **asdict(st)}
+    return write_report([], out_dir, title=title, threshold=threshold, options=options,
+                        identified=[IdentifiedSession(a.identification, a.bands, a.windows, a.state, a.decided)
+                                    for a in assessments])

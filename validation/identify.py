@@ -76,6 +76,10 @@ class StateModels:
     hi: Mapping[str, np.ndarray]
     options: IdentifyOptions
     columns: slice = field(default_factory=lambda: slice(None))  # the features used
+    # state -> (windows, 2): (all-feature, along-the-candidates) squared distances of the held-out
+    # realisations' windows of ``window_cycles`` consecutive cycles (validation.windows' null)
+    window_null: Mapping[str, np.ndarray] = field(default_factory=dict)
+    window_cycles: int = 5
 
 
 @dataclass
@@ -135,10 +139,11 @@ def _models(fits: dict[str, StateStatistics], pooled: bool) -> dict[str, StateSt
 
 
 def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions(), *,
-               columns: slice = slice(None)) -> StateModels:
+               columns: slice = slice(None), window_cycles: int = 5) -> StateModels:
     """Fit each state's statistics and calibrate the temperature and the consistency test.
 
-    columns: which features to use (all by default; a block for comparing statistics)."""
+    columns: which features to use (all by default; a block for comparing statistics).
+    window_cycles: length of the windows whose held-out distances are kept (``window_null``)."""
     if len(ensembles) < 1:
         raise ValueError("identify: no candidate ensembles")
     names = tuple(ensembles)
@@ -149,9 +154,9 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
     # held-out realisations: their distance to their own state (refit without them, and so the
     # pooled covariances), and their log likelihood under every state, for the null distributions
     # and the temperature
-    lls, truth, null, null_direction = [], [], {}, {}
+    lls, truth, null, null_direction, window_null = [], [], {}, {}, {}
     for si, (s, f) in enumerate(features.items()):
-        d2, t2 = [], []
+        d2, t2, wn = [], [], []
         others = [fitted[t].mean for t in names if t != s]
         for r in range(f.shape[0]):
             models = _models({**own, s: StateStatistics.fit(np.delete(f, r, axis=0), floor)}, options.pooled)
@@ -160,6 +165,11 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
             t2.append(direction_distance2(models[s], others, xbar, n))
             lls.append([models[t].log_likelihood(xbar, n) for t in names])
             truth.append(si)
+            for k in range(max(0, n - window_cycles + 1)):
+                wbar = f[r, k:k + window_cycles].mean(axis=0)
+                wn.append((models[s].distance2(wbar, window_cycles),
+                           direction_distance2(models[s], others, wbar, window_cycles)))
+        window_null[s] = np.asarray(wn).reshape(-1, 2)
         null[s] = _gamma(d2)
         null_direction[s] = _gamma(t2) if others else (1.0, 1.0)  # one candidate: distance 0, p 1
     lls_a, truth_a = np.asarray(lls), np.asarray(truth)
@@ -180,7 +190,8 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         d = flat - fitted[s].mean
         limit[s] = float(np.percentile(np.einsum("ij,jk,ik->i", d, inv, d), 95))
         lo[s], hi[s] = np.percentile(flat, 5, axis=0), np.percentile(flat, 95, axis=0)
-    return StateModels(names, fitted, temperature, null, null_direction, limit, lo, hi, options, columns)
+    return StateModels(names, fitted, temperature, null, null_direction, limit, lo, hi, options, columns,
+                       window_null, window_cycles)
 
 
 def _ranges(flags: np.ndarray, bins: int) -> list[str]:
@@ -197,6 +208,14 @@ def _ranges(flags: np.ndarray, bins: int) -> list[str]:
         else:
             i += 1
     return out
+
+
+def feature_ranges(flags: np.ndarray, spec: FeatureSpec) -> list[str]:
+    """Crank-angle ranges of the flagged features (``spec.size`` flags), e.g. "impacts 50-150 Hz 40-60 deg"."""
+    blocks = np.asarray(flags, dtype=bool).reshape(-1, spec.bins)
+    return [f"curve {r}" for r in _ranges(blocks[0], spec.bins)] + [
+        f"impacts {lo:g}-{hi:g} Hz {r}" for (lo, hi), flags in zip(spec.bands, blocks[1:], strict=True)
+        for r in _ranges(flags, spec.bins)]
 
 
 def identify_features(features: CycleFeatures, models: StateModels, *, label: str = "session") -> Identification:
@@ -245,10 +264,7 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         out = (x < models.lo[s]) | (x > models.hi[s])
         often = np.zeros(spec.size, dtype=bool)
         often[models.columns] = out.mean(axis=0) > 1 / 3
-        blocks = often.reshape(-1, spec.bins)
-        leaves[s] = [f"curve {r}" for r in _ranges(blocks[0], spec.bins)] + [
-            f"impacts {lo:g}-{hi:g} Hz {r}" for (lo, hi), flags in zip(spec.bands, blocks[1:], strict=True)
-            for r in _ranges(flags, spec.bins)]
+        leaves[s] = feature_ranges(often, spec)
     notes = []
     clipped = int(features.clipped.sum())
     if clipped:

@@ -16,6 +16,9 @@ import numpy as np
 from matplotlib.figure import Figure
 from wearbench.validation.bands import BandComparison
 from wearbench.validation.identify import Identification
+from wearbench.validation.window_report import NOTES as WINDOW_NOTES
+from wearbench.validation.window_report import window_section
+from wearbench.validation.windows import SessionWindows
 
 __all__ = ["IdentifiedSession", "identification_section"]
 
@@ -31,19 +34,35 @@ NOTES = (
     "named only at p >= the threshold, else 'undecided'; 'none of the candidates' when no state passes "
     "the consistency test: the session's distance in all features, and along the directions to the other "
     "candidates, each against the same distance of held-out realisations (p >= 0.001 and 0.01)."),
-    ("Model reference for window scores: every five-cycle window of every realisation scored against "
-    "the ensemble median, the same way as the measured windows (crank-angle domain, CFC 180, shift "
-    "search held to the sensor's plausible delay). 'As good as the model' = the measured median rating "
-    "reaches the reference's 5th percentile."),
+    *WINDOW_NOTES,
 )
 
 
 @dataclass
 class IdentifiedSession:
-    """One session's identification and its bands against the top (or named) state."""
+    """One session's identification, its bands against the top (or named) ``state``, and its windows
+    against every state (``decided``: the identification named ``state``)."""
 
     identification: Identification
     bands: BandComparison
+    windows: dict[str, SessionWindows]
+    state: str
+    decided: bool
+
+    @property
+    def window_verdict(self) -> str:
+        """The one window verdict of the session: against the identified state, or why there is none."""
+        sw = self.windows.get(self.state)
+        if not self.decided:
+            return f"cannot decide: identification {self.identification.verdict}"
+        return "no window" if sw is None else sw.label
+
+
+def _delay(item: IdentifiedSession) -> str:
+    sw = item.windows.get(item.state)
+    if sw is None or not sw.windows:
+        return "-"
+    return f"{np.median([w.delay_s for w in sw.windows]) * 1e3:.2f}"
 
 
 def _band_figure(item: IdentifiedSession, path: Path, save: Callable[[Figure, Path], Path]) -> Path:
@@ -95,35 +114,29 @@ def identification_section(items: Sequence[IdentifiedSession], out: Path, slug: 
     files = [_posterior_figure(items, out / "posteriors.png", save)]
     parts = [f"<h2>Which state explains each session (named at p &ge; {threshold:g})</h2><table><tr>"
              "<th>session</th><th>cycles</th>" + "".join(f"<th>p({e(s)})</th>" for s in states)
-             + "<th>verdict</th><th>explained by</th><th>cycles to decide</th>"
-             "<th>cycles inside band</th><th>notes</th></tr>"]
+             + "<th>verdict</th><th>windows against it</th><th>sensor delay (ms)</th><th>explained by</th>"
+             "<th>cycles to decide</th><th>cycles inside band</th>"
+             "<th>peak |a| CFC 180 measured / theory p50 (m/s²)</th><th>notes</th></tr>"]
     rows = []
     for it in items:
         r = it.identification
         needed = "-" if r.cycles_needed is None else str(r.cycles_needed)
+        b = it.bands.summary()
         top = max(r.posterior, key=r.posterior.get)
         parts.append(f"<tr><td>{e(r.session)}</td><td>{r.cycles}</td>"
                      + "".join(f"<td>{r.posterior[s]:.3f}</td>" for s in states)
-                     + f"<td>{e(r.verdict)}</td><td>{e(', '.join(s for s in states if r.explains[s]) or 'none')}</td>"
+                     + f"<td>{e(r.verdict)}</td><td>{e(it.window_verdict)}</td><td>{_delay(it)}</td>"
+                     f"<td>{e(', '.join(s for s in states if r.explains[s]) or 'none')}</td>"
                      f"<td>{needed}</td><td>{100 * r.inside[top]:.0f} % ({e(top)})</td>"
+                     f"<td>{b['peak_acc_measured_median']:.0f} / {b['peak_acc_theory_p5_p50_p95'][1]:.0f}</td>"
                      f"<td>{e('; '.join(r.notes + [f'leaves the band of {top}: ' + ', '.join(r.leaves[top])] if r.leaves[top] else r.notes))}</td></tr>")
-        rows.append({**r.as_dict(), "bands": it.bands.summary()})
+        rows.append({**r.as_dict(), "bands": b, "window_state": it.state, "window_verdict": it.window_verdict,
+                     "windows": {st: sw.summary() for st, sw in it.windows.items()}})
     parts.append("</table>")
     parts.append(img(files[0]))
-    parts.append("<h2>Measured windows against the ensemble (ISO/TS 18571, model reference)</h2><table><tr>"
-                 "<th>session</th><th>state</th><th>windows</th><th>ISO R measured (median)</th>"
-                 "<th>ISO R model p5 / p50 / p95</th><th>percentile</th><th>as good as the model</th>"
-                 "<th>cycles outside band (mean over angle)</th><th>peak |a| CFC 180 measured / theory p50 (m/s²)</th></tr>")
-    for it in items:
-        s = it.bands.summary()
-        p5, p50, p95 = s["iso_rating_model_p5_p50_p95"]
-        meas = s["iso_rating_measured_median"]
-        parts.append(f"<tr><td>{e(it.identification.session)}</td><td>{e(s['state'])}</td><td>{s['windows']}</td>"
-                     f"<td>{'-' if meas is None else f'{meas:.3f}'}</td><td>{p5:.3f} / {p50:.3f} / {p95:.3f}</td>"
-                     f"<td>{s['rating_percentile']:.0f}</td><td>{'yes' if s['as_good_as_model'] else 'no'}</td>"
-                     f"<td>{100 * s['fraction_outside_band']:.0f} %</td>"
-                     f"<td>{s['peak_acc_measured_median']:.0f} / {s['peak_acc_theory_p5_p50_p95'][1]:.0f}</td></tr>")
-    parts.append("</table>")
+    html_windows, window_files = window_section(items, out, slug, save, img)
+    parts.append(html_windows)
+    files += window_files
     for it in items:
         f = _band_figure(it, out / f"band_{slug(it.identification.session)}.png", save)
         files.append(f)

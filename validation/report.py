@@ -262,11 +262,12 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
            f"<h1>{e(title)}</h1>",
            (f"<p class='note'>generated {e(scores['generated'])}; filter: {e(scores['options']['filter'])}; "
            f"windows: {e(scores['options']['windows'])}</p>"),
-           identification,
-           ("<h2>Summary</h2><table><tr><th>session</th><th>theory</th><th>windows</th><th>ISO R (mean ± sd)</th>"
-           "<th>grade</th><th>peak |a| test (m/s²)</th><th>peak |a| theory (m/s²)</th>"
-           + ("<th>best explained by</th>" if rankings else "")
-           + "<th>shift (ms / deg)</th><th>NRMSE</th><th>correlation</th><th>S&amp;G C</th></tr>")]
+           identification]
+    if comparisons:
+        out.append("<h2>Summary</h2><table><tr><th>session</th><th>theory</th><th>windows</th>"
+                   "<th>ISO R (mean ± sd)</th><th>grade</th><th>peak |a| test (m/s²)</th><th>peak |a| theory (m/s²)</th>"
+                   + ("<th>best explained by</th>" if rankings else "")
+                   + "<th>shift (ms / deg)</th><th>NRMSE</th><th>correlation</th><th>S&amp;G C</th></tr>")
     for c, row in zip(comparisons, scores["summary"]):
         s = c.summary
         shift = np.mean([w.shift_s for w in c.windows]) * 1e3
@@ -278,7 +279,8 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
                    f"<td>{row['peak_acc_theory']:.1f}</td>{best}<td>{shift:+.2f} / {deg:+.2f}</td>"
                    f"<td>{s.loc['nrmse', 'mean']:.3f}</td><td>{s.loc['correlation', 'mean']:.3f}</td>"
                    f"<td>{s.loc['sg_comprehensive', 'mean']:.3f}</td></tr>")
-    out.append("</table>")
+    if comparisons:
+        out.append("</table>")
     if rankings:
         out.append("<h2>Which theory explains each session best</h2><table><tr><th>session</th>"
                    "<th>best theory</th><th>ISO R</th><th>other candidates (ISO R)</th></tr>")
@@ -290,7 +292,8 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
     for key, heading in (("ranking", "Every session against every theory"), ("sessions", "Sessions side by side")):
         if figures.get(key):
             out.append(f"<h2>{heading}</h2>" + "".join(_img(p) for p in figures[key]))
-    out.append("<h2>Scores (mean ± sd over windows)</h2>" + _score_table(comparisons))
+    if comparisons:
+        out.append("<h2>Scores (mean ± sd over windows)</h2>" + _score_table(comparisons))
     for i, c in enumerate(comparisons):
         out.append(f"<h2>{e(c.label)} against {e(c.theory.label)}</h2>")
         out.append("".join(_img(p) for p in figures.get(i, [])))
@@ -305,7 +308,7 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
         if c.skipped:
             out.append("<p class='note'>skipped: " + "; ".join(f"cycle {s}: {e(r)}" for s, r in c.skipped)
                        + "</p>")
-    notes = DEPARTURES + (IDENTIFY_NOTES if identification else ())
+    notes = (DEPARTURES if comparisons else ()) + (IDENTIFY_NOTES if identification else ())
     out.append("<h2>Method notes</h2><ul class='note'>" + "".join(f"<li>{e(d)}</li>" for d in notes)
                + "</ul></body></html>")
     return "\n".join(out)
@@ -314,15 +317,17 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
 def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, *,
                  title: str = "wearbench: measurement against theory",
                  rankings: Mapping[str, Sequence[TheoryRanking]] | None = None,
-                 identified: Sequence[IdentifiedSession] = (), threshold: float = 0.9) -> ComparisonReport:
+                 identified: Sequence[IdentifiedSession] = (), threshold: float = 0.9,
+                 options: Mapping[str, Any] | None = None) -> ComparisonReport:
     """Write figures, ``scores.json`` and ``report.html`` for ``comparisons`` into ``out_dir``.
 
     rankings: optional ``rank_theories`` results by session label (best first), reported as the
     theory (e.g. wear stage) that best explains each session. identified: sessions identified against
     theory ensembles (posteriors, bands, model-reference scores), reported first; ``threshold`` is
-    the probability at which a state was named.
+    the probability at which a state was named. options: what the page's note states (``filter``,
+    ``windows``; default the first comparison's options).
     """
-    if not comparisons:
+    if not comparisons and not identified:
         raise ValueError("report: no comparisons to write")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -344,9 +349,10 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
     if identified:
         section, files, rows = identification_section(identified, out, _slug, _save, _img, threshold)
         figures["identification"] = files
-    options = comparisons[0].options.as_dict()
+    options = dict(options) if options is not None else comparisons[0].options.as_dict()
     scores = {"generated": datetime.now(UTC).isoformat(timespec="seconds"), "title": title,
-              "options": options, "method_notes": list(DEPARTURES),
+              "options": options,
+              "method_notes": list((DEPARTURES if comparisons else ()) + (IDENTIFY_NOTES if identified else ())),
               "summary": _summary(comparisons, rankings or {}),
               "identification": rows,
               "sessions": [c.as_dict() for c in comparisons],

@@ -80,3 +80,25 @@ def test_identify_command_with_saved_ensembles(case, tmp_path, capsys):
     assert "Which state explains each session" in html and "band_" in html
     # a bad threshold is one clear line, exit 2
     assert main(["identify", str(paths[0]), "--ensembles", str(saved), "--threshold", "1.5"]) == 2
+
+
+def test_plain_compare_gives_one_verdict_per_session(case, tmp_path, capsys):
+    """`wearbench compare` without --theory on sessions whose bench names states: identified first,
+    windows judged against the identified state only, or "cannot decide"; no second grade."""
+    import json
+
+    from wearbench.cli import main
+    paths = case[3]
+    out = tmp_path / "report"
+    assert main(["compare", str(paths[0]), str(paths[2]), "--out", str(out)]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines()
+             if ln.startswith((paths[0].stem + ":", paths[2].stem + ":"))]
+    assert len(lines) == 2
+    scores = json.loads((out / "scores.json").read_text())
+    assert scores["summary"] == [] and scores["sessions"] == []  # no grade against a claimed state
+    for line, row in zip(lines, scores["identification"], strict=True):
+        if row["verdict"] in row["posterior"]:
+            assert f"windows against {row['verdict']}:" in line and row["window_state"] == row["verdict"]
+        else:
+            assert "cannot decide" in line and row["window_verdict"].startswith("cannot decide")
+    assert "ISO R" not in (out / "report.html").read_text().split("Five-cycle windows")[0]
