@@ -52,7 +52,7 @@ def test_prior_is_a_mode_between_300_hz_and_3_khz():
     assert abs(prior.theta_mean[0]) < 1e-3 and 0.02 < sd[0] < 0.04  # +/-5 % uniform: sd 2.9 %
     # modes from 300 Hz hardly touch 50-150 Hz; the bands they fall in or above spread by factors
     # of 3 (measured: 50-150 Hz mean +0.02, sd 0.04; 150-400 Hz sd 0.44; 400-1000 Hz sd 0.58, log10)
-    assert abs(prior.theta_mean[1]) < 0.1 and sd[1] < 0.1 < 0.3 < sd[2] < sd[3]
+    assert abs(prior.theta_mean[1]) < 0.1 and sd[1] < 0.1 and 0.3 < sd[2] < sd[3]
     assert np.all(np.linalg.eigvalsh(prior.theta_cov) > 0)
 
 
