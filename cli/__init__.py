@@ -31,6 +31,7 @@ COMMANDS: dict[str, str] = {
     "emulate": "emulate",
     "compare": "compare",
     "identify": "identify",
+    "calibrate": "calibrate",
     "ensemble": "ensemble",
     "demo": "demo",
 }

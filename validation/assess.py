@@ -18,6 +18,14 @@ import numpy as np
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands, ensemble_theory
+from wearbench.validation.calibration import (
+    Calibration,
+    calibration_key,
+    find_calibration,
+    fit_calibration,
+    load_calibration,
+    sensor_record,
+)
 from wearbench.validation.compare import (
     CompareOptions,
     SessionComparison,
@@ -35,7 +43,7 @@ from wearbench.validation.identify import (
 )
 from wearbench.validation.measured import MeasuredSession, load_session
 
-__all__ = ["Assessment", "assess_sessions", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "calibrate_sessions", "session_calibration", "session_features"]
 
 
 @dataclass
@@ -70,6 +78,18 @@ def session_features(session: MeasuredSession, spec: FeatureSpec | None = None,
     return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), range_=range_)
 
 
+def session_calibration(session: MeasuredSession, spec: FeatureSpec, calibration: str | Path | None,
+                        mount: str = "") -> Calibration | None:
+    """The sensor-path calibration a session uses (see :func:`assess_sessions`)."""
+    if calibration is None:
+        return None
+    if calibration != "auto":
+        return load_calibration(calibration)
+    if session.bench is None:
+        return None
+    return find_calibration(calibration_key(session.bench, session.metadata, spec, mount))
+
+
 def commanded_speed(session: MeasuredSession) -> float:
     """The commanded motor speed (rad/s) of a session (its metadata), else the measured one."""
     raw = session.metadata.get("session", {}).get("speed_rad_s")
@@ -94,13 +114,17 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                     settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
                     compare_options: CompareOptions | None = None,
                     ensembles: Mapping[str, Ensemble] | None = None, scheduler: str | None = None,
-                    workers: int | None = None, progress: str | None = "theory ensembles") -> list[Assessment]:
+                    workers: int | None = None, progress: str | None = "theory ensembles",
+                    calibration: str | Path | None = "auto", mount: str = "") -> list[Assessment]:
     """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
 
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
     recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
     layer and cached; ``ensembles`` ({state: Ensemble}) uses those instead. Defaults: the default
     ensemble settings, identification options and comparison options.
+    calibration: "auto" uses the stored calibration of each session's bench, sensor and ``mount``
+    (``calibration.py``) when there is one, else the sensor-path prior; a calibration file uses that;
+    None never uses one.
     """
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
     compare_options = compare_options or CompareOptions()
@@ -116,12 +140,18 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
         ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
                                            speed=commanded_speed(first), settings=settings, scheduler=scheduler,
                                            workers=workers, progress=progress)
-        models = fit_states(ens, options)
         st = next(iter(ens.values())).settings
+        fitted: dict[str, object] = {}
         for i in idx:
             s = loaded[i]
+            cal = session_calibration(s, st.features, calibration, mount)
+            tag = cal.key if cal else ""
+            if tag not in fitted:
+                fitted[tag] = fit_states(ens, options, sensor=cal.path if cal else None)
             arrays = _arrays(s)
-            ident = identify_features(session_features(s, st.features, arrays), models, label=s.label)
+            ident = identify_features(session_features(s, st.features, arrays), fitted[tag], label=s.label)
+            if cal is not None:
+                ident.notes.append(f"sensor path: {cal.describe()}")
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
             curves, peaks = cycle_curves(*arrays, grid=st.grid,
                                          filter_spec=parse_filter(st.curve_filter, remove_bias=False))
@@ -132,6 +162,37 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                                              options=compare_options)
             out[i] = Assessment(s, ident, bands, comparison)
     return out
+
+
+def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: str, *,
+                       candidates: str | Path | Sequence[WearState] | None = None,
+                       settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
+                       ensembles: Mapping[str, Ensemble] | None = None, mount: str = "",
+                       scheduler: str | None = None, workers: int | None = None,
+                       progress: str | None = "theory ensembles") -> Calibration:
+    """The sensor-path calibration of one bench from ``sessions`` recorded in the known ``state``
+    (a ``[[state]]`` name of the bench or of ``candidates``); see ``calibration.py``. Not saved."""
+    from dataclasses import replace
+
+    settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    first = loaded[0]
+    if first.bench is None:
+        raise ValueError(f"session {first.label}: no bench file recorded in it; calibration needs one")
+    for s in loaded[1:]:
+        if s.bench is None or s.bench.sha256 != first.bench.sha256 or sensor_record(s.metadata) != sensor_record(
+                first.metadata):
+            raise ValueError(f"session {s.label}: another bench file or sensor than {first.label}; calibrate one "
+                             "bench and sensor at a time")
+    ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates), speed=commanded_speed(first),
+                                       settings=settings, scheduler=scheduler, workers=workers, progress=progress)
+    if state not in ens:
+        raise ValueError(f"calibrate: --state {state!r}: expected one of the bench's states {list(ens)}")
+    spec = next(iter(ens.values())).settings.features
+    exact = fit_states(ens, replace(options, sensor_path="none"))
+    key = calibration_key(first.bench, first.metadata, spec, mount)
+    return fit_calibration([session_features(s, spec) for s in loaded], exact, state, key=key,
+                           bench=first.bench.name, labels=[s.label for s in loaded], mount=mount)
 
 
 def write_assessment_report(assessments: Sequence[Assessment], out_dir: str | Path, *, threshold: float = 0.9,
