@@ -32,6 +32,8 @@ COMMANDS: dict[str, str] = {
     "compare": "compare",
     "identify": "identify",
     "calibrate": "calibrate",
+    "estimate": "estimate",
+    "estimator": "estimator",
     "ensemble": "ensemble",
     "demo": "demo",
 }

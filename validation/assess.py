@@ -33,6 +33,15 @@ from wearbench.validation.compare import (
     motor_speed,
 )
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
+from wearbench.validation.estimate import (
+    Estimate,
+    Estimator,
+    EstimatorDesign,
+    EstimatorModel,
+    build_estimator,
+    estimate_features,
+    fit_estimator,
+)
 from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
 from wearbench.validation.identify import (
@@ -43,7 +52,7 @@ from wearbench.validation.identify import (
 )
 from wearbench.validation.measured import MeasuredSession, load_session
 
-__all__ = ["Assessment", "assess_sessions", "calibrate_sessions", "session_calibration", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "calibrate_sessions", "estimate_sessions", "session_calibration", "session_features"]
 
 
 @dataclass
@@ -193,6 +202,41 @@ def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: 
     key = calibration_key(first.bench, first.metadata, spec, mount)
     return fit_calibration([session_features(s, spec) for s in loaded], exact, state, key=key,
                            bench=first.bench.name, labels=[s.label for s in loaded], mount=mount)
+
+
+def estimate_sessions(sessions: Sequence[str | Path | MeasuredSession], *, design: EstimatorDesign | None = None,
+                      estimator: Estimator | None = None, options: IdentifyOptions | None = None,
+                      calibration: str | Path | None = "auto", mount: str = "", scheduler: str | None = None,
+                      workers: int | None = None, progress: str | None = "estimator") -> list[Estimate]:
+    """Clearance and wear of each session (paths or ``MeasuredSession``) with credible intervals.
+
+    The estimator of each (bench, commanded speed) is built once on the compute layer (or the
+    shipped one used when its key matches; ``estimator`` uses that one); ``design`` defaults to
+    ``EstimatorDesign()``. ``calibration``/``mount``: as :func:`assess_sessions`.
+    """
+    design, options = design or EstimatorDesign(), options or IdentifyOptions()
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    groups: dict[tuple, list[int]] = {}
+    for i, s in enumerate(loaded):
+        if s.bench is None and estimator is None:
+            raise ValueError(f"session {s.label}: no bench file recorded in it; the estimator needs one")
+        groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
+    out: list[Estimate | None] = [None] * len(loaded)
+    for idx in groups.values():
+        first = loaded[idx[0]]
+        est = estimator or build_estimator(first.bench, design, speed=commanded_speed(first), scheduler=scheduler,
+                                           workers=workers, progress=progress)
+        fitted: dict[str, EstimatorModel] = {}
+        for i in idx:
+            s = loaded[i]
+            cal = session_calibration(s, est.spec, calibration, mount)
+            tag = cal.key if cal else ""
+            if tag not in fitted:
+                fitted[tag] = fit_estimator(est, options, sensor=cal.path if cal else None)
+            out[i] = estimate_features(session_features(s, est.spec), fitted[tag], label=s.label)
+            if cal is not None:
+                out[i].notes.append(f"sensor path: {cal.describe()}")
+    return out
 
 
 def write_assessment_report(assessments: Sequence[Assessment], out_dir: str | Path, *, threshold: float = 0.9,

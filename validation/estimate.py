@@ -386,6 +386,7 @@ class Estimate:
     sensor_path: str
     notes: list[str] = field(default_factory=list)
     posterior: np.ndarray | None = field(default=None, repr=False)  # (gc, gn) on the model's grid
+    meta: dict = field(default_factory=dict)  # the grid's ranges: grid_c (m), grid_n (cycles)
 
     def as_dict(self) -> dict:
         out = {k: v for k, v in asdict(self).items() if k != "posterior"}
@@ -429,4 +430,5 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
     sensor = model.sensor.source if model.sensor else "none"
     return Estimate(label, n, c_int, n_int, depth_int, (float(gc[i]), float(gn[j])),
-                    cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, post)
+                    cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, post,
+                    {"grid_c": [float(gc[0]), float(gc[-1])], "grid_n": [float(gn[0]), float(gn[-1])]})

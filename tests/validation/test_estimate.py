@@ -88,7 +88,7 @@ def test_intervals_narrow_with_cycles_and_the_depth_follows_the_wear(model):
     x = draw(rng, true_mean(0.45e-3, 2e5), 1, 40)[0]
     short = estimate_features(CycleFeatures(SPEC, x[:5], np.zeros(5)), model)
     long = estimate_features(CycleFeatures(SPEC, x, np.zeros(40)), model)
-    w = lambda i: i.hi90 - i.lo90  # noqa: E731
+    w = lambda i: i.hi90 - i.lo90
     assert w(long.clearance) < w(short.clearance) and w(long.cycles_run) < w(short.cycles_run)
     assert long.depth.median == pytest.approx(long.cycles_run.median * 2e-11, rel=0.05)
 
@@ -136,3 +136,15 @@ def test_interval_of_a_known_distribution():
     i = _interval(x, stats.norm.pdf(x))
     assert i.median == pytest.approx(0, abs=1e-3) and i.hi90 == pytest.approx(1.645, abs=0.01)
     assert i.lo50 == pytest.approx(-0.674, abs=0.01)
+
+
+def test_joint_posterior_figure_and_json(model, tmp_path):
+    import json
+
+    from wearbench.validation.estimate_figure import posterior_figure
+
+    e = estimate_features(session(np.random.default_rng(5), 0.4e-3, 2e5), model)
+    path = posterior_figure(e, tmp_path / "p.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    d = json.loads(json.dumps(e.as_dict()))
+    assert d["clearance"]["lo90"] <= d["clearance"]["median"] <= d["clearance"]["hi90"] and "posterior" not in d
