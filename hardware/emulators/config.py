@@ -297,7 +297,9 @@ def _spread(r: _Reader, d: Any) -> SensorSpread:
     r.keys(r.table(d, k), k, set(), {"mode", "damping", "sensitivity"})
 
     def pair(name: str, default: tuple[float, float], read) -> tuple[float, float]:
-        raw = d.get(name, list(default))
+        if name not in d:
+            return default
+        raw = d[name]
         if not isinstance(raw, list) or len(raw) != 2:
             raise r.fail(f"{k}.{name}", raw, "expected [low, high]")
         lo, hi = (read({name: v}) for v in raw)
