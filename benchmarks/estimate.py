@@ -11,7 +11,7 @@ in-process to the model's acceleration (no MCAP round trip: benchmarks/identify.
 ``--at 200000 --at-truths 10`` adds truths at that many cycles run (clearance from the prior).
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
-deepest wear) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
+wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
 rank histogram (posterior CDF at the truth, 10 bins; flat when calibrated); median 90 % widths at
 5, 10 and 20 cycles; the clearance median absolute error; "no parameter value explains it" rates;
 for the --at truths, how often the 90 % cycles-run interval excludes 0 and twice the truth.
@@ -50,7 +50,7 @@ def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles
                              clearances=dict.fromkeys(joints, clearance))
             for j, s in run.final.items():
                 files[j] = s.save(Path(tmp) / f"{j}.npz")
-                depth = max(depth, *s.max_depth)
+                depth = max(depth, sum(s.max_depth))
         acc = EmulatorConfig.from_bench(bench).accelerometer
         if spread:
             acc = SensorSpread().draw(acc, seed)
@@ -130,7 +130,7 @@ def main() -> None:
     print("parameter       90 % coverage (se)   50 % coverage (se)   rank histogram (10 bins)")
     for name, truth_of, interval in (("clearance", lambda t, dep: t[0], lambda e: e.clearance),
                                      ("cycles run", lambda t, dep: t[1], lambda e: e.cycles_run),
-                                     ("deepest wear", lambda t, dep: dep, lambda e: e.depth)):
+                                     ("wear depth", lambda t, dep: dep, lambda e: e.depth)):
         inside = [e.explains and interval(e).contains(truth_of(t, dep), 90) for t, dep, e in prior]
         half = [e.explains and interval(e).contains(truth_of(t, dep), 50) for t, dep, e in prior]
         ranks = [rank(e, truth_of(t, dep), name, model) for t, dep, e in prior]
@@ -139,7 +139,7 @@ def main() -> None:
         print(f"{name:14s}  {np.mean(inside):.2f} ({np.sqrt(0.09 / k):.2f})          {np.mean(half):.2f} "
               f"({np.sqrt(0.25 / k):.2f})          {' '.join(str(h) for h in hist)}")
     print("\nmedian 90 % interval width and clearance error against cycles used:")
-    print("cycles  truths  clearance width (mm)  cycles-run width  deepest-wear width (um)  |clearance error| median (mm)"
+    print("cycles  truths  clearance width (mm)  cycles-run width  wear-depth width (um)  |clearance error| median (mm)"
           "  'no parameter value explains it'")
     for n, rs in rows.items():
         rs = [r for r in rs if r[0][2] < args.seed + 5000]

@@ -16,7 +16,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "estimate", help="clearance and wear of session MCAPs, with 50 % and 90 % credible intervals",
         description="Estimate the clearance (shared by the clearance joints) and the wear (cycles run along the "
-        "bench's own wear trajectory, and the deepest worn point) of each session from the statistics of its "
+        "bench's own wear trajectory, and the wear depth: the clearance growth) of each session from the statistics of its "
         "crank cycles, against theory ensembles over a design of clearances and cycles run (built on the "
         "compute layer and cached, or --estimator). Says 'no parameter value explains it' when none does.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="recorded session file(s)")
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
                   f"{e.clearance.hi50 * 1e3:.3f}  90 % {e.clearance.lo90 * 1e3:.3f}-{e.clearance.hi90 * 1e3:.3f}")
             print(f"  cycles run {e.cycles_run.median:,.0f}  50 % {e.cycles_run.lo50:,.0f}-{e.cycles_run.hi50:,.0f}"
                   f"  90 % {e.cycles_run.lo90:,.0f}-{e.cycles_run.hi90:,.0f}")
-            print(f"  deepest wear {e.depth.median * 1e6:.1f} um  90 % {e.depth.lo90 * 1e6:.1f}-"
+            print(f"  wear depth (clearance growth) {e.depth.median * 1e6:.1f} um  90 % {e.depth.lo90 * 1e6:.1f}-"
                   f"{e.depth.hi90 * 1e6:.1f} um;  clearance and wear correlated {e.correlation:+.2f}")
         print(f"  consistency p {e.p_value:.3g}; sensor path: {e.sensor_path}")
         for note in e.notes:

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     est = build_estimator(bench, design, shipped=False, **compute_options(args, bench))
     save_estimator(est, out)
     print(f"{len(design.clearances)} clearances x {len(design.cycles)} cycles-run values, "
-          f"{est.features.shape[2]} realisations x {est.features.shape[3]} cycles each; deepest wear "
+          f"{est.features.shape[2]} realisations x {est.features.shape[3]} cycles each; largest wear depth "
           f"{est.depth.max() * 1e6:.1f} um")
     print(f"saved: {out}")
     return 0

@@ -24,8 +24,9 @@ parameters; an MCMC or a neural estimator adds nothing there):
    points' means; its residual variance beyond the design means' own sampling variance is added to
    the covariance as the emulator's error.
 3. **Posterior** on a grid over the design box (uniform prior), tempered as ``identify`` tempers;
-   marginal medians, 50 % and 90 % central credible intervals of ``c``, ``N`` and the worn depth
-   (deepest point of any joint's surfaces, interpolated from the wear runs).
+   marginal medians, 50 % and 90 % central credible intervals of ``c``, ``N`` and the wear depth
+   (the largest clearance growth of any joint, its bearing's and journal's deepest points added,
+   interpolated from the wear runs: what a clearance limit is checked against).
 4. **Consistency**: the session's smallest distance over the grid against the same statistic of the
    design's own realisations (a gamma fitted by moments); below ``consistency`` the answer is "no
    parameter value explains it".
@@ -97,7 +98,7 @@ class Estimator:
     key: str
     design: EstimatorDesign
     features: np.ndarray  # (clearances, cycles, M, C, p)
-    depth: np.ndarray  # (clearances, cycles) deepest worn point of any joint's surfaces (m)
+    depth: np.ndarray  # (clearances, cycles) wear depth: largest bearing + journal max depth of any joint (m)
     speed: float
 
     @property
@@ -172,7 +173,7 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
                 if not path.exists():
                     JointSurfaces(b, jr, cyc, f"{point_name(design.clearances[i], design.cycles[j])}").save(path)
                 files[jn] = path
-                depth[i, j] = max(depth[i, j], float(np.max(b)), float(np.max(jr)))
+                depth[i, j] = max(depth[i, j], float(np.max(b)) + float(np.max(jr)))
             states.append(design.state(i, j, files, joints))
     ens = build_ensembles(bench, states, speed=speed, settings=design.settings, scheduler=scheduler,
                           workers=workers, cache=cache, shipped=False, progress=progress and f"{progress}: ensembles")
@@ -301,7 +302,7 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
     gn = np.linspace(0.0, d.cycles[-1], grid[1])
     gu, gv = np.meshgrid(2 * (gc - lo) / (hi - lo) - 1, 2 * gn / d.cycles[-1] - 1, indexing="ij")
     basis = _basis(gu, gv, degrees)
-    # worn depth: linear in N along each design clearance's run, then linear in c
+    # wear depth: linear in N along each design clearance's run, then linear in c
     along = np.stack([np.interp(gn, d.cycles, est.depth[i]) for i in range(nc)])  # (nc, gn)
     grid_depth = np.stack([np.interp(gc, d.clearances, along[:, k]) for k in range(gn.size)], axis=1)
     centre = names[(nc // 2) * nn + nn // 2]
@@ -377,7 +378,7 @@ class Estimate:
     cycles: int
     clearance: Interval  # m
     cycles_run: Interval  # cycles
-    depth: Interval  # m, deepest worn point of any joint
+    depth: Interval  # m, wear depth: largest clearance growth of any joint (bearing + journal deepest points)
     mode: tuple[float, float]  # (c m, N cycles) at the posterior's maximum
     correlation: float  # of c and N under the posterior
     p_value: float

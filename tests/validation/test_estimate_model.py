@@ -53,17 +53,21 @@ def test_the_key_follows_the_design_and_the_wear_runs_follow_the_shipped_files(b
     assert estimator_key(bench, DESIGN, bench.speed) != estimator_key(bench, DESIGN, 2 * bench.speed)
     est = model.estimator
     assert est.features.shape[:4] == (2, 2, 6, 4) and np.all(est.depth[:, 0] == 0)
-    # the shipped first-wear files (0.3 mm, 200k cycles): deepest 8.3 um; one wear run is one chaotic
-    # realisation (10-13 % between runs, worn/README.md)
-    assert 5e-6 < est.depth[0, 1] < 13e-6
+    # the shipped first-wear files (0.3 mm, 200k cycles): B grows by 4.3 + 8.3 = 12.6 um; one wear run
+    # is one chaotic realisation (10-13 % between runs, worn/README.md)
+    assert 9e-6 < est.depth[0, 1] < 16e-6
 
 
-def test_non_twin_truths_inside_their_intervals_and_a_far_bench_explained_by_nothing(bench, model):
-    new = estimate_features(truth(bench, 0.3e-3, 9101), model, label="0.3 mm new")
-    wide = estimate_features(truth(bench, 0.6e-3, 9102), model, label="0.6 mm new")
-    for e, c in ((new, 0.3e-3), (wide, 0.6e-3)):
+def test_non_twin_truths_estimated_and_a_far_bench_explained_by_nothing(bench, model):
+    """Truths between the design clearances (drawn benches, seeds the design never uses): explained,
+    medians within 0.08 mm of the truth and in the truths' order, each truth inside its 90 % interval
+    (a truth ON the box's edge cannot lie inside a central interval: at 0.3 mm one run gave
+    0.308-0.402 mm, so the truths sit inside the box); a 1.2 mm bench: no parameter value explains it."""
+    found = {c: estimate_features(truth(bench, c, seed), model, label=f"{c * 1e3:g} mm new")
+             for c, seed in ((0.38e-3, 9101), (0.52e-3, 9102))}
+    for c, e in found.items():
         assert e.explains, e
-        assert e.clearance.contains(c, 90), (c, e.clearance)
-    assert new.clearance.median < wide.clearance.median
+        assert abs(e.clearance.median - c) < 0.08e-3 and e.clearance.contains(c, 90), (c, e.clearance)
+    assert found[0.38e-3].clearance.median < found[0.52e-3].clearance.median
     far = estimate_features(truth(bench, 1.2e-3, 9103), model, label="1.2 mm new")
     assert far.verdict == NO_VALUE, far
