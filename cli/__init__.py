@@ -34,6 +34,7 @@ COMMANDS: dict[str, str] = {
     "calibrate": "calibrate",
     "estimate": "estimate",
     "estimator": "estimator",
+    "track": "track",
     "ensemble": "ensemble",
     "demo": "demo",
 }

@@ -51,8 +51,9 @@ from wearbench.validation.identify import (
     identify_features,
 )
 from wearbench.validation.measured import MeasuredSession, load_session
+from wearbench.validation.track import Track, track_features
 
-__all__ = ["Assessment", "assess_sessions", "calibrate_sessions", "estimate_sessions", "session_calibration", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "calibrate_sessions", "estimate_sessions", "session_calibration", "session_features", "track_sessions"]
 
 
 @dataclass
@@ -237,6 +238,32 @@ def estimate_sessions(sessions: Sequence[str | Path | MeasuredSession], *, desig
             if cal is not None:
                 out[i].notes.append(f"sensor path: {cal.describe()}")
     return out
+
+
+def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run: Sequence[float], *,
+                   limit: float | None = None, design: EstimatorDesign | None = None,
+                   estimator: Estimator | None = None, options: IdentifyOptions | None = None,
+                   calibration: str | Path | None = "auto", mount: str = "", scheduler: str | None = None,
+                   workers: int | None = None, progress: str | None = "estimator") -> Track:
+    """Wear over one bench's life from ``sessions`` recorded after ``cycles_run`` cycles (see
+    ``track.py``); ``limit``: a clearance limit (m). Other arguments as :func:`estimate_sessions`."""
+    design, options = design or EstimatorDesign(), options or IdentifyOptions()
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    first = loaded[0]
+    if first.bench is None:
+        raise ValueError(f"session {first.label}: no bench file recorded in it; tracking needs one")
+    for s in loaded[1:]:
+        if s.bench is None or s.bench.sha256 != first.bench.sha256:
+            raise ValueError(f"session {s.label}: another bench file than {first.label}; track one bench at a time")
+    est = estimator or build_estimator(first.bench, design, speed=commanded_speed(first), scheduler=scheduler,
+                                       workers=workers, progress=progress)
+    cal = session_calibration(first, est.spec, calibration, mount)
+    model = fit_estimator(est, options, sensor=cal.path if cal else None)
+    track = track_features([session_features(s, est.spec) for s in loaded], cycles_run, model,
+                           coefficient=first.bench.wear.coefficient, limit=limit, labels=[s.label for s in loaded])
+    if cal is not None:
+        track.notes.append(f"sensor path: {cal.describe()}")
+    return track
 
 
 def write_assessment_report(assessments: Sequence[Assessment], out_dir: str | Path, *, threshold: float = 0.9,

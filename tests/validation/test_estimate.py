@@ -148,3 +148,29 @@ def test_joint_posterior_figure_and_json(model, tmp_path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     d = json.loads(json.dumps(e.as_dict()))
     assert d["clearance"]["lo90"] <= d["clearance"]["median"] <= d["clearance"]["hi90"] and "posterior" not in d
+
+
+def test_track_recovers_a_wear_coefficient_1_3_times_the_files(model, tmp_path):
+    """Lives of one bench (clearance 0.4 mm, true coefficient 1.3x the file's) recorded at 0, 100k, ...
+    400k cycles: the 90 % interval of the factor holds 1.3 in most lives, and the cycles until a
+    0.45 mm limit hold the truth (depth 4 um per 200k cycles of the file's rate here: the truth
+    reaches 50 um of growth after 50e-6 / (2e-11 x 1.3) = 1.92M cycles)."""
+    from wearbench.validation.track import track_features, track_figure
+
+    rng = np.random.default_rng(6)
+    runs = [0.0, 1e5, 2e5, 3e5, 4e5]
+    truth_limit = (0.45e-3 - 0.4e-3) / (2e-11 * 1.3)
+    hits = limits = 0
+    lives = 10
+    for _ in range(lives):
+        feats = [session(rng, 0.4e-3, 1.3 * n) for n in runs]
+        t = track_features(feats, runs, model, coefficient=5.2e-14, limit=0.45e-3)
+        hits += t.factor.contains(1.3, 90)
+        limits += t.cycles_to_limit is not None and t.cycles_to_limit.contains(truth_limit, 90)
+        assert t.coefficient.median == pytest.approx(t.factor.median * 5.2e-14)
+        assert t.clearance.contains(0.4e-3, 90) or abs(t.clearance.median - 0.4e-3) < 0.03e-3
+    assert hits >= 8 and limits >= 8, (hits, limits)
+    assert track_figure(t, tmp_path / "life.png").read_bytes()[:4] == b"\x89PNG"
+    assert t.prediction[0][1].median == 0.0 and t.prediction[-1][0] > 4e5
+    with pytest.raises(ValueError, match="one value per session"):
+        track_features(feats, runs[:3], model, coefficient=5.2e-14)
