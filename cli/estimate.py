@@ -14,7 +14,7 @@ from wearbench.cli.estimator import add_design_arguments, design_from_args
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "estimate", help="clearance and wear of session MCAPs, with 50 % and 90 % credible intervals",
+        "estimate", help="clearance and wear of session MCAPs, with 50 %% and 90 %% credible intervals",
         description="Estimate the clearance (shared by the clearance joints) and the wear (cycles run along the "
         "bench's own wear trajectory, and the wear depth: the clearance growth) of each session from the statistics of its "
         "crank cycles, against theory ensembles over a design of clearances and cycles run (built on the "
