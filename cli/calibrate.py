@@ -11,6 +11,19 @@ import argparse
 from wearbench.cli.compute import add_compute_arguments, compute_options
 
 
+def add_calibration_arguments(p: argparse.ArgumentParser) -> None:
+    """``--calibration`` and ``--mount`` of the commands that use a bench's sensor-path calibration."""
+    p.add_argument("--calibration", default="auto", metavar="FILE|none",
+                   help="sensor-path calibration ('wearbench calibrate'): default the stored one of the session's "
+                   "bench, sensor and --mount, else the prior of an unmeasured mount; 'none' never uses one")
+    p.add_argument("--mount", default="", help="mount label of the calibration to use (default none)")
+
+
+def calibration_options(args: argparse.Namespace) -> dict:
+    """{"calibration", "mount"} for the validation API from the parsed options."""
+    return {"calibration": None if args.calibration == "none" else args.calibration, "mount": args.mount}
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "calibrate", help="fit the bench's sensor path (mount, sensitivity) from sessions of a known state",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 
+from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.estimator import add_design_arguments, design_from_args
 
@@ -22,10 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="recorded session file(s)")
     p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
     add_design_arguments(p)
-    p.add_argument("--calibration", default="auto", metavar="FILE|none",
-                   help="sensor-path calibration ('wearbench calibrate'): default the stored one of the session's "
-                   "bench, sensor and --mount, else the prior of an unmeasured mount; 'none' never uses one")
-    p.add_argument("--mount", default="", help="mount label of the calibration to use (default none)")
+    add_calibration_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write every estimate as JSON (a new file)")
     p.add_argument("--out", metavar="DIR", help="write each session's joint posterior figure here (a new folder "
                    "or an empty one)")
@@ -46,8 +44,7 @@ def run(args: argparse.Namespace) -> int:
         raise FileExistsError(f"--out {args.out}: not empty; give a new or empty folder")
     estimator = load_estimator(args.estimator) if args.estimator else None
     results = estimate_sessions(args.sessions, design=design_from_args(args), estimator=estimator,
-                                calibration=None if args.calibration == "none" else args.calibration,
-                                mount=args.mount, **compute_options(args))
+                                **calibration_options(args), **compute_options(args))
     for e in results:
         print(f"{e.session} ({e.cycles} cycles): {e.verdict}")
         if e.explains:

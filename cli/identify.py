@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 
+from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
 
 
@@ -26,10 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
     p.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
     p.add_argument("--ensemble-cycles", type=int, default=8, help="settled cycles per realisation (8)")
-    p.add_argument("--calibration", default="auto", metavar="FILE|none",
-                   help="sensor-path calibration ('wearbench calibrate'): default the stored one of the session's "
-                   "bench, sensor and --mount, else the prior of an unmeasured mount; 'none' never uses one")
-    p.add_argument("--mount", default="", help="mount label of the calibration to use (default none)")
+    add_calibration_arguments(p)
     add_compute_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write every result as JSON")
     p.add_argument("--out", metavar="DIR", help="also write the report (report.html, scores.json, figures) here")
@@ -48,8 +46,7 @@ def run(args: argparse.Namespace) -> int:
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
     ensembles = load_ensembles(args.ensembles) if args.ensembles else None
     assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=ensembles,
-                               options=IdentifyOptions(threshold=args.threshold), mount=args.mount,
-                               calibration=None if args.calibration == "none" else args.calibration,
+                               options=IdentifyOptions(threshold=args.threshold), **calibration_options(args),
                                **compute_options(args))
     results = [a.identification for a in assessed]
     states = list(results[0].posterior)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 
+from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.estimator import add_design_arguments, design_from_args
 
@@ -24,9 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--limit", help="clearance limit, e.g. 0.5mm: print the cycles until the clearance reaches it")
     p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
     add_design_arguments(p)
-    p.add_argument("--calibration", default="auto", metavar="FILE|none",
-                   help="sensor-path calibration (default: the stored one of the bench, sensor and --mount)")
-    p.add_argument("--mount", default="", help="mount label of the calibration to use (default none)")
+    add_calibration_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write the result as JSON (a new file)")
     p.add_argument("--figure", metavar="FILE.png", help="write the wear-over-life figure (a new file)")
     add_compute_arguments(p)
@@ -55,8 +54,7 @@ def run(args: argparse.Namespace) -> int:
     limit = parse_quantity(args.limit, "length", bare_unit="mm") if args.limit else None
     estimator = load_estimator(args.estimator) if args.estimator else None
     t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=estimator,
-                       calibration=None if args.calibration == "none" else args.calibration, mount=args.mount,
-                       **compute_options(args))
+                       **calibration_options(args), **compute_options(args))
     for label, n, d in zip(t.sessions, t.cycles_run, t.depth, strict=True):
         print(f"{label}: {n:,.0f} cycles run, wear depth {d.median * 1e6:.1f} um (90 % {d.lo90 * 1e6:.1f}-"
               f"{d.hi90 * 1e6:.1f})")

@@ -88,6 +88,19 @@ def session_features(session: MeasuredSession, spec: FeatureSpec | None = None,
     return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), range_=range_)
 
 
+def _grouped(sessions: Sequence[str | Path | MeasuredSession], needs_bench: str | None
+             ) -> tuple[list[MeasuredSession], list[list[int]]]:
+    """The sessions loaded, and their indices grouped by (bench file, commanded speed); a session
+    without a recorded bench file is an error saying what needs it (``needs_bench``; None: allowed)."""
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    groups: dict[tuple, list[int]] = {}
+    for i, s in enumerate(loaded):
+        if s.bench is None and needs_bench is not None:
+            raise ValueError(f"session {s.label}: no bench file recorded in it; {needs_bench}")
+        groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
+    return loaded, list(groups.values())
+
+
 def session_calibration(session: MeasuredSession, spec: FeatureSpec, calibration: str | Path | None,
                         mount: str = "") -> Calibration | None:
     """The sensor-path calibration a session uses (see :func:`assess_sessions`)."""
@@ -138,14 +151,9 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
     """
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
     compare_options = compare_options or CompareOptions()
-    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
-    groups: dict[tuple, list[int]] = {}
-    for i, s in enumerate(loaded):
-        if s.bench is None and ensembles is None:
-            raise ValueError(f"session {s.label}: no bench file recorded in it; candidate states need one")
-        groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
+    loaded, groups = _grouped(sessions, "candidate states need one" if ensembles is None else None)
     out: list[Assessment | None] = [None] * len(loaded)
-    for idx in groups.values():
+    for idx in groups:
         first = loaded[idx[0]]
         ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
                                            speed=commanded_speed(first), settings=settings, scheduler=scheduler,
@@ -216,14 +224,9 @@ def estimate_sessions(sessions: Sequence[str | Path | MeasuredSession], *, desig
     ``EstimatorDesign()``. ``calibration``/``mount``: as :func:`assess_sessions`.
     """
     design, options = design or EstimatorDesign(), options or IdentifyOptions()
-    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
-    groups: dict[tuple, list[int]] = {}
-    for i, s in enumerate(loaded):
-        if s.bench is None and estimator is None:
-            raise ValueError(f"session {s.label}: no bench file recorded in it; the estimator needs one")
-        groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
+    loaded, groups = _grouped(sessions, "the estimator needs one" if estimator is None else None)
     out: list[Estimate | None] = [None] * len(loaded)
-    for idx in groups.values():
+    for idx in groups:
         first = loaded[idx[0]]
         est = estimator or build_estimator(first.bench, design, speed=commanded_speed(first), scheduler=scheduler,
                                            workers=workers, progress=progress)
