@@ -143,6 +143,9 @@ def main() -> None:
         if variant.endswith("(default)"):
             kept = reliability, final
     if args.brief:
+        for path in ("prior", "none"):
+            print(f"\n[sensor path: {path}]", end="")
+            held_out(ensembles, feats, truth_names, names, replace(options, sensor_path=path))
         return
     reliability, final = kept
     print("\nreliability (all cycle counts): p_top bin, count, mean p_top, observed accuracy")
@@ -197,14 +200,7 @@ def main() -> None:
             == t for f, t in zip(feats, truth_names, strict=True)]
     print(f"  {'energy distance (no model of the spread)':34s} {np.mean(tops):.2f}")
 
-    print("\nheld-out candidate (the true state removed from the candidates), full sessions:")
-    for s in names:
-        held = fit_states({k: v for k, v in ensembles.items() if k != s}, options)
-        rs = [identify_features(f, held) for f, t in zip(feats, truth_names, strict=True) if t == s]
-        named = np.mean([r.verdict not in ("undecided", "none of the candidates") for r in rs])
-        print(f"  truth {s:20s} named a wrong state with p >= {options.threshold}: {named:.2f}   "
-              f"'none of the candidates': {np.mean([r.verdict == 'none of the candidates' for r in rs]):.2f}   "
-              f"max p {max(r.p_top for r in rs):.3f}")
+    held_out(ensembles, feats, truth_names, names, options)
 
     t0 = time.perf_counter()
     speed = bench.speed
@@ -217,6 +213,20 @@ def main() -> None:
     print(f"\nearlier method (pointwise ISO/TS 18571 ranking against one nominal simulation per state): "
           f"top-1 {np.mean(iso_right):.2f} ({sum(iso_right)}/{len(iso_right)}) at {args.cycles} cycles "
           f"[{time.perf_counter() - t0:.0f} s]")
+
+
+def held_out(ensembles, feats, truth_names, names, options) -> None:
+    """Each state removed from the candidates in turn: how its sessions are judged (full sessions)."""
+    from wearbench.validation.identify import fit_states, identify_features
+
+    print("\nheld-out candidate (the true state removed from the candidates), full sessions:")
+    for s in names:
+        held = fit_states({k: v for k, v in ensembles.items() if k != s}, options)
+        rs = [identify_features(f, held) for f, t in zip(feats, truth_names, strict=True) if t == s]
+        named = np.mean([r.verdict not in ("undecided", "none of the candidates") for r in rs])
+        print(f"  truth {s:20s} named a wrong state with p >= {options.threshold}: {named:.2f}   "
+              f"'none of the candidates': {np.mean([r.verdict == 'none of the candidates' for r in rs]):.2f}   "
+              f"max p {max(r.p_top for r in rs):.3f}")
 
 
 def accuracy_table(variant, session_models, feats, truth_names, names, full, options):
