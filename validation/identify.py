@@ -339,8 +339,8 @@ def diagnose(xbar: np.ndarray, n: int, models: StateModels, state: str) -> dict:
                + f"; a sensor path with gain {gains['gain']:.3f} and band gains {bands} "
                + (f"would explain it (p {p_fit:.2g}): suspect the sensor path, calibrate the bench "
                   "('wearbench calibrate')" if explained else
-                  f"would not explain it (p {p_fit:.2g}): the bench differs in shape, not only in level "
-                  "(a state that is not among the candidates?)"))
+                  f"would not explain it (p {p_fit:.2g}): the session differs in crank-angle shape, not only in "
+                  "level: a state that is not among the candidates, or a sensor resonance inside a band"))
     return {"state": state, "blocks": rms, "angles": angles, "gain": gains["gain"],
             "band_gain_db": {f"{lo:g}-{hi:g} Hz": gains[f"band {k + 1}"] for k, (lo, hi) in enumerate(spec.bands)},
             "p_with_gains": p_fit, "sensor_path_explains": explained, "summary": summary}
