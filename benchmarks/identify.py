@@ -61,10 +61,11 @@ def main() -> None:
     from wearbench.model.compute import Task, compute_client, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
     from wearbench.validation import CompareOptions, load_session, rank_theories
-    from wearbench.validation.assess import assess_sessions, calibrate_sessions, session_features
+    from wearbench.validation.assess import assess_sessions, session_features
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
     from wearbench.validation.features import FeatureSpec
     from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
+    from wearbench.validation.measure import calibrate_sessions
     from wearbench.validation.theory import simulate_theory
 
     bench = load_bench(shipped_bench("ninebar-testbed"))

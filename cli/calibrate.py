@@ -1,6 +1,6 @@
 """`wearbench calibrate`: fit a bench's sensor path from sessions of a state the lab knows.
 
-Thin front of ``wearbench.validation.assess.calibrate_sessions``; stores the calibration where
+Thin front of ``wearbench.validation.measure.calibrate_sessions``; stores the calibration where
 ``identify`` and ``estimate`` find it (``wearbench.validation.calibration``).
 """
 
@@ -45,9 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.validation.assess import calibrate_sessions
     from wearbench.validation.calibration import save_calibration
     from wearbench.validation.ensemble import load_ensembles
+    from wearbench.validation.measure import calibrate_sessions
 
     ensembles = load_ensembles(args.ensembles) if args.ensembles else None
     cal = calibrate_sessions(args.sessions, args.state, candidates=args.candidates, ensembles=ensembles,

@@ -1,6 +1,6 @@
 """`wearbench estimate`: clearance and wear of each session, with credible intervals.
 
-Thin front of ``wearbench.validation.assess.estimate_sessions``; prints one line per session and
+Thin front of ``wearbench.validation.measure.estimate_sessions``; prints one line per session and
 writes the joint posterior figure and JSON when asked.
 """
 
@@ -35,8 +35,8 @@ def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from wearbench.validation.assess import estimate_sessions
     from wearbench.validation.estimate import load_estimator
+    from wearbench.validation.measure import estimate_sessions
 
     if args.json and Path(args.json).exists():
         raise FileExistsError(f"--json {args.json}: exists; give a new file")

@@ -1,6 +1,6 @@
 """`wearbench track`: a bench's wear over its life from sessions at several cycles run.
 
-Thin front of ``wearbench.validation.assess.track_sessions``: the wear coefficient fitted to all
+Thin front of ``wearbench.validation.measure.track_sessions``: the wear coefficient fitted to all
 sessions jointly, the wear at each session, the cycles until a clearance limit, and the figure.
 """
 
@@ -37,8 +37,8 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wearbench.bench.units import parse_quantity
-    from wearbench.validation.assess import track_sessions
     from wearbench.validation.estimate import load_estimator
+    from wearbench.validation.measure import track_sessions
     from wearbench.validation.track import track_figure
 
     try:

@@ -29,7 +29,7 @@ from wearbench.validation.features import CycleFeatures, FeatureSpec
 from wearbench.validation.sensor_path import SensorPath, calibrate_path, design_matrix
 
 __all__ = ["Calibration", "calibration_key", "calibrations_dir", "find_calibration", "fit_calibration",
-           "load_calibration", "save_calibration", "sensor_record"]
+           "load_calibration", "save_calibration", "sensor_record", "session_calibration"]
 
 _SENSOR_FIELDS = ("name", "sensitivity", "range", "axis", "body", "point", "sample_rate")
 
@@ -137,3 +137,16 @@ def find_calibration(key: str, directory: str | Path | None = None) -> Calibrati
     """The stored calibration of ``key`` (see :func:`calibration_key`), None when there is none."""
     path = (Path(directory) if directory is not None else calibrations_dir()) / f"{key}.json"
     return load_calibration(path) if path.exists() else None
+
+
+def session_calibration(session, spec: FeatureSpec, calibration: str | Path | None,
+                        mount: str = "") -> Calibration | None:
+    """The sensor-path calibration a session uses ("auto": the stored one of the session's
+    bench, sensor and ``mount``, None when there is none; a path: that file; None: none)."""
+    if calibration is None:
+        return None
+    if calibration != "auto":
+        return load_calibration(calibration)
+    if session.bench is None:
+        return None
+    return find_calibration(calibration_key(session.bench, session.metadata, spec, mount))
