@@ -16,6 +16,14 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
 
     .venv/bin/python benchmarks/identify.py [--draws 5] [--cycles 20] [--realisations 32]
     .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
+    .venv/bin/python benchmarks/identify.py --sensor-paths --calibrate    # drawn mounts, with calibration
+
+--sensor-paths draws each truth's sensor path (a mount/carriage mode log-uniform in 0.3-3 kHz, damping
+0.02-0.1, sensitivity +/-5 %: ``[emulator.accelerometer.spread]``); the accuracy table is then printed
+for the likelihood with the sensor-path prior (the default), with the path taken as exact (earlier
+versions) and, with --calibrate, with each bench calibrated on one session of a known state (0.3 mm
+new; 0.6 mm new for the 0.3 mm new truths, so calibration and test never share a state), same bench
+and mount.
 """
 
 from __future__ import annotations
@@ -42,6 +50,9 @@ def main() -> None:
     ap.add_argument("--bins", type=int, help="crank-angle bins of the features (default: FeatureSpec's)")
     ap.add_argument("--bands", help="impact bands, e.g. 100-1000 or 50-150,150-400,400-1000 Hz "
                     "(default: FeatureSpec's)")
+    ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
+    ap.add_argument("--calibrate", action="store_true", help="also identify with one calibration session per bench")
+    ap.add_argument("--brief", action="store_true", help="accuracy tables only")
     args = ap.parse_args()
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-identify-")
 
@@ -52,8 +63,9 @@ def main() -> None:
     from wearbench.validation import CompareOptions, load_session, rank_theories
     from wearbench.validation.assess import assess_sessions, session_features
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
-    from wearbench.validation.features import CycleFeatures, FeatureSpec
+    from wearbench.validation.features import FeatureSpec
     from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
+    from wearbench.validation.measure import calibrate_sessions
     from wearbench.validation.theory import simulate_theory
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
@@ -67,6 +79,10 @@ def main() -> None:
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles, features=spec)
     out = Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
+    spread = {"spread": {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}}
+    emulator = {"accelerometer": spread} if args.sensor_paths else {}
+    known = {s.name: states[1] if s is states[0] else states[0] for s in states}
+    calibrations = [(known[s.name], seed) for s, seed in truths] if args.calibrate else []
     with compute_client(workers=args.workers):
         t0 = time.perf_counter()
         ensembles = build_ensembles(bench, states, settings=settings, cache=True, progress="ensembles")
@@ -74,7 +90,8 @@ def main() -> None:
         t0 = time.perf_counter()
         revolutions = truth_revolutions(args.cycles + 1)
         run_tasks([Task(prepare_truth, {"bench": bench, "state": s, "seed": seed, "revolutions": revolutions},
-                        task_key("bench-truth", s.name, seed), f"truth {s.name} {seed}") for s, seed in truths],
+                        task_key("bench-truth", s.name, seed), f"truth {s.name} {seed}")
+                   for s, seed in {(s.name, seed): (s, seed) for s, seed in truths + calibrations}.values()],
                   cache=False, progress="emulator truths")
         t_truth = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -82,7 +99,13 @@ def main() -> None:
     for s, seed in truths:
         paths.append(out / f"{slug(s.name)}_{seed}.mcap")
         # one cycle more than analysed: cycles are cut at crank angle 0, so the partial ends are dropped
-        record_state(bench, s, seed, paths[-1], backend="sim", cycles=args.cycles + 1, revolutions=revolutions)
+        record_state(bench, s, seed, paths[-1], backend="sim", cycles=args.cycles + 1, revolutions=revolutions,
+                     **emulator)
+    cal_paths = []
+    for s, seed in calibrations:
+        cal_paths.append(out / f"calibration_{slug(s.name)}_{seed}.mcap")
+        record_state(bench, s, seed, cal_paths[-1], backend="sim", cycles=args.cycles + 1, revolutions=revolutions,
+                     **emulator)
     t_record = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -93,46 +116,39 @@ def main() -> None:
     sessions = [load_session(p) for p in paths]
     feats = [session_features(s, settings.features) for s in sessions]
     truth_names = [s.name for s, _ in truths]
+    variants = {"sensor-path prior (default)": [models] * len(feats),
+                "sensor path taken as exact (earlier versions)": [fit_states(ensembles, replace(options,
+                                                                                        sensor_path="none"))] * len(feats)}
+    if calibrations:
+        t0 = time.perf_counter()
+        cals = [calibrate_sessions([p], s.name, ensembles=ensembles) for p, (s, _) in zip(cal_paths, calibrations,
+                                                                                            strict=True)]
+        t_cal = (time.perf_counter() - t0) / len(cals)
+        variants["calibrated on one session of a known state"] = [fit_states(ensembles, options, sensor=c.path)
+                                                                 for c in cals]
+        print(f"\ncalibration: {t_cal:.1f} s per 20-cycle session (ensembles loaded); sessions still far from the "
+              f"known state after the fit (p < 0.001): {sum(c.p_value < 0.001 for c in cals)} of {len(cals)}")
+    if args.sensor_paths:
+        from wearbench.hardware.emulators.config import emulator_config
+
+        drawn = [emulator_config(bench, s, seed, accelerometer=spread).accelerometer for s, seed in truths]
+        print("drawn sensor paths: modes " + ", ".join(f"{a.resonance:.0f}" for a in drawn) + " Hz")
 
     print(f"\nnon-twin identification: {len(states)} states x {args.draws} draws, {args.cycles}-cycle sessions; "
           f"ensembles {args.realisations} x {args.ensemble_cycles} cycles; temperature {models.temperature:.2f}")
     print(f"build 4 ensembles: {t_ens:.0f} s   emulator truths: {t_truth:.0f} s   record {len(paths)} sessions: "
           f"{t_record:.0f} s   identify one 20-cycle session (cached ensembles, load to report data): {t_one:.1f} s")
-    print("\ncycles  sessions  top-1   named right  named wrong  undecided  none   Brier   wrong state explains"
-          "  wrong state consistent (all features alone)  true state inconsistent")
-    reliability = []
-    final = {}
     full = min(min(f.cycles for f in feats), args.cycles)
-    for n in sorted({1, 2, 5, 10, 20, 40, full}):
-        if n > full:
-            continue
-        rows = []
-        for f, truth in zip(feats, truth_names, strict=True):
-            for start in range(0, f.cycles - n + 1, n):
-                sub = CycleFeatures(f.spec, f.values[start:start + n], f.clipped[start:start + n])
-                rows.append((truth, identify_features(sub, models)))
-        top1 = np.mean([max(r.posterior, key=r.posterior.get) == t for t, r in rows])
-        right = np.mean([r.verdict == t for t, r in rows])
-        wrong = np.mean([r.verdict in names and r.verdict != t for t, r in rows])
-        undecided = np.mean([r.verdict == "undecided" for _, r in rows])
-        none = np.mean([r.verdict == "none of the candidates" for _, r in rows])
-        brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for t, r in rows])
-        explains = np.mean([r.explains[s] for t, r in rows for s in names if s != t])
-        consistent = np.mean([r.consistent[s] for t, r in rows for s in names if s != t])
-        omnibus = np.mean([r.p_value[s] >= options.consistency for t, r in rows for s in names if s != t])
-        rejected = np.mean([not r.consistent[t] for t, r in rows])
-        print(f"{n:6d}  {len(rows):8d}  {top1:5.2f}   {right:11.2f}  {wrong:11.2f}  {undecided:9.2f}  {none:4.2f}   "
-              f"{brier:5.3f}   {explains:20.2f}  {consistent:22.2f} ({omnibus:.2f}){rejected:25.2f}")
-        reliability += [(r.p_top, max(r.posterior, key=r.posterior.get) == t) for t, r in rows]
-        if n == full:
-            final = {i: r for i, (_, r) in enumerate(rows)}
-    print(f"\nconfusion at {full} cycles (rows: truth, columns: top state)")
-    print(" " * 22 + "".join(f"{s[:18]:>20s}" for s in names))
-    for s in names:
-        tops = [max(final[i].posterior, key=final[i].posterior.get) for i, t in enumerate(truth_names) if t == s]
-        if not tops:
-            continue
-        print(f"{s:22s}" + "".join(f"{tops.count(c):20d}" for c in names))
+    for variant, session_models in variants.items():
+        reliability, final = accuracy_table(variant, session_models, feats, truth_names, names, full, options)
+        if variant.endswith("(default)"):
+            kept = reliability, final
+    if args.brief:
+        for path in ("prior", "none"):
+            print(f"\n[sensor path: {path}]", end="")
+            held_out(ensembles, feats, truth_names, names, replace(options, sensor_path=path))
+        return
+    reliability, final = kept
     print("\nreliability (all cycle counts): p_top bin, count, mean p_top, observed accuracy")
     p = np.array([x[0] for x in reliability])
     ok = np.array([x[1] for x in reliability])
@@ -185,14 +201,7 @@ def main() -> None:
             == t for f, t in zip(feats, truth_names, strict=True)]
     print(f"  {'energy distance (no model of the spread)':34s} {np.mean(tops):.2f}")
 
-    print("\nheld-out candidate (the true state removed from the candidates), full sessions:")
-    for s in names:
-        held = fit_states({k: v for k, v in ensembles.items() if k != s}, options)
-        rs = [identify_features(f, held) for f, t in zip(feats, truth_names, strict=True) if t == s]
-        named = np.mean([r.verdict not in ("undecided", "none of the candidates") for r in rs])
-        print(f"  truth {s:20s} named a wrong state with p >= {options.threshold}: {named:.2f}   "
-              f"'none of the candidates': {np.mean([r.verdict == 'none of the candidates' for r in rs]):.2f}   "
-              f"max p {max(r.p_top for r in rs):.3f}")
+    held_out(ensembles, feats, truth_names, names, options)
 
     t0 = time.perf_counter()
     speed = bench.speed
@@ -205,6 +214,63 @@ def main() -> None:
     print(f"\nearlier method (pointwise ISO/TS 18571 ranking against one nominal simulation per state): "
           f"top-1 {np.mean(iso_right):.2f} ({sum(iso_right)}/{len(iso_right)}) at {args.cycles} cycles "
           f"[{time.perf_counter() - t0:.0f} s]")
+
+
+def held_out(ensembles, feats, truth_names, names, options) -> None:
+    """Each state removed from the candidates in turn: how its sessions are judged (full sessions)."""
+    from wearbench.validation.identify import fit_states, identify_features
+
+    print("\nheld-out candidate (the true state removed from the candidates), full sessions:")
+    for s in names:
+        held = fit_states({k: v for k, v in ensembles.items() if k != s}, options)
+        rs = [identify_features(f, held) for f, t in zip(feats, truth_names, strict=True) if t == s]
+        named = np.mean([r.verdict not in ("undecided", "none of the candidates") for r in rs])
+        print(f"  truth {s:20s} named a wrong state with p >= {options.threshold}: {named:.2f}   "
+              f"'none of the candidates': {np.mean([r.verdict == 'none of the candidates' for r in rs]):.2f}   "
+              f"max p {max(r.p_top for r in rs):.3f}")
+
+
+def accuracy_table(variant, session_models, feats, truth_names, names, full, options):
+    """Print the accuracy against cycles used of one likelihood variant; (reliability rows, full-length results)."""
+    from wearbench.validation.features import CycleFeatures
+    from wearbench.validation.identify import identify_features
+
+    print(f"\n[{variant}]")
+    print("cycles  sessions  top-1   named right  named wrong  undecided  none   Brier   wrong state explains"
+          "  wrong state consistent (all features alone)  true state inconsistent")
+    reliability = []
+    final = {}
+    for n in sorted({1, 2, 5, 10, 20, 40, full}):
+        if n > full:
+            continue
+        rows = []
+        for f, truth, models in zip(feats, truth_names, session_models, strict=True):
+            for start in range(0, f.cycles - n + 1, n):
+                sub = CycleFeatures(f.spec, f.values[start:start + n], f.clipped[start:start + n])
+                rows.append((truth, identify_features(sub, models)))
+        top1 = np.mean([max(r.posterior, key=r.posterior.get) == t for t, r in rows])
+        right = np.mean([r.verdict == t for t, r in rows])
+        wrong = np.mean([r.verdict in names and r.verdict != t for t, r in rows])
+        undecided = np.mean([r.verdict == "undecided" for _, r in rows])
+        none = np.mean([r.verdict == "none of the candidates" for _, r in rows])
+        brier = np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for t, r in rows])
+        explains = np.mean([r.explains[s] for t, r in rows for s in names if s != t])
+        consistent = np.mean([r.consistent[s] for t, r in rows for s in names if s != t])
+        omnibus = np.mean([r.p_value[s] >= options.consistency for t, r in rows for s in names if s != t])
+        rejected = np.mean([not r.consistent[t] for t, r in rows])
+        print(f"{n:6d}  {len(rows):8d}  {top1:5.2f}   {right:11.2f}  {wrong:11.2f}  {undecided:9.2f}  {none:4.2f}   "
+              f"{brier:5.3f}   {explains:20.2f}  {consistent:22.2f} ({omnibus:.2f}){rejected:25.2f}")
+        reliability += [(r.p_top, max(r.posterior, key=r.posterior.get) == t) for t, r in rows]
+        if n == full:
+            final = {i: r for i, (_, r) in enumerate(rows)}
+    print(f"\nconfusion at {full} cycles (rows: truth, columns: top state)")
+    print(" " * 22 + "".join(f"{s[:18]:>20s}" for s in names))
+    for s in names:
+        tops = [max(final[i].posterior, key=final[i].posterior.get) for i, t in enumerate(truth_names) if t == s]
+        if not tops:
+            continue
+        print(f"{s:22s}" + "".join(f"{tops.count(c):20d}" for c in names))
+    return reliability, final
 
 
 if __name__ == "__main__":

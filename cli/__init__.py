@@ -31,6 +31,10 @@ COMMANDS: dict[str, str] = {
     "emulate": "emulate",
     "compare": "compare",
     "identify": "identify",
+    "calibrate": "calibrate",
+    "estimate": "estimate",
+    "estimator": "estimator",
+    "track": "track",
     "ensemble": "ensemble",
     "demo": "demo",
 }

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 
+from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
 
 
@@ -26,6 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
     p.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
     p.add_argument("--ensemble-cycles", type=int, default=8, help="settled cycles per realisation (8)")
+    add_calibration_arguments(p)
     add_compute_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write every result as JSON")
     p.add_argument("--out", metavar="DIR", help="also write the report (report.html, scores.json, figures) here")
@@ -44,7 +46,8 @@ def run(args: argparse.Namespace) -> int:
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
     ensembles = load_ensembles(args.ensembles) if args.ensembles else None
     assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=ensembles,
-                               options=IdentifyOptions(threshold=args.threshold), **compute_options(args))
+                               options=IdentifyOptions(threshold=args.threshold), **calibration_options(args),
+                               **compute_options(args))
     results = [a.identification for a in assessed]
     states = list(results[0].posterior)
     table = Table(title=f"posterior probability of each state (named at p >= {args.threshold:g})")

@@ -27,6 +27,7 @@ def _session_compute(tmp_path_factory) -> str:
     base = tmp_path_factory.mktemp("wearbench-session")
     mp.setenv("WEARBENCH_CACHE", str(base / "cache"))
     mp.setenv("WEARBENCH_CONFIG", str(base / "no-user-config.toml"))
+    mp.setenv("WEARBENCH_CALIBRATIONS", str(base / "calibrations"))
     mp.delenv("WEARBENCH_SCHEDULER", raising=False)
     yield str(base / "cache")
     mp.undo()

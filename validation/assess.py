@@ -19,6 +19,7 @@ import numpy as np
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
+from wearbench.validation.calibration import session_calibration
 from wearbench.validation.compare import motor_speed
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
 from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_features
@@ -30,6 +31,7 @@ from wearbench.validation.identify import (
     identify_features,
 )
 from wearbench.validation.measured import MeasuredSession, load_session
+from wearbench.validation.sensor_path import SensorPath
 from wearbench.validation.windows import (
     MeasuredCurves,
     SessionWindows,
@@ -110,24 +112,25 @@ def _states(bench, candidates) -> tuple[WearState, ...]:
 def _source_digest() -> str:
     """Digest of the validation code a calibration depends on (a change of it is a cache miss)."""
     here = Path(__file__).parent
-    text = b"".join((here / f"{m}.py").read_bytes() for m in ("identify", "statistics", "windows", "features"))
+    text = b"".join((here / f"{m}.py").read_bytes() for m in ("identify", "statistics", "sensor_path", "windows", "features"))
     return hashlib.sha256(text).hexdigest()
 
 
-def calibration(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, window_options: WindowOptions,
-                crank_speed: float) -> tuple[StateModels, dict[str, WindowTheory]]:
-    """The fitted state statistics (``identify.fit_states``) and every state's window theory (their
-    held-out nulls): the costly part of judging a session, computed once per ensembles' content,
-    options and code, and kept in the result cache (``$WEARBENCH_CACHE``)."""
+def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, window_options: WindowOptions,
+                   crank_speed: float, sensor: SensorPath | None = None) -> tuple[StateModels, dict[str, WindowTheory]]:
+    """The fitted state statistics (``identify.fit_states``, with the bench's calibrated ``sensor``
+    path or the options' default) and every state's window theory (their held-out nulls): the costly
+    part of judging a session, computed once per ensembles' content, options, sensor path and code,
+    and kept in the result cache (``$WEARBENCH_CACHE``)."""
     from wearbench.model.task_cache import MISSING, cache_load, cache_store, task_key
 
     key = task_key("window-calibration", _source_digest(),
                    {n: (e.features, e.curves, e.speed) for n, e in ensembles.items()}, asdict(options),
-                   asdict(window_options), round(float(crank_speed), 9))
+                   asdict(window_options), round(float(crank_speed), 9), asdict(sensor) if sensor else None)
     hit = cache_load(key)
     if hit is not MISSING:
         return hit
-    models = fit_states(ensembles, options, window_cycles=window_options.cycles)
+    models = fit_states(ensembles, options, window_cycles=window_options.cycles, sensor=sensor)
     theories = {name: window_theory(e, crank_speed=crank_speed, models=models, options=window_options)
                 for name, e in ensembles.items()}
     try:
@@ -142,13 +145,17 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                     settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
                     window_options: WindowOptions | None = None,
                     ensembles: Mapping[str, Ensemble] | None = None, scheduler: str | None = None,
-                    workers: int | None = None, progress: str | None = "theory ensembles") -> list[Assessment]:
+                    workers: int | None = None, progress: str | None = "theory ensembles",
+                    calibration: str | Path | None = "auto", mount: str = "") -> list[Assessment]:
     """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
 
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
     recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
     layer and cached; ``ensembles`` ({state: Ensemble}) uses those instead. Defaults: the default
     ensemble settings, identification options and window options.
+    calibration: "auto" uses the stored calibration of each session's bench, sensor and ``mount``
+    (``calibration.py``) when there is one, else the sensor-path prior; a calibration file uses that;
+    None never uses one.
     """
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
     window_options = window_options or WindowOptions()
@@ -167,12 +174,19 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
         st = next(iter(ens.values())).settings
         bench = first.bench
         crank = next(iter(ens.values())).speed * (bench.encoder_driver.ratio if bench is not None else 1.0)
-        models, theories = calibration(ens, options, window_options, crank)
+        judged: dict[str, tuple] = {}
         for i in idx:
             s = loaded[i]
+            cal = session_calibration(s, st.features, calibration, mount)
+            tag = cal.key if cal else ""
+            if tag not in judged:
+                judged[tag] = judging_models(ens, options, window_options, crank, cal.path if cal else None)
+            models, theories = judged[tag]
             arrays = _arrays(s)
             feats = session_features(s, st.features, arrays)
             ident = identify_features(feats, models, label=s.label)
+            if cal is not None:
+                ident.notes.append(f"sensor path: {cal.describe()}")
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
             mc = measured_curves(*arrays, grid=st.grid, filter_spec=st.curve_filter,
                                  lowpass=window_options.delay_lowpass)

@@ -20,6 +20,13 @@ directions that separate the candidates it does not. When no state passes both t
 "none of the candidates". A state "explains" the session when it is consistent and not ruled out
 by another (posterior at least ``1 - threshold``).
 
+The sensor path is a nuisance (``sensor_path.py``): by default the prior of an unmeasured mount
+(``IdentifyOptions.sensor_path``), or a bench's calibration (``fit_states(..., sensor=)``), is
+marginalised in every state's covariance, so the probabilities, the consistency test and the
+estimator (``estimate.py``) all allow for it. When no state is consistent, :func:`diagnose` says
+where the session departs from the top state: which blocks and crank angles, and the band gains
+that would explain it, so a sensor-path mismatch can be told from a state that is not a candidate.
+
 Validation verdict per state: the fraction of measured cycles inside the theory's cycle band
 (single-cycle distance below the 95th percentile of the ensemble's own cycles), and the crank
 angles where measured cycles leave the 5-95 % band of a feature more often than one in three.
@@ -34,6 +41,7 @@ import numpy as np
 from scipy import linalg, optimize, special, stats
 from wearbench.validation.ensemble import Ensemble
 from wearbench.validation.features import CycleFeatures, FeatureSpec
+from wearbench.validation.sensor_path import SensorPath, calibrate_path, design_matrix
 from wearbench.validation.statistics import StateStatistics
 
 __all__ = ["Identification", "IdentifyOptions", "StateModels", "fit_states", "identify_features"]
@@ -53,6 +61,7 @@ class IdentifyOptions:
     floor_energy: float = 0.05      # log10 units, impact-band energy bins
     max_cycles: int = 500           # horizon of "cycles needed"
     pooled: bool = True             # one within- and between-covariance for all candidates (see statistics.py)
+    sensor_path: str = "prior"      # "prior": marginalise an unmeasured mount's path; "none": take it as exact
 
     def __post_init__(self) -> None:
         if not 0.5 <= self.threshold < 1:
@@ -60,6 +69,8 @@ class IdentifyOptions:
         for name in ("consistency", "consistency_direction"):
             if not 0 < getattr(self, name) < 0.5:
                 raise ValueError(f"{name} = {getattr(self, name)}: expected a p-value in (0, 0.5)")
+        if self.sensor_path not in ("prior", "none"):
+            raise ValueError(f"sensor_path = {self.sensor_path!r}: expected 'prior' or 'none'")
 
 
 @dataclass(frozen=True)
@@ -80,6 +91,8 @@ class StateModels:
     # realisations' windows of ``window_cycles`` consecutive cycles (validation.windows' null)
     window_null: Mapping[str, np.ndarray] = field(default_factory=dict)
     window_cycles: int = 5
+    spec: FeatureSpec = field(default_factory=FeatureSpec)
+    sensor: SensorPath | None = None  # the sensor path marginalised (None: taken as exact)
 
 
 @dataclass
@@ -100,6 +113,8 @@ class Identification:
     leaves: dict[str, list[str]]  # crank-angle ranges where cycles leave each state's band
     clipped: int = 0
     notes: list[str] = field(default_factory=list)
+    sensor_path: str = ""  # the sensor path the likelihood allowed for (prior or which calibration)
+    diagnosis: dict | None = None  # where the session departs from the top state (when none explains it)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -134,23 +149,44 @@ def direction_distance2(st: StateStatistics, others: list[np.ndarray], xbar: np.
     return float(np.sum((q.T @ z) ** 2))
 
 
-def _models(fits: dict[str, StateStatistics], pooled: bool) -> dict[str, StateStatistics]:
-    return dict(zip(fits, StateStatistics.pooled(list(fits.values())), strict=True)) if pooled else fits
+def with_sensor(st: StateStatistics, spec: FeatureSpec, sensor: SensorPath | None,
+                columns: slice = slice(None)) -> StateStatistics:
+    """``st`` (fitted on ``columns`` of ``spec``'s features) with the ``sensor`` path marginalised."""
+    if sensor is None:
+        return st
+    full = np.zeros(spec.size)
+    full[columns] = st.mean
+    return st.with_nuisance(*sensor.nuisance(spec, full, columns))
+
+
+def _models(fits: dict[str, StateStatistics], pooled: bool, spec: FeatureSpec, sensor: SensorPath | None,
+            columns: slice) -> dict[str, StateStatistics]:
+    models = dict(zip(fits, StateStatistics.pooled(list(fits.values())), strict=True)) if pooled else fits
+    return {s: with_sensor(m, spec, sensor, columns) for s, m in models.items()}
+
+
+def default_sensor(spec: FeatureSpec, options: IdentifyOptions) -> SensorPath | None:
+    """The sensor path marginalised when no calibration is given (``options.sensor_path``)."""
+    return SensorPath.prior(spec) if options.sensor_path == "prior" else None
 
 
 def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions(), *,
-               columns: slice = slice(None), window_cycles: int = 5) -> StateModels:
+               columns: slice = slice(None), window_cycles: int = 5,
+               sensor: SensorPath | None = None) -> StateModels:
     """Fit each state's statistics and calibrate the temperature and the consistency test.
 
     columns: which features to use (all by default; a block for comparing statistics).
-    window_cycles: length of the windows whose held-out distances are kept (``window_null``)."""
+    window_cycles: length of the windows whose held-out distances are kept (``window_null``).
+    sensor: the bench's calibrated sensor path (default: ``options.sensor_path``'s)."""
     if len(ensembles) < 1:
         raise ValueError("identify: no candidate ensembles")
     names = tuple(ensembles)
-    floor = _floor(next(iter(ensembles.values())).settings.features, options)[columns]
+    spec = next(iter(ensembles.values())).settings.features
+    sensor = sensor or default_sensor(spec, options)
+    floor = _floor(spec, options)[columns]
     features = {s: e.features[:, :, columns] for s, e in ensembles.items()}
     own = {s: StateStatistics.fit(f, floor) for s, f in features.items()}
-    fitted = _models(own, options.pooled)
+    fitted = _models(own, options.pooled, spec, sensor, columns)
     # held-out realisations: their distance to their own state (refit without them, and so the
     # pooled covariances), and their log likelihood under every state, for the null distributions
     # and the temperature
@@ -159,7 +195,8 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         d2, t2, wn = [], [], []
         others = [fitted[t].mean for t in names if t != s]
         for r in range(f.shape[0]):
-            models = _models({**own, s: StateStatistics.fit(np.delete(f, r, axis=0), floor)}, options.pooled)
+            models = _models({**own, s: StateStatistics.fit(np.delete(f, r, axis=0), floor)}, options.pooled,
+                             spec, sensor, columns)
             xbar, n = f[r].mean(axis=0), f.shape[1]
             d2.append(models[s].distance2(xbar, n))
             t2.append(direction_distance2(models[s], others, xbar, n))
@@ -191,7 +228,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         limit[s] = float(np.percentile(np.einsum("ij,jk,ik->i", d, inv, d), 95))
         lo[s], hi[s] = np.percentile(flat, 5, axis=0), np.percentile(flat, 95, axis=0)
     return StateModels(names, fitted, temperature, null, null_direction, limit, lo, hi, options, columns,
-                       window_null, window_cycles)
+                       window_null=window_null, window_cycles=window_cycles, spec=spec, sensor=sensor)
 
 
 def _ranges(flags: np.ndarray, bins: int) -> list[str]:
@@ -270,7 +307,57 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
     if clipped:
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
     explains = {s: consistent[s] and float(p) >= 1 - opts.threshold for s, p in zip(names, post, strict=True)}
+    diagnosis = None
+    if verdict == NONE:
+        diagnosis = diagnose(xbar, n, models, names[top])
+        notes.append(diagnosis["summary"])
     return Identification(label, n, {s: float(p) for s, p in zip(names, post, strict=True)}, verdict,
                           float(post[top]), consistent, explains, p_value, p_direction, needed, inside, leaves,
-                          clipped, notes)
+                          clipped, notes, models.sensor.source if models.sensor else "none", diagnosis)
+
+
+def diagnose(xbar: np.ndarray, n: int, models: StateModels, state: str) -> dict:
+    """Where a session's mean ``xbar`` over ``n`` cycles departs from ``state``: the rms standardised
+    departure of each block (curve, each band), the crank angles where a feature is more than 3
+    standard deviations off, and the sensor path (low-frequency gain, band gains in dB) fitted to the
+    departure with a broad prior, with the consistency p-value left once it is removed."""
+    spec, cols = models.spec, models.columns
+    st = models.stats[state]
+    shift = np.zeros_like(st.mean)
+    if models.sensor is not None:
+        full = np.zeros(spec.size)
+        full[cols] = st.mean
+        shift = models.sensor.nuisance(spec, full, cols)[0]
+    base = st.mean - shift  # the state's own mean, the sensor path's prior mean removed
+    cov0 = st.covariance(n, nuisance=False)
+    z_full = np.full(spec.size, np.nan)
+    z_full[cols] = (xbar - base) / np.sqrt(np.diag(cov0))
+    blocks = z_full.reshape(-1, spec.bins)
+    names = ["curve"] + [f"impacts {lo:g}-{hi:g} Hz" for lo, hi in spec.bands]
+    rms = {nm: float(np.sqrt(np.nanmean(b ** 2))) for nm, b in zip(names, blocks, strict=True)
+           if np.isfinite(b).any()}
+    angles = [f"{nm} {r}" for nm, b in zip(names, blocks, strict=True) for r in _ranges(np.abs(b) > 3, spec.bins)]
+    broad = SensorPath.prior(spec, mode=(100.0, 10000.0), damping=(0.01, 0.3), sensitivity=0.3)
+    full_x, full_m = np.zeros(spec.size), np.zeros(spec.size)
+    full_x[cols], full_m[cols] = xbar, base
+    full_c = np.eye(spec.size) * 1e6  # features not used carry no information
+    full_c[cols, cols] = cov0
+    fit = calibrate_path(full_x, full_m, full_c, spec, broad, source="diagnosis")
+    resid = xbar - base - design_matrix(spec, full_m, cols) @ fit.theta_mean
+    d2 = float(resid @ np.linalg.solve(cov0, resid))
+    p_fit = float(stats.gamma.sf(d2, models.null[state][0], scale=models.null[state][1]))
+    gains = fit.gains_db()
+    bands = ", ".join(f"{lo:g}-{hi:g} Hz {gains[f'band {k + 1}']:+.1f} dB" for k, (lo, hi) in enumerate(spec.bands))
+    worst = max(rms, key=rms.get)
+    explained = p_fit >= models.options.consistency
+    summary = (f"departs from {state!r} most in {worst} (rms {rms[worst]:.1f} sd)"
+               + (f" at {', '.join(angles[:4])}" if angles else "")
+               + f"; a sensor path with gain {gains['gain']:.3f} and band gains {bands} "
+               + (f"would explain it (p {p_fit:.2g}): suspect the sensor path, calibrate the bench "
+                  "('wearbench calibrate')" if explained else
+                  f"would not explain it (p {p_fit:.2g}): the session differs in crank-angle shape, not only in "
+                  "level: a state that is not among the candidates, or a sensor resonance inside a band"))
+    return {"state": state, "blocks": rms, "angles": angles, "gain": gains["gain"],
+            "band_gain_db": {f"{lo:g}-{hi:g} Hz": gains[f"band {k + 1}"] for k, (lo, hi) in enumerate(spec.bands)},
+            "p_with_gains": p_fit, "sensor_path_explains": explained, "summary": summary}
 

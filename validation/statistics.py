@@ -11,7 +11,9 @@ The mean of ``n`` cycles of one bench is then ``N(mu, Sb + Sw / n)``; the ensemb
 of the realisation means less ``Sw / C`` (clipped to positive semi-definite). Both are shrunk
 towards their diagonals (Schäfer & Strimmer 2005, target "D", analytic intensity), because the
 ensemble has fewer realisations than features. ``floor`` adds a per-feature variance for what
-no ensemble holds: the sensor chain and the model's own error.
+no ensemble holds: the sensor chain and the model's own error. ``nuisance`` (p, r) adds the
+low-rank covariance ``F F^T`` of nuisance parameters marginalised analytically (an unknown sensor
+path, ``sensor_path.py``): every distance and likelihood goes through :meth:`covariance`.
 
 Pure numpy/scipy; imports nothing from wearbench but the feature spec.
 """
@@ -70,6 +72,7 @@ class StateStatistics:
     floor: np.ndarray  # (p,) variance added for what the ensemble does not hold
     realisations: int  # M
     cycles: int  # C, cycles per realisation
+    nuisance: np.ndarray | None = None  # (p, r): covariance F F^T of marginalised nuisance parameters
     _factors: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
@@ -97,10 +100,19 @@ class StateStatistics:
         between = np.mean([s.between for s in states], axis=0)
         return [replace(s, within=within, between=between) for s in states]
 
-    def covariance(self, n: float) -> np.ndarray:
-        """Covariance of the mean of ``n`` cycles of one bench about this ensemble's mean."""
+    def with_nuisance(self, shift: np.ndarray, factor: np.ndarray) -> StateStatistics:
+        """These statistics with nuisance parameters of Gaussian prior marginalised: the mean moves by
+        ``shift`` (their prior mean's effect), the covariance gains ``factor factor^T``."""
+        return replace(self, mean=self.mean + shift, nuisance=np.asarray(factor, dtype=float))
+
+    def covariance(self, n: float, *, nuisance: bool = True) -> np.ndarray:
+        """Covariance of the mean of ``n`` cycles of one bench about this ensemble's mean
+        (``nuisance`` False: without the marginalised nuisance parameters)."""
         ens = (self.between + self.within / self.cycles) / self.realisations
-        return self.between + self.within / n + ens + np.diag(self.floor)
+        cov = self.between + self.within / n + ens + np.diag(self.floor)
+        if nuisance and self.nuisance is not None:
+            cov = cov + self.nuisance @ self.nuisance.T
+        return cov
 
     def _factor(self, n: float) -> tuple[np.ndarray, float]:
         """Cholesky factor of ``covariance(n)`` and its log determinant, kept per ``n``."""

@@ -23,6 +23,11 @@ Example::
     aa_filter = "butterworth"   # anti-alias low-pass before sampling: "butterworth" | "bessel" | "none"
     aa_order = 8
     aa_cutoff = 0.3             # -3 dB frequency as a fraction of the sample rate
+    sensitivity = 1.0           # true sensitivity / the bench file's (a sensor off by a few %)
+    [emulator.accelerometer.spread]  # a sensor path drawn per truth seed (replaces resonance, damping, sensitivity)
+    mode = ["300 Hz", "3 kHz"]  # structural mode of the mount or carriage: log-uniform in this range
+    damping = [0.02, 0.1]       # its damping ratio: uniform in this range
+    sensitivity = 0.05          # sensitivity error: uniform within +/- this fraction
     [emulator.motor]
     ripple = 0.01               # relative speed ripple, harmonic per motor revolution below
     ripple_harmonic = 1
@@ -53,10 +58,11 @@ Example::
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from wearbench.bench.load import _Reader
 from wearbench.bench.schema import Bench, WearState
 
@@ -68,6 +74,7 @@ __all__ = [
     "EncoderImperfections",
     "Faults",
     "MotorImperfections",
+    "SensorSpread",
     "Truth",
     "emulator_config",
 ]
@@ -90,6 +97,29 @@ class Accelerometer:
     aa_filter: str = "none"   # anti-alias low-pass before sampling: "butterworth" | "bessel" | "none"
     aa_order: int = 8
     aa_cutoff: float = 0.3    # -3 dB frequency / sample rate
+    sensitivity: float = 1.0  # true sensitivity / the bench file's (a gain on the signal)
+    spread: SensorSpread | None = None  # drawn sensor paths (applied by EmulatorConfig for a seeded truth)
+
+
+@dataclass(frozen=True)
+class SensorSpread:
+    """How the sensor path of a drawn truth differs from the bench file's: a structural mode of the
+    mount or carriage (second order, like ``resonance``) with its frequency log-uniform in ``mode``
+    (Hz) and its damping ratio uniform in ``damping``; the sensitivity uniform within +/-
+    ``sensitivity``. Drawn from the truth's seed, so every session of one drawn bench shares its path
+    (as sessions of one bench with one mount do)."""
+
+    mode: tuple[float, float] = (300.0, 3000.0)
+    damping: tuple[float, float] = (0.02, 0.1)
+    sensitivity: float = 0.05
+
+    def draw(self, acc: Accelerometer, seed: int) -> Accelerometer:
+        """``acc`` with the path of truth ``seed`` (resonance, damping, sensitivity replaced)."""
+        rng = np.random.default_rng([int(seed), 0x5E45])
+        lo, hi = self.mode
+        mode = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else lo
+        return replace(acc, resonance=mode, damping=float(rng.uniform(*self.damping)),
+                       sensitivity=float(1.0 + rng.uniform(-self.sensitivity, self.sensitivity)))
 
 
 @dataclass(frozen=True)
@@ -176,7 +206,11 @@ class EmulatorConfig:
                               "clipping": a.clipping, "adc_bits": a.adc_bits,
                               "drift": f"{a.drift * 1e6!r} ppm", "resonance": f"{a.resonance!r} Hz",
                               "damping": a.damping, "white_level": f"{a.white_level!r} m/s^2",
-                              "aa_filter": a.aa_filter, "aa_order": a.aa_order, "aa_cutoff": a.aa_cutoff},
+                              "aa_filter": a.aa_filter, "aa_order": a.aa_order, "aa_cutoff": a.aa_cutoff,
+                              "sensitivity": a.sensitivity,
+                              **({"spread": {"mode": [f"{a.spread.mode[0]!r} Hz", f"{a.spread.mode[1]!r} Hz"],
+                                             "damping": list(a.spread.damping),
+                                             "sensitivity": a.spread.sensitivity}} if a.spread else {})},
             "motor": {"ripple": m.ripple, "ripple_harmonic": m.ripple_harmonic},
             "encoder": {"index": e.index, "index_angle": f"{e.index_angle!r} rad"},
             "truth": {"clearances": {j: f"{c!r} m" for j, c in t.clearances.items()},
@@ -204,6 +238,9 @@ class EmulatorConfig:
         for s in sections:
             r.table(data.get(s, {}), f"emulator.{s}")
         motor, truth = _motor(r, data.get("motor", {})), _truth(r, data.get("truth", {}), bench)
+        accelerometer = _accelerometer(r, data.get("accelerometer", {}))
+        if accelerometer.spread is not None and truth.seed is not None:
+            accelerometer = accelerometer.spread.draw(accelerometer, truth.seed)
         if truth.seed is not None and motor.ripple:
             raise r.fail("emulator.motor.ripple", data["motor"]["ripple"],
                          "expected 0 (or no ripple key) with [emulator.truth] seed: a drawn truth takes its "
@@ -219,7 +256,7 @@ class EmulatorConfig:
                                        integer=True)),
             buffer=r.quantity(data, "emulator", "buffer", "time", positive=True, default=2.0),
             cache=_flag(r, data, "emulator", "cache", True),
-            accelerometer=_accelerometer(r, data.get("accelerometer", {})),
+            accelerometer=accelerometer,
             motor=motor,
             encoder=_encoder(r, data.get("encoder", {})),
             truth=truth,
@@ -238,7 +275,7 @@ def _flag(r: _Reader, data: dict, key: str, name: str, default: bool) -> bool:
 def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
     k = "emulator.accelerometer"
     r.keys(d, k, set(), {"noise", "bias", "clipping", "adc_bits", "drift", "resonance", "damping", "white_level",
-                         "aa_filter", "aa_order", "aa_cutoff"})
+                         "aa_filter", "aa_order", "aa_cutoff", "sensitivity", "spread"})
     bits = d.get("adc_bits", 16)
     if bits is False:
         bits = 0
@@ -258,7 +295,29 @@ def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
         aa_filter=r.text(d, k, "aa_filter", choices=AA_FILTERS, default="none"),
         aa_order=int(r.number(d, k, "aa_order", low=1, high=12, default=8, integer=True)),
         aa_cutoff=r.number(d, k, "aa_cutoff", low=0.0, high=0.5, default=0.3, open_low=True),
+        sensitivity=r.number(d, k, "sensitivity", low=0.5, high=2.0, default=1.0),
+        spread=_spread(r, d["spread"]) if "spread" in d else None,
     )
+
+
+def _spread(r: _Reader, d: Any) -> SensorSpread:
+    k = "emulator.accelerometer.spread"
+    r.keys(r.table(d, k), k, set(), {"mode", "damping", "sensitivity"})
+
+    def pair(name: str, default: tuple[float, float], read) -> tuple[float, float]:
+        if name not in d:
+            return default
+        raw = d[name]
+        if not isinstance(raw, list) or len(raw) != 2:
+            raise r.fail(f"{k}.{name}", raw, "expected [low, high]")
+        lo, hi = (read({name: v}) for v in raw)
+        if not lo <= hi:
+            raise r.fail(f"{k}.{name}", raw, "expected low <= high")
+        return lo, hi
+
+    mode = pair("mode", (300.0, 3000.0), lambda v: r.quantity(v, k, "mode", "frequency", positive=True))
+    damping = pair("damping", (0.02, 0.1), lambda v: r.number(v, k, "damping", low=0.0, high=2.0, open_low=True))
+    return SensorSpread(mode, damping, r.number(d, k, "sensitivity", low=0.0, high=0.5, default=0.05))
 
 
 def _motor(r: _Reader, d: dict) -> MotorImperfections:

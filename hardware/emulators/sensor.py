@@ -4,7 +4,7 @@ into the numbers a DAQ delivers.
 Order (each stage can be off): mounting resonance (second-order low-pass at ``resonance`` Hz with
 damping ratio ``damping``, bilinear with pre-warping) -> anti-alias filter (Butterworth or Bessel
 low-pass of ``aa_order`` at ``aa_cutoff`` x sample rate) -> sampling (keep every ``oversample``-th
-sample of the internal rate) -> bias -> white noise -> clipping at +/- range -> ADC quantisation.
+sample of the internal rate) -> sensitivity error (a gain) -> bias -> white noise -> clipping at +/- range -> ADC quantisation.
 The two filters run on the signal at the internal rate ``oversample x sample rate`` (see
 :func:`oversampling`; 1 for a clean chain, which is plain point sampling), so what lies above the
 sample rate's Nyquist frequency is attenuated as the analogue filter of a DAQ would, before it can
@@ -78,7 +78,7 @@ class SensorChain:
             if self._zi is None:
                 self._zi = sps.sosfilt_zi(self.sos) * x[0]
             x, self._zi = sps.sosfilt(self.sos, x, zi=self._zi)
-        x = x[self.oversample - 1::self.oversample] + acc.bias
+        x = acc.sensitivity * x[self.oversample - 1::self.oversample] + acc.bias
         if acc.noise:
             x = x + self._rng.normal(0.0, acc.noise, x.size)
         if acc.clipping:

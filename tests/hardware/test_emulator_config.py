@@ -20,6 +20,12 @@ from wearbench.hardware.emulators.config import EmulatorConfig, emulator_config
     ({"accelerometer": {"aa_filter": "chebyshev"}}, "emulator.accelerometer.aa_filter", "butterworth"),
     ({"accelerometer": {"aa_cutoff": 0.6}}, "emulator.accelerometer.aa_cutoff", "0.5"),
     ({"accelerometer": {"aa_order": 0}}, "emulator.accelerometer.aa_order", "[1, 12]"),
+    ({"accelerometer": {"spread": {"mode": ["3 kHz", "300 Hz"]}}}, "emulator.accelerometer.spread.mode",
+     "low <= high"),
+    ({"accelerometer": {"spread": {"mode": "1 kHz"}}}, "emulator.accelerometer.spread.mode", "[low, high]"),
+    ({"accelerometer": {"spread": {"sensitivity": 0.7}}}, "emulator.accelerometer.spread.sensitivity", "0.5"),
+    ({"accelerometer": {"spread": {"cross": 0.1}}}, "emulator.accelerometer.spread.cross", "unknown key"),
+    ({"accelerometer": {"sensitivity": 3}}, "emulator.accelerometer.sensitivity", "2.0"),
     ({"revolutions": 2.5}, "emulator.revolutions", "integer"),
     ({"settle": -1}, "emulator.settle", "[0.0, 50.0]"),
 ])
@@ -82,3 +88,21 @@ def test_emulate_command_sets_the_truth(monkeypatch, argv, seed, stage):
     truth = served[0].truth
     assert truth.seed == seed and truth.wear_stage == stage
     assert bool(truth.wear) == ("wear" in stage)
+
+
+def test_a_sensor_spread_draws_one_path_per_truth_seed(testbed):
+    """[emulator.accelerometer.spread]: each drawn truth gets its own mount mode, damping and
+    sensitivity within the ranges, the same for every session of that seed, and the config
+    round-trips; a twin keeps the bench file's path."""
+    spread = {"spread": {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}}
+    paths = [emulator_config(testbed, "0.3 mm new", seed, accelerometer=spread).accelerometer for seed in range(40)]
+    modes = [a.resonance for a in paths]
+    assert all(300 <= m <= 3000 for m in modes) and len(set(modes)) == 40
+    assert all(0.02 <= a.damping <= 0.1 and 0.95 <= a.sensitivity <= 1.05 for a in paths)
+    # log-uniform: about half the modes below the geometric middle (949 Hz)
+    assert 10 <= sum(m < 949 for m in modes) <= 30
+    again = emulator_config(testbed, "0.6 mm new", 7, accelerometer=spread)
+    assert again.accelerometer == paths[7]  # the bench's path, whatever its state
+    assert EmulatorConfig.from_table(again.to_table(), bench=testbed) == again
+    twin = emulator_config(testbed, "0.3 mm new", None, accelerometer=spread).accelerometer
+    assert twin.resonance == 25e3 and twin.sensitivity == 1.0

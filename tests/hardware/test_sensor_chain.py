@@ -142,3 +142,17 @@ def test_drift_noise_and_bias_behind_the_anti_alias_filter(testbed, make_config)
     x = np.concatenate(x).astype(float)
     assert x.size / 40.0 / FS - 1 == pytest.approx(250e-6, abs=3e-5)  # one 10-sample block: 2.5e-5
     assert x.mean() == pytest.approx(1.5, abs=0.01) and x.std() == pytest.approx(0.5, rel=0.02)
+
+
+def test_sensitivity_is_a_gain_before_bias_and_a_low_mount_mode_attenuates_the_band_above_it():
+    """sensitivity 0.95 scales a 50 Hz sine by 0.95 (the bias is not scaled); a 300 Hz mode
+    (second order, damping 0.05) passes 700 Hz at |1 / (1 - r^2 + 2j zeta r)|, r = 7/3 (within 5 %:
+    the bilinear transform at 10 kHz, pre-warped at the mode, bends the response above it; measured 3 %)."""
+    c = chain(sensitivity=0.95, bias=0.5)
+    y = sine_through(c, 50.0)
+    assert amplitude(y - 0.5, 50.0, FS) == pytest.approx(0.95, rel=1e-3)
+    assert np.mean(y[-2000:]) == pytest.approx(0.5, abs=0.01)  # 10 whole periods
+    r = 700.0 / 300.0
+    expected = 1 / abs(1 - r * r + 2j * 0.05 * r)
+    assert amplitude(sine_through(chain(resonance=300.0, damping=0.05), 700.0), 700.0, FS) == pytest.approx(
+        expected, rel=0.05)

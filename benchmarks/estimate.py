@@ -1,0 +1,177 @@
+"""Clearance-and-wear estimates on non-twin truths drawn from the prior: calibration, widths, cost.
+
+Truths are never the estimator's training draws: each truth draws a clearance uniformly over the
+design's range and a cycles-run value uniformly over [0, the design's last], wears the nominal
+bench from that clearance through those cycles in its own wear run (one stage), draws its bench
+from the bench file's [tolerances] with its own seed (20000 + k; the design uses 1..M) and a random
+start, and is seen through the emulator's sensor chain (the bench file's [emulator.accelerometer]:
+mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with --sensor-paths a
+mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %), applied
+in-process to the model's acceleration (no MCAP round trip: benchmarks/identify.py covers that).
+``--at 200000 --at-truths 10`` adds truths at that many cycles run (clearance from the prior).
+
+Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
+wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
+rank histogram (posterior CDF at the truth, 10 bins; flat when calibrated); median 90 % widths at
+5, 10 and 20 cycles; the clearance median absolute error; "no parameter value explains it" rates;
+for the --at truths, how often the 90 % cycles-run interval excludes 0 and twice the truth.
+
+    .venv/bin/python benchmarks/estimate.py [--truths 100] [--cycles 20] [--realisations 16]
+    .venv/bin/python benchmarks/estimate.py --design-clearances 0.25mm,0.45mm,0.65mm \\
+        --design-cycles 0,300000,600000 --realisations 8 --truths 12        # a small run
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+
+import numpy as np
+
+
+def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles: int, spread: bool) -> dict:
+    """One truth's cycle features through the sensor chain (a compute-layer task)."""
+    from pathlib import Path
+
+    from wearbench.bench.schema import WearState
+    from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
+    from wearbench.hardware.emulators.sensor import SensorChain
+    from wearbench.model.realisation import simulate_state
+    from wearbench.model.wear_stages import StagePlan, run_stages
+    from wearbench.validation.features import FeatureSpec, cycle_features
+
+    joints = [j.name for j in bench.clearance_joints]
+    files, depth = {}, 0.0
+    with tempfile.TemporaryDirectory() as tmp:
+        if cycles_run > 0:
+            run = run_stages(bench, StagePlan.from_bench(bench, stages=1, stage_cycles=cycles_run),
+                             clearances=dict.fromkeys(joints, clearance))
+            for j, s in run.final.items():
+                files[j] = s.save(Path(tmp) / f"{j}.npz")
+                depth = max(depth, sum(s.max_depth))
+        acc = EmulatorConfig.from_bench(bench).accelerometer
+        if spread:
+            acc = SensorSpread().draw(acc, seed)
+        sensor = bench.sensor("accelerometer")
+        chain = SensorChain(acc, sensor.sample_rate, sensor.range, np.random.default_rng([seed, 7]))
+        state = WearState("truth", dict.fromkeys(joints, clearance), files)
+        run = simulate_state(bench, state, seed, revolutions=cycles + 1.0, settle=2.0,
+                             output_rate=chain.internal_rate)
+    m = chain.oversample
+    samples = chain.process(run.acc)
+    t, crank = run.t[m - 1::m], run.crank[m - 1::m]
+    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), range_=sensor.range)
+    return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--truths", type=int, default=100, help="truths drawn from the prior (100)")
+    ap.add_argument("--cycles", type=int, default=20, help="cycles per truth session (20)")
+    ap.add_argument("--design-clearances", default="0.25mm,0.35mm,0.45mm,0.55mm,0.65mm")
+    ap.add_argument("--design-cycles", default="0,200000,400000,600000")
+    ap.add_argument("--realisations", type=int, default=16, help="realisations per design point (16)")
+    ap.add_argument("--ensemble-cycles", type=int, default=8)
+    ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
+    ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
+    ap.add_argument("--at-truths", type=int, default=0, help="extra truths at --at cycles run (0)")
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--cache", help="cache folder (default: a fresh one: the estimator is built cold)")
+    ap.add_argument("--seed", type=int, default=20000)
+    args = ap.parse_args()
+    os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-estimate-")
+
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.cli.estimator import design_from_args
+    from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
+    from wearbench.validation.estimate import build_estimator, estimate_features, fit_estimator
+    from wearbench.validation.features import CycleFeatures, FeatureSpec
+
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    design = design_from_args(args)
+    rng = np.random.default_rng(args.seed)
+    lo, hi, n_max = design.clearances[0], design.clearances[-1], design.cycles[-1]
+    truths = [(float(rng.uniform(lo, hi)), float(rng.uniform(0, n_max)), args.seed + k) for k in range(args.truths)]
+    truths += [(float(rng.uniform(lo, hi)), args.at, args.seed + 5000 + k) for k in range(args.at_truths)]
+    with compute_client(workers=args.workers):
+        t0 = time.perf_counter()
+        est = build_estimator(bench, design, progress="estimator", shipped=False)
+        t_build = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        done = run_tasks([Task(truth_features, {"bench": bench, "clearance": c, "cycles_run": n, "seed": s,
+                                                "cycles": args.cycles, "spread": args.sensor_paths},
+                               task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths), f"truth {s}")
+                          for c, n, s in truths], progress="truths")
+        t_truth = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    model = fit_estimator(est)
+    t_fit = time.perf_counter() - t0
+    ok = [(t, d) for t, d in zip(truths, done, strict=True) if not isinstance(d, TaskFailure)]
+    failed = [d for d in done if isinstance(d, TaskFailure)]
+    spec = FeatureSpec()
+    rows = {}
+    t0 = time.perf_counter()
+    for n in (5, 10, args.cycles):
+        rows[n] = [(t, d["depth"], estimate_features(CycleFeatures(spec, d["features"][:n], np.zeros(n)), model))
+                   for t, d in ok if d["features"].shape[0] >= n]
+    t_est = (time.perf_counter() - t0) / max(1, sum(len(r) for r in rows.values()))
+    print(f"\nestimator: {len(design.clearances)} clearances {[round(c * 1e3, 3) for c in design.clearances]} mm x "
+          f"{len(design.cycles)} cycles-run values {[int(c) for c in design.cycles]}, {args.realisations} realisations x "
+          f"{args.ensemble_cycles} cycles; temperature {model.temperature:.2f}; emulator error (median sd) "
+          f"{np.median(np.sqrt(model.discrepancy)):.3f}")
+    print(f"build {t_build:.0f} s (wear runs + ensembles, cold cache)   truths {t_truth:.0f} s   fit {t_fit:.1f} s   "
+          f"one estimate {t_est * 1e3:.0f} ms   truths failed {len(failed)}"
+          + (f" ({failed[0]})" if failed else "") + ("   sensor paths drawn: modes "
+          + ", ".join(f"{d['mode']:.0f}" for _, d in ok[:12]) + " Hz ..." if args.sensor_paths else ""))
+    prior = [r for r in rows[args.cycles] if r[0][2] < args.seed + 5000]
+    print(f"\ncalibration at {args.cycles} cycles, {len(prior)} truths drawn from the prior:")
+    print("parameter       90 % coverage (se)   50 % coverage (se)   rank histogram (10 bins)")
+    for name, truth_of, interval in (("clearance", lambda t, dep: t[0], lambda e: e.clearance),
+                                     ("cycles run", lambda t, dep: t[1], lambda e: e.cycles_run),
+                                     ("wear depth", lambda t, dep: dep, lambda e: e.depth)):
+        inside = [e.explains and interval(e).contains(truth_of(t, dep), 90) for t, dep, e in prior]
+        half = [e.explains and interval(e).contains(truth_of(t, dep), 50) for t, dep, e in prior]
+        ranks = [rank(e, truth_of(t, dep), name, model) for t, dep, e in prior]
+        hist = np.histogram(ranks, bins=10, range=(0, 1))[0]
+        k = max(1, len(prior))
+        print(f"{name:14s}  {np.mean(inside):.2f} ({np.sqrt(0.09 / k):.2f})          {np.mean(half):.2f} "
+              f"({np.sqrt(0.25 / k):.2f})          {' '.join(str(h) for h in hist)}")
+    print("\nmedian 90 % interval width and clearance error against cycles used:")
+    print("cycles  truths  clearance width (mm)  cycles-run width  wear-depth width (um)  |clearance error| median (mm)"
+          "  'no parameter value explains it'")
+    for n, rs in rows.items():
+        rs = [r for r in rs if r[0][2] < args.seed + 5000]
+        if not rs:
+            continue
+        cw = np.median([e.clearance.hi90 - e.clearance.lo90 for *_, e in rs]) * 1e3
+        nw = np.median([e.cycles_run.hi90 - e.cycles_run.lo90 for *_, e in rs])
+        dw = np.median([e.depth.hi90 - e.depth.lo90 for *_, e in rs]) * 1e6
+        err = np.median([abs(e.clearance.median - t[0]) for t, _, e in rs]) * 1e3
+        none = np.mean([not e.explains for *_, e in rs])
+        print(f"{n:6d}  {len(rs):6d}  {cw:20.3f}  {nw:16,.0f}  {dw:23.1f}  {err:29.3f}  {none:.2f}")
+    at = [r for r in rows[args.cycles] if r[0][2] >= args.seed + 5000]
+    if at:
+        excl = np.mean([e.explains and e.cycles_run.lo90 > 0 and e.cycles_run.hi90 < 2 * args.at for *_, e in at])
+        print(f"\n{len(at)} truths at {args.at:,.0f} cycles run: the 90 % interval excludes 0 and {2 * args.at:,.0f} "
+              f"in {excl:.2f}")
+
+
+def rank(e, value: float, name: str, model) -> float:
+    """Posterior CDF of the marginal at the truth ``value`` (uniform over truths when calibrated)."""
+    post = e.posterior
+    if name == "clearance":
+        grid, w = model.grid_c, post.sum(axis=1)
+    elif name == "cycles run":
+        grid, w = model.grid_n, post.sum(axis=0)
+    else:
+        grid, w = model.grid_depth.ravel(), post.ravel()
+        order = np.argsort(grid, kind="stable")
+        grid, w = grid[order], w[order]
+    cdf = np.cumsum(w) - 0.5 * w
+    return float(np.interp(value, grid, cdf / w.sum()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,80 @@
+"""`wearbench track`: a bench's wear over its life from sessions at several cycles run.
+
+Thin front of ``wearbench.validation.measure.track_sessions``: the wear coefficient fitted to all
+sessions jointly, the wear at each session, the cycles until a clearance limit, and the figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
+from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.estimator import add_design_arguments, design_from_args
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "track", help="wear coefficient and cycles to a clearance limit from sessions over a bench's life",
+        description="Sessions of ONE bench recorded after different numbers of cycles run: the initial clearance "
+        "and the Archard wear coefficient (as a factor on the bench file's) fitted to all of them jointly with "
+        "credible intervals, the wear depth at each, and the cycles until the clearance reaches --limit.")
+    p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="sessions of one bench")
+    p.add_argument("--cycles-run", required=True, metavar="N1,N2,...",
+                   help="cycles the bench had run at each session, in the sessions' order (e.g. 0,100000,200000)")
+    p.add_argument("--limit", help="clearance limit, e.g. 0.5mm: print the cycles until the clearance reaches it")
+    p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
+    add_design_arguments(p)
+    add_calibration_arguments(p)
+    p.add_argument("--json", metavar="FILE", help="write the result as JSON (a new file)")
+    p.add_argument("--figure", metavar="FILE.png", help="write the wear-over-life figure (a new file)")
+    add_compute_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from wearbench.bench.units import parse_quantity
+    from wearbench.validation.estimate import load_estimator
+    from wearbench.validation.measure import track_sessions
+    from wearbench.validation.track import track_figure
+
+    try:
+        runs = [float(v) for v in args.cycles_run.split(",")]
+    except ValueError:
+        raise ValueError(f"--cycles-run {args.cycles_run!r}: expected numbers separated by commas") from None
+    if len(runs) != len(args.sessions):
+        raise ValueError(f"--cycles-run {args.cycles_run!r}: {len(runs)} values for {len(args.sessions)} sessions; "
+                         "expected one per session")
+    for name in ("json", "figure"):
+        if getattr(args, name) and Path(getattr(args, name)).exists():
+            raise FileExistsError(f"--{name} {getattr(args, name)}: exists; give a new file")
+    limit = parse_quantity(args.limit, "length", bare_unit="mm") if args.limit else None
+    estimator = load_estimator(args.estimator) if args.estimator else None
+    t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=estimator,
+                       **calibration_options(args), **compute_options(args))
+    for label, n, d in zip(t.sessions, t.cycles_run, t.depth, strict=True):
+        print(f"{label}: {n:,.0f} cycles run, wear depth {d.median * 1e6:.1f} um (90 % {d.lo90 * 1e6:.1f}-"
+              f"{d.hi90 * 1e6:.1f})")
+    c, k = t.clearance, t.factor
+    print(f"initial clearance {c.median * 1e3:.3f} mm (90 % {c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f})")
+    print(f"wear coefficient {t.coefficient.median:.3g} 1/Pa = {k.median:.2f} x the bench file's "
+          f"(50 % {k.lo50:.2f}-{k.hi50:.2f}, 90 % {k.lo90:.2f}-{k.hi90:.2f})")
+    if limit is not None:
+        if t.cycles_to_limit is None:
+            print(f"clearance limit {limit * 1e3:g} mm: beyond the horizon for most of the posterior")
+        else:
+            m = t.cycles_to_limit
+            print(f"clearance limit {limit * 1e3:g} mm reached after {m.median:,.0f} cycles from new "
+                  f"(90 % {m.lo90:,.0f}-{m.hi90:,.0f}); {max(0.0, m.median - max(runs)):,.0f} after the last session")
+    for note in t.notes:
+        print(note)
+    if args.json:
+        with open(args.json, "x", encoding="utf-8") as f:
+            json.dump(t.as_dict(), f, indent=1)
+        print(f"results: {args.json}")
+    if args.figure:
+        print(f"figure: {track_figure(t, args.figure)}")
+    return 0

@@ -1,0 +1,176 @@
+"""Clearance and wear estimates on synthetic design ensembles whose truth is known.
+
+The features follow the hierarchical model of ``statistics.py`` with a mean that is a smooth
+function of (clearance, cycles run); truths are drawn uniformly over the design box, each with its
+own bench offset and cycles (never the design's draws). Their 90 % and 50 % intervals must hold
+them at about those rates, a bench far outside the box must get "no parameter value explains it",
+and the posterior at the candidate states must rank them as ``identify`` does.
+"""
+
+import numpy as np
+import pytest
+from scipy import stats
+from wearbench.validation.ensemble import Ensemble, EnsembleSettings
+from wearbench.validation.estimate import (
+    NO_VALUE,
+    Estimator,
+    EstimatorDesign,
+    estimate_features,
+    fit_estimator,
+    load_estimator,
+    save_estimator,
+)
+from wearbench.validation.features import CycleFeatures, FeatureSpec
+from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
+
+SPEC = FeatureSpec()
+P = SPEC.size
+SB, SW = 0.02, 0.2
+DESIGN = EstimatorDesign((0.25e-3, 0.35e-3, 0.45e-3, 0.55e-3, 0.65e-3), (0.0, 2e5, 4e5, 6e5),
+                         EnsembleSettings(realisations=16, cycles=8))
+SHAPES = np.random.default_rng(42).normal(0.0, 0.25, (4, P))  # how the features move with c and N
+OPTIONS = IdentifyOptions(floor_curve=1e-6, floor_energy=1e-6)
+
+
+def true_mean(c: float, n: float) -> np.ndarray:
+    u = 2 * (c - 0.25e-3) / 0.4e-3 - 1
+    v = 2 * n / 6e5 - 1
+    return u * SHAPES[0] + v * SHAPES[1] + 0.5 * u * v * SHAPES[2] + 0.3 * u * u * SHAPES[3]
+
+
+def draw(rng, mean, realisations, cycles):
+    return (mean + rng.normal(0.0, np.sqrt(SB), (realisations, 1, P))
+            + rng.normal(0.0, np.sqrt(SW), (realisations, cycles, P)))
+
+
+def session(rng, c, n, cycles=20):
+    return CycleFeatures(SPEC, draw(rng, true_mean(c, n), 1, cycles)[0], np.zeros(cycles))
+
+
+@pytest.fixture(scope="module")
+def model():
+    rng = np.random.default_rng(0)
+    feats = np.stack([np.stack([draw(rng, true_mean(c, n), 16, 8) for n in DESIGN.cycles])
+                      for c in DESIGN.clearances])
+    depth = np.outer(np.ones(5), np.array(DESIGN.cycles) * 2e-11)  # 4 um per 200k cycles
+    est = Estimator("synthetic", "k", DESIGN, feats, depth, 2 * np.pi)
+    return fit_estimator(est, OPTIONS)
+
+
+def test_truths_drawn_from_the_prior_lie_in_their_intervals_at_the_stated_rates(model):
+    rng = np.random.default_rng(1)
+    hits = {(p, lvl): 0 for p in ("c", "n") for lvl in (50, 90)}
+    truths = 40
+    for _ in range(truths):
+        c, n = rng.uniform(0.25e-3, 0.65e-3), rng.uniform(0.0, 6e5)
+        e = estimate_features(session(rng, c, n), model)
+        assert e.explains
+        for lvl in (50, 90):
+            hits["c", lvl] += e.clearance.contains(c, lvl)
+            hits["n", lvl] += e.cycles_run.contains(n, lvl)
+    # binomial(40, 0.9): 31..40 holds 99.5 %; binomial(40, 0.5): 12..28 holds 99.4 %
+    for p in ("c", "n"):
+        assert 31 <= hits[p, 90] <= truths, hits
+        assert 12 <= hits[p, 50] <= 28, hits
+
+
+def test_a_bench_outside_the_prior_is_explained_by_no_parameter_value(model):
+    rng = np.random.default_rng(2)
+    far = CycleFeatures(SPEC, draw(rng, true_mean(1.2e-3, 3e5), 1, 20)[0], np.zeros(20))
+    e = estimate_features(far, model)
+    assert not e.explains and e.verdict == NO_VALUE and e.p_value < 1e-3
+    inside = estimate_features(session(rng, 0.4e-3, 3e5), model)
+    assert inside.explains and inside.p_value > 0.01
+
+
+def test_intervals_narrow_with_cycles_and_the_depth_follows_the_wear(model):
+    rng = np.random.default_rng(3)
+    x = draw(rng, true_mean(0.45e-3, 2e5), 1, 40)[0]
+    short = estimate_features(CycleFeatures(SPEC, x[:5], np.zeros(5)), model)
+    long = estimate_features(CycleFeatures(SPEC, x, np.zeros(40)), model)
+    w = lambda i: i.hi90 - i.lo90
+    assert w(long.clearance) < w(short.clearance) and w(long.cycles_run) < w(short.cycles_run)
+    assert long.depth.median == pytest.approx(long.cycles_run.median * 2e-11, rel=0.05)
+
+
+def test_identify_and_estimate_rank_the_candidate_states_alike(model):
+    """Candidates: three design points. identify (their ensembles) and the estimate's posterior at
+    those points order them alike in nearly every session (sessions between and at the points)."""
+    est = model.estimator
+    points = {(0, 0): "a", (2, 1): "b", (2, 2): "c"}
+    ens = {nm: Ensemble(nm, DESIGN.settings, est.features[i, j], np.zeros((1, 1, 1)), np.zeros((1, 1)), 2 * np.pi)
+           for (i, j), nm in points.items()}
+    ident = fit_states(ens, OPTIONS)
+    rng = np.random.default_rng(4)
+    agree = total = 0
+    for c, n in [(0.25e-3, 0), (0.45e-3, 2e5), (0.45e-3, 4e5), (0.45e-3, 3e5), (0.35e-3, 1e5)] * 4:
+        s = session(rng, c, n)
+        r = identify_features(s, ident)
+        xbar = s.values.mean(axis=0)
+        ll = {nm: model.log_likelihood(xbar, 20, DESIGN.clearances[i], DESIGN.cycles[j])
+              for (i, j), nm in points.items()}
+        agree += sorted(ll, key=ll.get) == sorted(r.posterior, key=r.posterior.get)
+        total += 1
+    assert agree >= 0.9 * total, (agree, total)
+
+
+def test_save_and_load_keep_the_estimator(model, tmp_path):
+    est = model.estimator
+    path = save_estimator(est, tmp_path / "e.npz")
+    back = load_estimator(path, key="k")
+    assert back.design == est.design and np.array_equal(back.features, est.features)
+    assert load_estimator(path, key="other") is None
+
+
+def test_design_must_be_a_grid_of_stages():
+    with pytest.raises(ValueError, match="equally spaced from 0"):
+        EstimatorDesign((0.3e-3, 0.4e-3), (1e5, 2e5))
+    with pytest.raises(ValueError, match="increasing"):
+        EstimatorDesign((0.4e-3, 0.3e-3), (0.0, 1e5))
+
+
+def test_interval_of_a_known_distribution():
+    from wearbench.validation.estimate import _interval
+
+    x = np.linspace(-6, 6, 2001)
+    i = _interval(x, stats.norm.pdf(x))
+    assert i.median == pytest.approx(0, abs=1e-3) and i.hi90 == pytest.approx(1.645, abs=0.01)
+    assert i.lo50 == pytest.approx(-0.674, abs=0.01)
+
+
+def test_joint_posterior_figure_and_json(model, tmp_path):
+    import json
+
+    from wearbench.validation.estimate_figure import posterior_figure
+
+    e = estimate_features(session(np.random.default_rng(5), 0.4e-3, 2e5), model)
+    path = posterior_figure(e, tmp_path / "p.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    d = json.loads(json.dumps(e.as_dict()))
+    assert d["clearance"]["lo90"] <= d["clearance"]["median"] <= d["clearance"]["hi90"] and "posterior" not in d
+
+
+def test_track_recovers_a_wear_coefficient_1_3_times_the_files(model, tmp_path):
+    """Lives of one bench (clearance 0.4 mm, true coefficient 1.3x the file's) recorded at 0, 100k, ...
+    400k cycles: the 90 % interval of the factor holds 1.3 in most lives, and the cycles until a
+    0.45 mm limit hold the truth (depth 4 um per 200k cycles of the file's rate here: the truth
+    reaches 50 um of growth after 50e-6 / (2e-11 x 1.3) = 1.92M cycles)."""
+    from wearbench.validation.track import track_features, track_figure
+
+    rng = np.random.default_rng(6)
+    runs = [0.0, 1e5, 2e5, 3e5, 4e5]
+    truth_limit = (0.45e-3 - 0.4e-3) / (2e-11 * 1.3)
+    hits = limits = 0
+    lives = 10
+    for _ in range(lives):
+        feats = [session(rng, 0.4e-3, 1.3 * n) for n in runs]
+        t = track_features(feats, runs, model, coefficient=5.2e-14, limit=0.45e-3)
+        hits += t.factor.contains(1.3, 90)
+        limits += t.cycles_to_limit is not None and t.cycles_to_limit.contains(truth_limit, 90)
+        assert t.coefficient.median == pytest.approx(t.factor.median * 5.2e-14)
+        assert t.clearance.contains(0.4e-3, 90) or abs(t.clearance.median - 0.4e-3) < 0.03e-3
+    assert hits >= 8 and limits >= 8, (hits, limits)
+    assert track_figure(t, tmp_path / "life.png").read_bytes()[:4] == b"\x89PNG"
+    assert t.prediction[0][1].median == 0.0 and t.prediction[-1][0] > 4e5
+    with pytest.raises(ValueError, match="one value per session"):
+        track_features(feats, runs[:3], model, coefficient=5.2e-14)

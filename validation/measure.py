@@ -1,0 +1,135 @@
+"""Measure a bench, not only name it: the workflows behind ``wearbench estimate``, ``track`` and
+``calibrate`` on recorded sessions (load them, build or load the estimator or the ensembles on the
+compute layer, use the bench's sensor-path calibration, and call ``estimate.py``, ``track.py``,
+``calibration.py``). Imports the validation modules; the model only through the estimator and
+the ensembles.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from wearbench.bench.schema import WearState
+from wearbench.validation.assess import _states, commanded_speed, session_features
+from wearbench.validation.calibration import (
+    Calibration,
+    calibration_key,
+    fit_calibration,
+    sensor_record,
+    session_calibration,
+)
+from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
+from wearbench.validation.estimate import (
+    Estimate,
+    Estimator,
+    EstimatorDesign,
+    EstimatorModel,
+    build_estimator,
+    estimate_features,
+    fit_estimator,
+)
+from wearbench.validation.identify import IdentifyOptions, fit_states
+from wearbench.validation.measured import MeasuredSession, load_session
+from wearbench.validation.track import Track, track_features
+
+__all__ = ["calibrate_sessions", "estimate_sessions", "track_sessions"]
+
+
+def _grouped(sessions: Sequence[str | Path | MeasuredSession], needs_bench: str | None
+             ) -> tuple[list[MeasuredSession], list[list[int]]]:
+    """The sessions loaded, and their indices grouped by (bench file, commanded speed); a session
+    without a recorded bench file is an error saying what needs it (``needs_bench``; None: allowed)."""
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    groups: dict[tuple, list[int]] = {}
+    for i, s in enumerate(loaded):
+        if s.bench is None and needs_bench is not None:
+            raise ValueError(f"session {s.label}: no bench file recorded in it; {needs_bench}")
+        groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
+    return loaded, list(groups.values())
+
+
+def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: str, *,
+                       candidates: str | Path | Sequence[WearState] | None = None,
+                       settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
+                       ensembles: Mapping[str, Ensemble] | None = None, mount: str = "",
+                       scheduler: str | None = None, workers: int | None = None,
+                       progress: str | None = "theory ensembles") -> Calibration:
+    """The sensor-path calibration of one bench from ``sessions`` recorded in the known ``state``
+    (a ``[[state]]`` name of the bench or of ``candidates``); see ``calibration.py``. Not saved."""
+    settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    first = loaded[0]
+    if first.bench is None:
+        raise ValueError(f"session {first.label}: no bench file recorded in it; calibration needs one")
+    for s in loaded[1:]:
+        if s.bench is None or s.bench.sha256 != first.bench.sha256 or sensor_record(s.metadata) != sensor_record(
+                first.metadata):
+            raise ValueError(f"session {s.label}: another bench file or sensor than {first.label}; calibrate one "
+                             "bench and sensor at a time")
+    ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates), speed=commanded_speed(first),
+                                       settings=settings, scheduler=scheduler, workers=workers, progress=progress)
+    if state not in ens:
+        raise ValueError(f"calibrate: --state {state!r}: expected one of the bench's states {list(ens)}")
+    spec = next(iter(ens.values())).settings.features
+    exact = fit_states(ens, replace(options, sensor_path="none"))
+    key = calibration_key(first.bench, first.metadata, spec, mount)
+    return fit_calibration([session_features(s, spec) for s in loaded], exact, state, key=key,
+                           bench=first.bench.name, labels=[s.label for s in loaded], mount=mount)
+
+
+def estimate_sessions(sessions: Sequence[str | Path | MeasuredSession], *, design: EstimatorDesign | None = None,
+                      estimator: Estimator | None = None, options: IdentifyOptions | None = None,
+                      calibration: str | Path | None = "auto", mount: str = "", scheduler: str | None = None,
+                      workers: int | None = None, progress: str | None = "estimator") -> list[Estimate]:
+    """Clearance and wear of each session (paths or ``MeasuredSession``) with credible intervals.
+
+    The estimator of each (bench, commanded speed) is built once on the compute layer (or the
+    shipped one used when its key matches; ``estimator`` uses that one); ``design`` defaults to
+    ``EstimatorDesign()``. ``calibration``/``mount``: as ``assess.assess_sessions``.
+    """
+    design, options = design or EstimatorDesign(), options or IdentifyOptions()
+    loaded, groups = _grouped(sessions, "the estimator needs one" if estimator is None else None)
+    out: list[Estimate | None] = [None] * len(loaded)
+    for idx in groups:
+        first = loaded[idx[0]]
+        est = estimator or build_estimator(first.bench, design, speed=commanded_speed(first), scheduler=scheduler,
+                                           workers=workers, progress=progress)
+        fitted: dict[str, EstimatorModel] = {}
+        for i in idx:
+            s = loaded[i]
+            cal = session_calibration(s, est.spec, calibration, mount)
+            tag = cal.key if cal else ""
+            if tag not in fitted:
+                fitted[tag] = fit_estimator(est, options, sensor=cal.path if cal else None)
+            out[i] = estimate_features(session_features(s, est.spec), fitted[tag], label=s.label)
+            if cal is not None:
+                out[i].notes.append(f"sensor path: {cal.describe()}")
+    return out
+
+
+def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run: Sequence[float], *,
+                   limit: float | None = None, design: EstimatorDesign | None = None,
+                   estimator: Estimator | None = None, options: IdentifyOptions | None = None,
+                   calibration: str | Path | None = "auto", mount: str = "", scheduler: str | None = None,
+                   workers: int | None = None, progress: str | None = "estimator") -> Track:
+    """Wear over one bench's life from ``sessions`` recorded after ``cycles_run`` cycles (see
+    ``track.py``); ``limit``: a clearance limit (m). Other arguments as :func:`estimate_sessions`."""
+    design, options = design or EstimatorDesign(), options or IdentifyOptions()
+    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
+    first = loaded[0]
+    if first.bench is None:
+        raise ValueError(f"session {first.label}: no bench file recorded in it; tracking needs one")
+    for s in loaded[1:]:
+        if s.bench is None or s.bench.sha256 != first.bench.sha256:
+            raise ValueError(f"session {s.label}: another bench file than {first.label}; track one bench at a time")
+    est = estimator or build_estimator(first.bench, design, speed=commanded_speed(first), scheduler=scheduler,
+                                       workers=workers, progress=progress)
+    cal = session_calibration(first, est.spec, calibration, mount)
+    model = fit_estimator(est, options, sensor=cal.path if cal else None)
+    track = track_features([session_features(s, est.spec) for s in loaded], cycles_run, model,
+                           coefficient=first.bench.wear.coefficient, limit=limit, labels=[s.label for s in loaded])
+    if cal is not None:
+        track.notes.append(f"sensor path: {cal.describe()}")
+    return track

@@ -1,0 +1,157 @@
+"""A bench's wear over its life: sessions at several cycles run give the wear coefficient and the
+cycles until a clearance limit, with credible intervals.
+
+The estimator's wear parameter is cycles run along the bench file's Archard trajectory. Archard
+wear is linear in the coefficient: a bench whose true coefficient is ``k`` times the file's is, after
+``N`` cycles, where the file's bench is after ``k N`` (the contact forces change slowly with the
+shallow wear of a few micrometres, so the trajectory is the same, run faster). So sessions of one
+bench recorded after ``N_i`` cycles give the joint posterior of the initial clearance ``c`` (shared:
+one bench) and ``k``:
+
+    p(c, k | sessions) ∝ prior(c) prior(k) prod_i L_i(c, k N_i)
+
+with each session's tempered likelihood ``L_i`` from the estimator's grid (``estimate.py``),
+interpolated along ``N``; ``prior(k)`` log-uniform in [0.2, 5]. The wear depth (largest clearance
+growth of any joint) along the trajectory, extrapolated linearly beyond the estimator's last
+design point at its last stage's rate, gives for each (c, k) the cycles until ``c + depth``
+reaches a clearance ``limit``; weighted by the posterior, their interval.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy import special
+from wearbench.validation.estimate import EstimatorModel, Interval, _interval
+from wearbench.validation.features import CycleFeatures
+
+__all__ = ["Track", "track_features", "track_figure"]
+
+K_RANGE = (0.2, 5.0)
+
+
+@dataclass
+class Track:
+    """Wear over a bench's life (see the module docstring)."""
+
+    sessions: list[str]
+    cycles_run: list[float]
+    clearance: Interval  # initial clearance, m
+    factor: Interval  # wear coefficient / the bench file's
+    coefficient: Interval  # wear coefficient, 1/Pa
+    depth: list[Interval]  # wear depth at each session's cycles run (m), from the joint posterior
+    limit: float | None  # clearance limit, m
+    cycles_to_limit: Interval | None  # cycles from new until the limit
+    beyond: float  # posterior mass whose limit lies beyond 100 x the estimator's range
+    prediction: list[tuple[float, Interval]] = field(default_factory=list)  # (cycles, wear depth m)
+    notes: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
+    """Cycles (effective) and wear depth (gc, points) along each grid clearance's trajectory,
+    extrapolated linearly to ``extend`` x the last design cycles at the last stage's rate."""
+    gn, depth = model.grid_n, np.maximum.accumulate(model.grid_depth, axis=1)
+    step = max(1, gn.size // (len(model.estimator.design.cycles) - 1))
+    rate = (depth[:, -1] - depth[:, -1 - step]) / (gn[-1] - gn[-1 - step])
+    far = np.geomspace(gn[-1] * 1.05, gn[-1] * extend, 60)
+    return np.concatenate([gn, far]), np.concatenate([depth, depth[:, -1:] + rate[:, None] * (far - gn[-1])], axis=1)
+
+
+def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float], model: EstimatorModel, *,
+                   coefficient: float, limit: float | None = None, labels: Sequence[str] | None = None,
+                   factors: int = 161) -> Track:
+    """Wear over life from sessions' cycle ``features`` recorded after ``cycles_run`` cycles.
+
+    coefficient: the bench file's wear coefficient K_n (1/Pa); limit: a clearance limit (m)."""
+    if len(features) != len(cycles_run) or len(features) < 2:
+        raise ValueError(f"track: {len(features)} sessions and {len(cycles_run)} cycles-run values: expected one "
+                         "value per session and at least two sessions")
+    if any(n < 0 for n in cycles_run) or len(set(cycles_run)) < 2:
+        raise ValueError(f"track: cycles run {list(cycles_run)}: expected values >= 0, at least two different")
+    labels = list(labels or [f"session {i + 1}" for i in range(len(features))])
+    gc, gn = model.grid_c, model.grid_n
+    ks = np.geomspace(*K_RANGE, factors)
+    log_post = np.zeros((gc.size, ks.size))  # uniform in c, log-uniform in k (uniform on this grid)
+    for f, n in zip(features, cycles_run, strict=True):
+        if f.cycles < 1:
+            raise ValueError("track: a session holds no complete crank cycle")
+        ll = -0.5 * model.distances(f.values.mean(axis=0), f.cycles) / model.temperature  # (gc, gn)
+        eff = ks * n
+        inside = eff <= gn[-1] + 1e-9
+        for i in range(gc.size):
+            row = np.full(ks.size, -np.inf)
+            row[inside] = np.interp(eff[inside], gn, ll[i])
+            log_post[i] += row
+    if not np.isfinite(log_post).any():
+        raise ValueError("track: the cycles run exceed the estimator's range for every wear coefficient")
+    post = np.exp(log_post - special.logsumexp(log_post))
+    c_int = _interval(gc, post.sum(axis=1))
+    k_int = _interval(np.log(ks), post.sum(axis=0))
+    k_int = Interval(*(float(np.exp(v)) for v in asdict(k_int).values()))
+    coef = Interval(*(v * coefficient for v in asdict(k_int).values()))
+    n_curve, d_curve = _depth_curve(model)
+
+    def depth_at(n: float) -> Interval:
+        d = np.stack([np.interp(ks * n, n_curve, d_curve[i]) for i in range(gc.size)])
+        return _interval(d.ravel(), post.ravel())
+
+    depth = [depth_at(n) for n in cycles_run]
+    to_limit, beyond, notes = None, 0.0, []
+    if limit is not None:
+        need = limit - gc  # wear depth that reaches the limit from each clearance
+        eff_limit = np.array([np.interp(need[i], d_curve[i], n_curve, right=np.inf) if need[i] > 0 else 0.0
+                              for i in range(gc.size)])
+        cycles = eff_limit[:, None] / ks[None, :]
+        finite = np.isfinite(cycles)
+        beyond = float(post[~finite].sum())
+        if beyond < 0.5:
+            to_limit = _interval(np.where(finite, cycles, 0.0)[finite], post[finite])
+        if beyond > 0.05:
+            notes.append(f"{beyond:.0%} of the posterior reaches the limit beyond {n_curve[-1]:,.0f} effective cycles "
+                         "(100x the estimator's range): the interval's upper end is a lower bound")
+    horizon = max(1.5 * max(cycles_run), 1.2 * to_limit.hi90 if to_limit else 0.0)
+    prediction = [(float(n), depth_at(n)) for n in np.linspace(0.0, horizon, 41)]
+    edge = post[:, :3].sum() + post[:, -3:].sum()
+    if edge > 0.1:
+        notes.append(f"the wear coefficient's posterior reaches the edge of {K_RANGE[0]}-{K_RANGE[1]} x the file's")
+    return Track(labels, [float(n) for n in cycles_run], c_int, k_int, coef, depth, limit, to_limit, beyond,
+                 prediction, notes)
+
+
+def track_figure(track: Track, path, *, title: str = "wear over the bench's life"):
+    """Wear depth against cycles run: each session's interval, the Archard prediction with the
+    fitted coefficient (median, 90 % band) and the clearance limit. Returns the path (PNG)."""
+    from pathlib import Path
+
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 4.4))
+    ax = fig.add_subplot()
+    n = np.array([p[0] for p in track.prediction]) / 1e3
+    ax.fill_between(n, [p[1].lo90 * 1e6 for p in track.prediction], [p[1].hi90 * 1e6 for p in track.prediction],
+                    color="C0", alpha=0.25, label="Archard, fitted coefficient: 90 %")
+    ax.plot(n, [p[1].median * 1e6 for p in track.prediction], color="C0", label="median")
+    x = np.array(track.cycles_run) / 1e3
+    med = np.array([d.median for d in track.depth]) * 1e6
+    ax.errorbar(x, med, yerr=[med - np.array([d.lo90 for d in track.depth]) * 1e6,
+                              np.array([d.hi90 for d in track.depth]) * 1e6 - med], fmt="o", color="C3",
+                label="sessions: wear depth, 90 %")
+    if track.limit is not None:
+        ax.axhline((track.limit - track.clearance.median) * 1e6, color="k", ls="--",
+                   label=f"limit {track.limit * 1e3:g} mm (from the median clearance)")
+        if track.cycles_to_limit is not None:
+            ax.axvspan(track.cycles_to_limit.lo90 / 1e3, track.cycles_to_limit.hi90 / 1e3, color="0.5", alpha=0.2,
+                       label="cycles to the limit: 90 %")
+    k = track.factor
+    ax.set_title(f"{title}\nwear coefficient {track.coefficient.median:.3g} 1/Pa "
+                 f"({k.median:.2f}x the file's, 90 % {k.lo90:.2f}-{k.hi90:.2f})", fontsize=8)
+    ax.set_xlabel("cycles run (thousands)")
+    ax.set_ylabel("wear depth: clearance growth (um)")
+    ax.legend(fontsize=7, loc="upper left")
+    fig.savefig(Path(path), dpi=110)
+    return Path(path)
