@@ -18,6 +18,9 @@ force elements, the contact search and contact forces, the Schur complement Phi_
 (the mass matrix is diagonal: this is where it enters), the linear solve (Cholesky) and the whole
 evaluation ``deriv``; the parts are timed in compiled loops, so call overhead is excluded.
 
+All times are the process's CPU time (``time.process_time``; the loop is single-threaded), so a busy
+shared machine inflates them less than wall time would; ratios are still best measured in one run.
+
 With ``--baseline DIR`` (a scratch copy of an earlier version whose ``wearbench`` package lies in
 ``DIR/wearbench``, e.g. main at f183162 exported by ``git archive``) it also times that version in a
 subprocess, interleaved with this one (best of ``--repeat``), and prints the ratio per state.
@@ -56,9 +59,9 @@ def _timed_runs(revolutions: float) -> dict:
     out = {}
     for name, scene in _scenes().items():
         simulate(scene, t_end=1e-3)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         res = simulate(scene, revolutions=revolutions)
-        wall = time.perf_counter() - t0
+        wall = time.process_time() - t0
         s = res.summary
         out[name] = {"wall": wall, "steps": s["steps"], "rejected": s["rejected_steps"],
                      "nfev": s["function_evaluations"], "peak_fn": s["peak_fn"],
@@ -77,37 +80,37 @@ def _part_timers():
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K.constraints(ts[i], ys[i, :n], ys[i, n:], speed, P, W[0], W[1], W[2], W[3])
+                K.constraints(ts[i], ys[i, :n], ys[i, n:], speed, P, W)
 
     @njit
     def elements(reps, ts, ys, speed, P, W):
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K.element_forces(ys[i, :n], ys[i, n:], P, W[4])
+                K.element_forces(ys[i, :n], ys[i, n:], P, W.g)
 
     @njit
     def contacts(reps, ts, ys, speed, P, W, inc, v0i, cout):
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K.clearance_forces(ys[i, :n], ys[i, n:], P, inc[i], v0i[i], W[4], cout)
+                K.clearance_forces(ys[i, :n], ys[i, n:], P, inc[i], v0i[i], W, cout)
 
     @njit
     def schur(reps, ts, ys, speed, P, W, Jvs):
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K._schur(P, Jvs[i], W[5])
+                K._schur(P, Jvs[i], W.S)
 
     @njit
-    def solve(reps, Ss, rhs, S, lam):
+    def solve(reps, Ss, rhs, S, lam, first):
         for _ in range(reps):
             for i in range(Ss.shape[0]):
                 S[:] = Ss[i]
-                K._cholesky_solve(S, rhs, lam)
+                K._cholesky_solve(S, rhs, lam, first)
 
     @njit
-    def copy_only(reps, Ss, rhs, S, lam):
+    def copy_only(reps, Ss, rhs, S, lam, first):
         for _ in range(reps):
             for i in range(Ss.shape[0]):
                 S[:] = Ss[i]
@@ -126,17 +129,17 @@ def _clock(fn, *args, budget: float = 0.3) -> float:
     fn(1, *args)
     reps = 1
     while True:
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         fn(reps, *args)
-        dt = time.perf_counter() - t0
+        dt = time.process_time() - t0
         if dt > budget / 3 or reps > 1 << 20:
             break
         reps *= 2
     best = dt
     for _ in range(2):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         fn(reps, *args)
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, time.process_time() - t0)
     return best / reps
 
 
@@ -152,18 +155,18 @@ def _profile(name: str, scene, revolutions: float) -> dict:
     kept = {}
 
     def timed_loop(*args):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         status = inner(*args)
-        spent[0] += time.perf_counter() - t0
+        spent[0] += time.process_time() - t0
         spent[1] += 1
         kept["times"], kept["out_y"] = args[12], args[13]
         return status
 
     I.run_loop = timed_loop
     try:
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         res = simulate(scene, revolutions=revolutions)
-        wall = time.perf_counter() - t0
+        wall = time.process_time() - t0
     finally:
         I.run_loop = inner
     s = res.summary
@@ -180,20 +183,20 @@ def _profile(name: str, scene, revolutions: float) -> dict:
     Jvs = np.zeros((ts.size, m, 2, 3))
     Ss = np.zeros((ts.size, m, m))
     for i in range(ts.size):
-        K.constraints(ts[i], ys[i, :n].copy(), ys[i, n:].copy(), speed, P, W[0], W[1], W[2], W[3])
-        Jvs[i] = W[1]
-        K._schur(P, W[1], W[5])
-        Ss[i] = W[5]
+        K.constraints(ts[i], ys[i, :n].copy(), ys[i, n:].copy(), speed, P, W)
+        Jvs[i] = W.Jv
+        K._schur(P, W.Jv, W.S)
+        Ss[i] = W.S
     constraints, elements, contacts, schur, solve, copy_only, evaluation = _part_timers()
+    solve_args = (Ss, np.ones(m), np.zeros((m, m)), np.zeros(m), P.s_first)
     per = ts.size
     cost = {
         "constraint Jacobian (Phi, Phi_q, gamma)": _clock(constraints, ts, ys, speed, P, W) / per,
         "force elements (gravity, springs)": _clock(elements, ts, ys, speed, P, W) / per,
         "contact search + contact forces": _clock(contacts, ts, ys, speed, P, W, inc, v0i, cout) / per,
         "Schur complement Phi_q M^-1 Phi_q^T": _clock(schur, ts, ys, speed, P, W, Jvs) / per,
-        "linear solve (Cholesky, m x m)": max(0.0, (_clock(solve, Ss, np.ones(m), np.zeros((m, m)), np.zeros(m))
-                                                    - _clock(copy_only, Ss, np.ones(m), np.zeros((m, m)),
-                                                             np.zeros(m))) / per),
+        "linear solve (Cholesky, m x m)": max(0.0, (_clock(solve, *solve_args) - _clock(copy_only, *solve_args))
+                                                / per),
     }
     one = _clock(evaluation, ts, ys, speed, P, W, inc, v0i, np.zeros(2 * n), np.zeros(m), cout) / per
     cost["rest of an evaluation (a = M^-1 (g - Phi_q^T lam), rhs)"] = max(0.0, one - sum(cost.values()))

@@ -266,7 +266,10 @@ def run_loop(scheme, control, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, o
                 stats[S_VALUE] = ynew[i]
                 return NOT_FINITE
         t_new = t_end if last else t + hh
-        dp, dv = K.drift(t_new, ynew[:n], ynew[n:], speed, P, W)
+        if t_new == t + hh:  # the step's last evaluation left the constraints at (t_new, ynew) in W
+            dp, dv = K.drift_of(P, ynew[n:], W)
+        else:
+            dp, dv = K.drift(t_new, ynew[:n], ynew[n:], speed, P, W)
         if do_project and (dp > 10.0 * proj_tol or dv > 1e3 * proj_tol):
             # project only when the drift is measurable: the FSAL derivative stays valid otherwise
             ps = K.project(t_new, ynew[:n], ynew[n:], speed, P, W, proj_tol, 4)

@@ -137,8 +137,8 @@ def _singular_joints(scene: Scene, t: float, y: np.ndarray, speed: float) -> str
 
     m, n = scene.m, scene.n
     W = scene.work()
-    K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W[0], W[1], W[2], W[3])
-    u, _, _ = np.linalg.svd(_dense_jacobian(scene.params, W[1], n))
+    K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W)
+    u, _, _ = np.linalg.svd(_dense_jacobian(scene.params, W.Jv, n))
     weights = np.abs(u[:, -1]) if m else np.zeros(0)
     names = []
     for k in np.argsort(-weights):
@@ -174,8 +174,8 @@ def _fail(scene: Scene, status: int, stats: np.ndarray, y: np.ndarray, cout: np.
     if status == I.DRIFT:
         W = scene.work()
         n = scene.n
-        K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W[0], W[1], W[2], W[3])
-        joint = scene.row_joints[int(np.argmax(np.abs(W[0])))]
+        K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W)
+        joint = scene.row_joints[int(np.argmax(np.abs(W.phi)))]
         return SimulationError(f"constraint drift {stats[I.S_VALUE]:.3g} (m or rad) exceeds {drift_tol:g} "
                                f"{where} at joint {joint}", t=t, joint=joint, quantity="constraint drift",
                                state=state)
