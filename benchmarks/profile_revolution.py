@@ -159,7 +159,7 @@ def _profile(name: str, scene, revolutions: float) -> dict:
         status = inner(*args)
         spent[0] += time.process_time() - t0
         spent[1] += 1
-        kept["times"], kept["out_y"] = args[12], args[13]
+        kept["times"], kept["out_y"] = args[7].t, args[7].y
         return status
 
     I.run_loop = timed_loop
@@ -230,7 +230,7 @@ def _print_profile(p: dict) -> None:
     for what, cnt, sec in rows:
         c = f"{cnt:10.0f}" if cnt is not None else f"{'':>10}"
         print(f"  {what:<58} {c} {sec / rev * 1e3:8.1f} {sec / wall:7.1%}")
-    print(f"  one evaluation, part by part (us; share of an evaluation):")
+    print("  one evaluation, part by part (us; share of an evaluation):")
     for what, sec in p["cost"].items():
         print(f"    {what:<56} {sec * 1e6:8.3f} {sec / p['one']:7.1%}")
 

@@ -147,7 +147,6 @@ def _guess(bench: Bench, index: dict[str, int]) -> np.ndarray:
 
 def _assemble(bench: Bench, P, row_joints, n: int, q: np.ndarray) -> np.ndarray:
     """Newton (least squares) on all ideal constraints at t = 0; BenchError if it does not close."""
-    m = len(row_joints)
     W = K.workspace(P)
     v = np.zeros(n)
     for _ in range(60):
