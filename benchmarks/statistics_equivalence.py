@@ -21,7 +21,7 @@ code importable, ``--dump``) and this version at the tight tolerance (method "ac
 atol 1e-11 m). It also prints the reference against the baseline, the yardstick of what a
 tolerance alone changes.
 
-Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolutions 13]
+Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolutions 14]
       PYTHONPATH=/tmp/wb_base_f183162 .venv/bin/python benchmarks/statistics_equivalence.py \
           --dump benchmarks/data/statistics_baseline.npz        (the baseline, once, with the old code)
 """
@@ -165,7 +165,7 @@ def _report(title: str, rows) -> bool:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=16)
-    ap.add_argument("--revolutions", type=float, default=13.0, help="kept revolutions per realisation")
+    ap.add_argument("--revolutions", type=float, default=14.0, help="kept revolutions per realisation")
     ap.add_argument("--dump", help="only write this version's features (default tolerance) to this .npz")
     ap.add_argument("--baseline", default=str(BASELINE), help="stored baseline features (.npz)")
     args = ap.parse_args()

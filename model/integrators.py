@@ -339,6 +339,21 @@ def _record(rec, irec, t, t_new, cnew):
         r[7] = cnew[c, K.CO_PEN]
 
 
+@njit(cache=True, inline="always")
+def _raise_peaks(peaks, values):
+    for j in range(peaks.shape[0]):
+        peaks[j] = max(peaks[j], values[j])
+
+
+@njit(cache=True, inline="always")
+def _next_step(hh, err, err_old, factor_max, hmax, expo_pi):
+    """PI step control after an accepted step (Hairer, Wanner: Solving ODE I, sec. II.4, beta = 0.04):
+    the next step and the error remembered for the next one."""
+    e = max(err, 1e-10)
+    f = 0.9 * e ** -expo_pi * err_old ** 0.04
+    return min(hmax, hh * min(factor_max, max(0.2, f))), max(e, 1e-4)
+
+
 @njit(cache=True)
 def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, track):
     """Integrate from t to t_end (in place on y, the modes mdl.inc and mdl.v0i, and ``stats``) with the
@@ -380,8 +395,7 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
     vals = np.empty(inc.shape[0] + 1)
     if pst[2] == 0:  # values at the start
         _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
-        for j in range(enew.shape[0]):
-            peaks[j] = max(peaks[j], pe[1, j])
+        _raise_peaks(peaks, pe[1])
         pst[2] = 1
     while t < t_end:
         if out.record and irec >= out.rec.shape[0]:
@@ -425,11 +439,7 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         nsteps += 1
         st.steps += 1
         if control.adaptive:
-            # PI step control (Hairer, Wanner: Solving ODE I, sec. II.4, beta = 0.04)
-            e = max(err, 1e-10)
-            f = 0.9 * e ** -scheme.expo_pi * err_old ** 0.04
-            err_old = max(e, 1e-4)
-            h = min(control.hmax, hh * min(factor_max, max(0.2, f)))
+            h, err_old = _next_step(hh, err, err_old, factor_max, control.hmax, scheme.expo_pi)
             factor_max = 5.0
         if nsteps >= control.max_steps and t < t_end:  # back to Python now and then (Ctrl-C); call again
             return _save(st, PAUSED, t, h, iout, irec, err_old)
