@@ -141,7 +141,7 @@ def motor_angle(t, speed, profile):
     return profile[i, 1] + profile[i, 2] * tau + 0.5 * acc * tau * tau, profile[i, 2] + acc * tau, acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def constraints(t, q, v, speed, P, W):
     """Fill Phi (m), compact Phi_q values Jv (m, 2, 3), gamma (m) and nu = -Phi_t (m) of the workspace W."""
     rev_b, rev_s, pri_b, pri_s, drv_b, drv_p = P.rev_b, P.rev_s, P.pri_b, P.pri_s, P.drv_b, P.drv_p
@@ -278,7 +278,7 @@ def eccentricity(q, bi, bj, p):
     return pix, piy, pjx, pjy, pjx - pix, pjy - piy
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def clearance_forces(q, v, P, inc, v0i, W, cout):
     """Add the clearance contact forces to W.g; fill cout (nc, NCO).
 
@@ -349,7 +349,7 @@ def clearance_forces(q, v, P, inc, v0i, W, cout):
         c[CO_PHIJ] = (psi - thj) % (2.0 * math.pi)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def element_forces(q, v, P, g):
     """Generalised forces of gravity, spring-dampers and applied torques (N, N m) into g."""
     fext, spr_b, spr_p, trq_b, trq_p = P.fext, P.spr_b, P.spr_p, P.trq_b, P.trq_p
@@ -375,7 +375,7 @@ def element_forces(q, v, P, g):
         g[3 * b + 2] += trq_p[k, 0] - trq_p[k, 1] * v[3 * b + 2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _schur(P, Jv, S):
     """S = Phi_q M^-1 Phi_q^T from the compact Jacobian."""
     minv, body_rows, body_nrows = P.minv, P.body_rows, P.body_nrows
