@@ -178,13 +178,16 @@ def main() -> None:
                             source=source, seconds=np.array([spent[s] for s in STATES]))
         print(f"wrote {args.dump} from {source}: {[(s, len(next(iter(feats[s].values())))) for s in STATES]} cycles")
         return
-    base_file = np.load(args.baseline)
-    base = _unflat(base_file)
-    seeds, revs = int(base_file["seeds"]), float(base_file["revolutions"])
-    print(f"test bed, {seeds} realisations x {revs:g} revolutions per state; baseline {args.baseline} "
-          f"(written by {base_file['source']}); this version {source}")
+    seeds, revs = args.seeds, args.revolutions
     this, t_this = collect(seeds, revs, "default")
     ref, t_ref = collect(seeds, revs, "accurate")
+    base_file = np.load(args.baseline)
+    base = _unflat(base_file)
+    if (int(base_file["seeds"]), float(base_file["revolutions"])) != (seeds, revs):
+        raise SystemExit(f"{args.baseline}: {int(base_file['seeds'])} seeds x {float(base_file['revolutions']):g} "
+                         f"revolutions; expected {seeds} x {revs:g} (write it again with --dump)")
+    print(f"test bed, {seeds} realisations x {revs:g} revolutions per state; baseline {args.baseline} "
+          f"(written by {base_file['source']}); this version {source}")
     passed = True
     for name in STATES:
         n = len(next(iter(this[name].values())))

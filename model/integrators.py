@@ -454,7 +454,7 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
     predictor, velocities from Phi_q v = nu, then accelerations and multipliers (joint reactions)
     from eq. 30 without stabilisation. Returns 0 or a kernel status; stats' t the failing time.
     """
-    st = stats[0]
+    record = stats[0]
     n = q.shape[0]
     inc = np.zeros(0, np.int64)
     v0i = np.zeros(0)
@@ -468,15 +468,15 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
             v[j] += a[j] * dt
         st = K.project(t, q, v, speed, P, W, tol, 30)
         if st != 0:
-            st.t = t
+            record.t = t
             return st
         st = K.accel(t, q, v, speed, P, 0.0, 0.0, inc, v0i, a, out_lam[i], out_c[i], W)
         if st != 0:
-            st.t = t
+            record.t = t
             return st
         out_y[i, :n] = q
         out_y[i, n:] = v
         out_a[i] = a
-        st.steps += 1
+        record.steps += 1
         t_prev = t
     return 0
