@@ -22,6 +22,8 @@ atol 1e-11 m). It also prints the reference against the baseline, the yardstick 
 tolerance alone changes.
 
 Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolutions 14]
+      (or its parts in parallel: --dump this.npz; --dump ref.npz --method accurate; then --this this.npz
+      --reference ref.npz)
       PYTHONPATH=/tmp/wb_base_f183162 .venv/bin/python benchmarks/statistics_equivalence.py \
           --dump benchmarks/data/statistics_baseline.npz        (the baseline, once, with the old code)
 """
@@ -108,15 +110,26 @@ def collect(seeds: int, revolutions: float, method: str) -> tuple[dict[str, dict
     feats: dict[str, dict[str, list]] = {}
     spent = {}
     for name in STATES:
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         acc: dict[str, list] = {}
         for seed in range(seeds):
             table, keep, _ = _realisation_table(bench, by_name[name], seed, revolutions, method)
             for k, v in _cycle_features(bench, table, keep, joints).items():
                 acc.setdefault(k, []).append(v)
         feats[name] = {k: np.concatenate(v) for k, v in acc.items()}
-        spent[name] = time.perf_counter() - t0
+        spent[name] = time.process_time() - t0
     return feats, spent
+
+
+def _load_or_collect(path: str | None, seeds: int, revs: float, method: str | None):
+    """Features and CPU seconds per state from a --dump file, or simulated here with ``method``."""
+    if path is None:
+        return collect(seeds, revs, method)
+    data = np.load(path)
+    if (int(data["seeds"]), float(data["revolutions"])) != (seeds, revs):
+        raise SystemExit(f"{path}: {int(data['seeds'])} seeds x {float(data['revolutions']):g} revolutions; "
+                         f"expected {seeds} x {revs:g} (write it again with --dump)")
+    return _unflat(data), dict(zip(STATES, (float(x) for x in data["seconds"]), strict=True))
 
 
 def _flat(feats) -> dict[str, np.ndarray]:
@@ -166,33 +179,35 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=16)
     ap.add_argument("--revolutions", type=float, default=14.0, help="kept revolutions per realisation")
-    ap.add_argument("--dump", help="only write this version's features (default tolerance) to this .npz")
+    ap.add_argument("--dump", help="only write the importable version's features to this .npz")
+    ap.add_argument("--method", default="default", help="with --dump: the method (default, or accurate for the "
+                    "reference)")
     ap.add_argument("--baseline", default=str(BASELINE), help="stored baseline features (.npz)")
+    ap.add_argument("--this", help="this version's features from a --dump file instead of simulating them")
+    ap.add_argument("--reference", help="the reference's features from a --dump --method accurate file")
     args = ap.parse_args()
     import wearbench.model
 
     source = os.path.dirname(wearbench.model.__file__)
     if args.dump:
-        feats, spent = collect(args.seeds, args.revolutions, "default")
+        feats, spent = collect(args.seeds, args.revolutions, args.method)
         np.savez_compressed(args.dump, **_flat(feats), seeds=args.seeds, revolutions=args.revolutions,
-                            source=source, seconds=np.array([spent[s] for s in STATES]))
-        print(f"wrote {args.dump} from {source}: {[(s, len(next(iter(feats[s].values())))) for s in STATES]} cycles")
+                            source=source, method=args.method, seconds=np.array([spent[s] for s in STATES]))
+        print(f"wrote {args.dump} from {source} ({args.method}): "
+              f"{[(s, len(next(iter(feats[s].values())))) for s in STATES]} cycles")
         return
     seeds, revs = args.seeds, args.revolutions
-    this, t_this = collect(seeds, revs, "default")
-    ref, t_ref = collect(seeds, revs, "accurate")
+    this, t_this = _load_or_collect(args.this, seeds, revs, "default")
+    ref, t_ref = _load_or_collect(args.reference, seeds, revs, "accurate")
+    base, _ = _load_or_collect(args.baseline, seeds, revs, None)
     base_file = np.load(args.baseline)
-    base = _unflat(base_file)
-    if (int(base_file["seeds"]), float(base_file["revolutions"])) != (seeds, revs):
-        raise SystemExit(f"{args.baseline}: {int(base_file['seeds'])} seeds x {float(base_file['revolutions']):g} "
-                         f"revolutions; expected {seeds} x {revs:g} (write it again with --dump)")
     print(f"test bed, {seeds} realisations x {revs:g} revolutions per state; baseline {args.baseline} "
           f"(written by {base_file['source']}); this version {source}")
     passed = True
     for name in STATES:
         n = len(next(iter(this[name].values())))
-        print(f"\n{name}: {n} cycles per sample; this version {t_this[name]:.0f} s, reference {t_ref[name]:.0f} s "
-              f"(baseline when stored {float(base_file['seconds'][STATES.index(name)]):.0f} s)")
+        print(f"\n{name}: {n} cycles per sample; simulated in {t_this[name]:.0f} s CPU (this version), "
+              f"{t_ref[name]:.0f} s (reference)")
         print(f"    {'feature':<28} {'mean this':>12} {'mean other':>12}")
         passed &= _report("this vs baseline", compare(this[name], base[name]))
         passed &= _report("this vs tight reference", compare(this[name], ref[name]))
