@@ -62,7 +62,8 @@ def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
     q = y[:n]
     v = y[n:]
     st = K.accel(t, q, v, speed, P, alpha, beta, inc, v0i, dy[n:], lam, cout, W)
-    dy[:n] = v
+    for i in range(n):
+        dy[i] = v[i]
     return st
 
 
@@ -340,6 +341,14 @@ def _record(rec, irec, t, t_new, cnew):
 
 
 @njit(cache=True, inline="always")
+def _copy_rows(dst, src):
+    """dst[:] = src for 2-d arrays as a plain loop (numba's slice assignment costs ~40 ns per call)."""
+    for c in range(src.shape[0]):
+        for x in range(src.shape[1]):
+            dst[c, x] = src[c, x]
+
+
+@njit(cache=True, inline="always")
 def _raise_peaks(peaks, values):
     for j in range(peaks.shape[0]):
         peaks[j] = max(peaks[j], values[j])
@@ -434,7 +443,7 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         for i in range(N):
             y[i] = ynew[i]
             k[0, i] = k[end, i]
-        cout_old[:] = cnew
+        _copy_rows(cout_old, cnew)
         t = t_new
         nsteps += 1
         st.steps += 1

@@ -74,6 +74,13 @@ def workspace(P: Params) -> Workspace:
 
 
 @njit(cache=True, inline="always")
+def _fill(a, value):
+    """a[:] = value as a plain loop (numba's slice assignment costs ~40 ns per call)."""
+    for i in range(a.shape[0]):
+        a[i] = value
+
+
+@njit(cache=True, inline="always")
 def _rot(q, b, sx, sy):
     """A_b s (global components of a body-fixed vector)."""
     if b < 0:
@@ -150,7 +157,7 @@ def constraints(t, q, v, speed, P, W):
     for b in range(nb):
         cs[b] = math.cos(q[3 * b + 2])
         sn[b] = math.sin(q[3 * b + 2])
-    Jv[:] = 0.0
+    _fill(Jv.reshape(-1), 0.0)
     k = 0
     for r in range(rev_b.shape[0]):
         bi, bj = rev_b[r, 0], rev_b[r, 1]
@@ -353,7 +360,8 @@ def clearance_forces(q, v, P, inc, v0i, W, cout):
 def element_forces(q, v, P, g):
     """Generalised forces of gravity, spring-dampers and applied torques (N, N m) into g."""
     fext, spr_b, spr_p, trq_b, trq_p = P.fext, P.spr_b, P.spr_p, P.trq_b, P.trq_p
-    g[:] = fext
+    for i in range(g.shape[0]):
+        g[i] = fext[i]
     for k in range(spr_b.shape[0]):
         bi, bj = spr_b[k, 0], spr_b[k, 1]
         p = spr_p[k]
@@ -379,7 +387,7 @@ def element_forces(q, v, P, g):
 def _schur(P, Jv, S):
     """S = Phi_q M^-1 Phi_q^T from the compact Jacobian."""
     minv, body_rows, body_nrows = P.minv, P.body_rows, P.body_nrows
-    S[:] = 0.0
+    _fill(S.reshape(-1), 0.0)
     for b in range(body_nrows.shape[0]):
         mx, my, mt = minv[3 * b], minv[3 * b + 1], minv[3 * b + 2]
         nr = body_nrows[b]
@@ -441,7 +449,7 @@ def _cholesky_solve(S, rhs, x, first):
 def _jt_times(P, Jv, lam, out):
     """out = Phi_q^T lam."""
     jb = P.jb
-    out[:] = 0.0
+    _fill(out, 0.0)
     for k in range(jb.shape[0]):
         for s in range(2):
             b = jb[k, s]
