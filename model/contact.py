@@ -25,6 +25,9 @@ from wearbench.model.jit_cache import configure_numba_cache
 configure_numba_cache()
 
 __all__ = [
+    "FLORES",
+    "HERTZ",
+    "LANKARANI_NIKRAVESH",
     "LAWS",
     "MIN_IMPACT_SPEED",
     "STIFFNESS_FORMS",
@@ -50,6 +53,7 @@ __all__ = [
 ]
 
 LAWS = {name: code for code, name in enumerate(CONTACT_LAWS)}  # the kernel's law codes
+LANKARANI_NIKRAVESH, FLORES, HERTZ = LAWS["lankarani-nikravesh"], LAWS["flores"], LAWS["hertz"]
 MIN_IMPACT_SPEED = 1e-3  # m/s: floor of the impact speed in the hysteresis damping (see impact_speed)
 
 
@@ -115,19 +119,19 @@ def normal_force(pen: float, pen_rate: float, stiffness: float, exponent: float,
                  restitution: float, v_impact: float, law: int) -> float:
     """Normal contact force F_n (N, >= 0) for penetration ``pen`` (m) and its rate (m/s).
 
-    law 0, Lankarani-Nikravesh (eq. 7-11): F = K d^n (1 + 3 (1 - ce^2) / 4 * d' / v0).
-    law 1, Flores et al. (Nonlinear Dyn. 2011, valid for any ce):
+    law LANKARANI_NIKRAVESH (eq. 7-11): F = K d^n (1 + 3 (1 - ce^2) / 4 * d' / v0).
+    law FLORES, Flores et al. (Nonlinear Dyn. 2011, valid for any ce):
     F = K d^n (1 + 8 (1 - ce) / (5 ce) * d' / v0).
-    law 2, Hertz: F = K d^n (no damping).
+    law HERTZ: F = K d^n (no damping).
     ``v_impact`` is the impact speed v0 > 0 (see :func:`impact_speed`). The force never pulls
     (clamped at 0 when the damping term exceeds the elastic one during restitution).
     """
     if pen <= 0.0:
         return 0.0
     elastic = stiffness * pen ** exponent
-    if law == 0:
+    if law == LANKARANI_NIKRAVESH:
         f = elastic * (1.0 + 0.75 * (1.0 - restitution * restitution) * pen_rate / v_impact)
-    elif law == 1:
+    elif law == FLORES:
         f = elastic * (1.0 + 1.6 * (1.0 - restitution) / restitution * pen_rate / v_impact)
     else:
         f = elastic

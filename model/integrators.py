@@ -2,8 +2,9 @@
 
 :func:`erk_try` steps any explicit Runge-Kutta tableau of ``methods.py`` (the methods are data
 there); :func:`run_loop` is shared by all of them: step control, projection, contact-mode
-updates, dense output, contact records, peaks. ``k[0] = f(t, y)`` on entry to a step and
-``k[6] = f`` at its end. :func:`kinematics_loop` serves fully driven scenes with ideal joints.
+updates, dense output, contact records, peaks, each accepted step's bookkeeping in a small
+compiled helper. ``k[0] = f(t, y)`` on entry to a step and ``k[scheme.end] = f`` at its end (the
+tableau owns its stage count). :func:`kinematics_loop` serves fully driven scenes with ideal joints.
 The loop runs compiled, returning to Python only when done, when a record buffer is full or on
 failure, so a step costs no interpreter time. Imports numpy, numba and the model's kernel only.
 
@@ -19,16 +20,18 @@ import numpy as np
 from numba import njit
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
-from wearbench.model.methods import NSTAGES
 
-__all__ = ["Control", "Track", "deriv", "erk_try", "kinematics_loop", "run_loop"]
+__all__ = ["STATS", "Control", "Model", "Output", "Track", "deriv", "erk_try", "kinematics_loop", "new_stats", "run_loop",
+           "sensor_acc"]
 
 # loop status codes
 DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS, PAUSED = range(10)
-# stats slots
-(S_STEPS, S_REJ, S_DRIFT_P, S_DRIFT_V, S_T, S_H, S_OUT, S_REC, S_DETAIL, S_NFEV, S_VALUE, S_PEAK_SEARCHES,
- S_ERR_OLD) = range(13)
-NSTATS = 13
+# the loop's statistics and saved state, one record (``stats = new_stats()``, fields read as stats[0].steps or
+# stats["steps"][0]): accepted and rejected steps, largest position and velocity drift, time, next step,
+# output samples and contact records filled, the joint or coordinate and the value of a failure, function
+# evaluations, peak searches, the step controller's previous error
+STATS = np.dtype([(name, np.float64) for name in ("steps", "rejected", "drift_p", "drift_v", "t", "h", "out", "rec",
+                                                  "detail", "nfev", "value", "peak_searches", "err_old")])
 # peak tracking: a local maximum of an endpoint sequence above this fraction of the running peak is
 # searched for on the dense output of the two steps around it
 PEAK_SEARCH_FRACTION = 0.8
@@ -40,6 +43,17 @@ NREC = 8  # t, dt, fn, vt, omega_rel, phi_bearing, phi_journal, pen
 Control = namedtuple("Control", "adaptive project proj_tol drift_tol atol rtol hmin hmax max_steps")
 # peak tracking of run_loop (see its docstring): sensor, running peaks, previous step's pk, pe, pst
 Track = namedtuple("Track", "sensor peaks pk pe pst")
+# what run_loop fills: output times and, per time, state, accelerations, contact outputs and multipliers;
+# contact records (one row per accepted step and clearance joint) when ``record``
+Output = namedtuple("Output", "t y a c lam rec record")
+# the mechanism as the loop evaluates it: parameters, motor speed, Baumgarte (alpha, beta), contact modes
+# (inc, v0i), blow-up penetration per joint, the kernel's workspace
+Model = namedtuple("Model", "P speed alpha beta inc v0i blow_pen W")
+
+
+def new_stats() -> np.ndarray:
+    """A zeroed statistics record (:data:`STATS`) for :func:`run_loop`."""
+    return np.zeros(1, STATS)
 
 
 @njit(cache=True)
@@ -48,16 +62,17 @@ def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
     q = y[:n]
     v = y[n:]
     st = K.accel(t, q, v, speed, P, alpha, beta, inc, v0i, dy[n:], lam, cout, W)
-    dy[:n] = v
+    for i in range(n):
+        dy[i] = v[i]
     return st
 
 
 @njit(cache=True)
 def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cout, W, atol, rtol):
-    """One step of an explicit Runge-Kutta tableau: ynew and k[6] = f(t + h, ynew); returns
+    """One step of an explicit Runge-Kutta tableau: ynew and k[scheme.end] = f(t + h, ynew); returns
     (status, error norm), the norm 0 for a method without an embedded estimate."""
     N = y.shape[0]
-    A, C, last = scheme.a, scheme.c, NSTAGES - 1
+    A, C, last = scheme.a, scheme.c, scheme.end
     for s in range(1, scheme.stages):
         for i in range(N):
             acc = 0.0
@@ -106,7 +121,7 @@ def _hermite(t0, y0, f0, t1, y1, f1, t, out):
 
 
 @njit(cache=True)
-def _sensor_acc(y, f, sensor):
+def sensor_acc(y, f, sensor):
     """|acceleration| of the sensor point along its axis from the state y and f = (v, a); 0 without
     a sensor. sensor = (body index or -1, x, y in the body, axis angle in the body)."""
     b = int(sensor[0])
@@ -128,7 +143,7 @@ def _peak_values(t, y, speed, P, inc, v0i, f, lam, cout, W, sensor, vals):
     nc = cout.shape[0]
     for c in range(nc):
         vals[c] = cout[c, K.CO_FN]
-    vals[nc] = _sensor_acc(y, f, sensor)
+    vals[nc] = sensor_acc(y, f, sensor)
 
 
 @njit(cache=True)
@@ -182,202 +197,262 @@ def _update_modes(cout_old, cout_new, inc, v0i):
 
 
 @njit(cache=True, inline="always")
-def _save(stats, status, t, h, iout, irec, err_old):
-    """The loop's state in ``stats`` (a later call goes on from it); returns ``status``."""
-    stats[S_T] = t
-    stats[S_H] = h
-    stats[S_OUT] = iout
-    stats[S_REC] = irec
-    stats[S_ERR_OLD] = err_old
+def _save(st, status, t, h, iout, irec, err_old):
+    """The loop's state in the statistics record ``st`` (a later call goes on from it); returns ``status``."""
+    st.t = t
+    st.h = h
+    st.out = iout
+    st.rec = irec
+    st.err_old = err_old
     return status
 
 
 @njit(cache=True)
-def run_loop(scheme, control, t, y, h, t_end, speed, P, alpha, beta, inc, v0i, out_t, out_y, out_a, out_c,
-             out_lam, rec, record, blow_pen, k, cout_old, stats, W, track):
-    """Integrate from t to t_end (in place on y, inc, v0i, stats) with the tableau ``scheme`` (:class:`Scheme`)
-    under the step control ``control`` (:class:`Control`), tracking peaks in ``track`` (:class:`Track`).
+def _fail(st, status, t, detail, value):
+    """A failure at time t in the statistics record (the joint or coordinate involved, the value); returns status."""
+    st.t = t
+    if detail >= 0:
+        st.detail = detail
+    if not math.isnan(value):
+        st.value = value
+    return status
 
-    Output samples out_t[stats[S_OUT]:] falling in each accepted step are filled by cubic Hermite
-    interpolation of y, then f and the contact outputs are evaluated there. With ``record`` each
-    accepted step appends one row per clearance joint to rec (stops with FULL when rec is full).
+
+@njit(cache=True)
+def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
+    """Checks and projection of a step accepted by the error test: finite state, drift (projected when
+    measurable, then f at the end evaluated again), drift limit and blow-up. Returns a status."""
+    N = ynew.shape[0]
+    n = N // 2
+    P, W = mdl.P, mdl.W
+    for i in range(N):
+        if not math.isfinite(ynew[i]):
+            return _fail(st, NOT_FINITE, t + hh, i, ynew[i])
+    if t_new == t + hh:  # the step's last evaluation left the constraints at (t_new, ynew) in W
+        dp, dv = K.drift_of(P, ynew[n:], W)
+    else:
+        dp, dv = K.drift(t_new, ynew[:n], ynew[n:], mdl.speed, P, W)
+    if control.project and (dp > 10.0 * control.proj_tol or dv > 1e3 * control.proj_tol):
+        # project only when the drift is measurable: the FSAL derivative stays valid otherwise
+        ps = K.project(t_new, ynew[:n], ynew[n:], mdl.speed, P, W, control.proj_tol, 4)
+        if ps != 0:
+            return _fail(st, NO_PROJECTION if ps == K.NO_CONVERGENCE else SINGULAR, t_new, -1, math.nan)
+        status = deriv(t_new, ynew, mdl.speed, P, mdl.alpha, mdl.beta, mdl.inc, mdl.v0i, k[scheme.end], lam, cnew, W)
+        st.nfev += 1
+        if status != 0:
+            return _fail(st, SINGULAR, t_new, -1, math.nan)
+        dp, dv = K.drift(t_new, ynew[:n], ynew[n:], mdl.speed, P, W)
+    st.drift_p = max(st.drift_p, dp)
+    st.drift_v = max(st.drift_v, dv)
+    if dp > control.drift_tol:
+        return _fail(st, DRIFT, t_new, -1, dp)
+    for c in range(cnew.shape[0]):
+        if cnew[c, K.CO_PEN] > mdl.blow_pen[c]:
+            return _fail(st, BLOW_UP, t_new, c, cnew[c, K.CO_PEN])
+    return DONE
+
+
+@njit(cache=True)
+def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, csamp, enew, vals):
+    """Running peaks over the step just accepted: the tracked values at its end (evaluated again under
+    Baumgarte stabilisation), and where the previous end was a local maximum near the running peak, the
+    golden-section search of the dense output of this step and (modes unchanged) the previous one."""
+    sensor, peaks, pk, pe, pst = track
+    P, W, speed, inc, v0i = mdl.P, mdl.W, mdl.speed, mdl.inc, mdl.v0i
+    nc = cnew.shape[0]
+    nq = nc + 1
+    # values at the step's end with its modes, without stabilisation (as the output samples)
+    if mdl.alpha == 0.0 and mdl.beta == 0.0:
+        for c in range(nc):
+            enew[c] = cnew[c, K.CO_FN]
+        enew[nc] = sensor_acc(ynew, f1, sensor)
+    else:
+        _peak_values(t_new, ynew, speed, P, inc, v0i, fo, lam, csamp, W, sensor, enew)
+        st.nfev += 1
+    for j in range(nq):
+        peaks[j] = max(peaks[j], enew[j])
+        e = pe[1, j]
+        if (e > enew[j] and e > 0.0 and e >= PEAK_SEARCH_FRACTION * peaks[j]
+                and (pst[2] < 2 or e >= pe[0, j])):
+            # a local maximum at t: the peak lies in this step or, modes unchanged, the previous one
+            v = _golden_max(j, t, y, f0, t_new, ynew, f1, speed, P, inc, v0i, yo, fo, lam, csamp, W, sensor, vals)
+            peaks[j] = max(peaks[j], v)
+            if pst[2] >= 2 and pst[3] == 0.0:
+                v = _golden_max(j, pst[0], pk[0], pk[1], pst[1], pk[2], pk[3], speed, P, inc, v0i, yo, fo,
+                                lam, csamp, W, sensor, vals)
+                peaks[j] = max(peaks[j], v)
+            st.nfev += 2 * _GOLDEN_ITERATIONS + 4
+            st.peak_searches += 1
+    for j in range(nq):
+        pe[0, j] = pe[1, j]
+        pe[1, j] = enew[j]
+    for i in range(y.shape[0]):
+        pk[0, i] = y[i]
+        pk[1, i] = f0[i]
+        pk[2, i] = ynew[i]
+        pk[3, i] = f1[i]
+    pst[0] = t
+    pst[1] = t_new
+    pst[2] = min(pst[2] + 1.0, 2.0)
+
+
+@njit(cache=True)
+def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, fo, csamp):
+    """Output samples on (t, t_new] by cubic Hermite interpolation of y with the modes of the step, f and
+    the contact outputs evaluated there (their peaks tracked too); returns the next sample's index."""
+    N = y.shape[0]
+    n = N // 2
+    nc = csamp.shape[0]
+    out_t = out.t
+    while iout < out_t.shape[0] and out_t[iout] <= t_new:
+        ts = out_t[iout]
+        if ts <= t:
+            for i in range(N):
+                yo[i] = y[i]
+        elif ts >= t_new:
+            for i in range(N):
+                yo[i] = ynew[i]
+        else:
+            _hermite(t, y, f0, t_new, ynew, f1, ts, yo)
+        deriv(ts, yo, mdl.speed, mdl.P, 0.0, 0.0, mdl.inc, mdl.v0i, fo, out.lam[iout], csamp, mdl.W)
+        out.y[iout] = yo
+        out.a[iout] = fo[n:]
+        out.c[iout] = csamp
+        for c in range(nc):
+            peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
+        peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
+        iout += 1
+    return iout
+
+
+@njit(cache=True)
+def _record(rec, irec, t, t_new, cnew):
+    """One contact record per clearance joint for the step (t, t_new]."""
+    for c in range(cnew.shape[0]):
+        r = rec[irec, c]
+        r[0] = t_new
+        r[1] = t_new - t
+        r[2] = cnew[c, K.CO_FN]
+        r[3] = cnew[c, K.CO_VT]
+        r[4] = cnew[c, K.CO_OMEGA]
+        r[5] = cnew[c, K.CO_PHIB]
+        r[6] = cnew[c, K.CO_PHIJ]
+        r[7] = cnew[c, K.CO_PEN]
+
+
+@njit(cache=True, inline="always")
+def _copy_rows(dst, src):
+    """dst[:] = src for 2-d arrays as a plain loop (numba's slice assignment costs ~40 ns per call)."""
+    for c in range(src.shape[0]):
+        for x in range(src.shape[1]):
+            dst[c, x] = src[c, x]
+
+
+@njit(cache=True, inline="always")
+def _raise_peaks(peaks, values):
+    for j in range(peaks.shape[0]):
+        peaks[j] = max(peaks[j], values[j])
+
+
+@njit(cache=True, inline="always")
+def _next_step(hh, err, err_old, factor_max, hmax, expo_pi):
+    """PI step control after an accepted step (Hairer, Wanner: Solving ODE I, sec. II.4, beta = 0.04):
+    the next step and the error remembered for the next one."""
+    e = max(err, 1e-10)
+    f = 0.9 * e ** -expo_pi * err_old ** 0.04
+    return min(hmax, hh * min(factor_max, max(0.2, f))), max(e, 1e-4)
+
+
+@njit(cache=True)
+def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, track):
+    """Integrate from t to t_end (in place on y, the modes mdl.inc and mdl.v0i, and ``stats``) with the
+    tableau ``scheme`` (:class:`~wearbench.model.methods.Scheme`) under the step control ``control``
+    (:class:`Control`) for the mechanism ``mdl`` (:class:`Model`), filling ``out`` (:class:`Output`) and
+    tracking peaks in ``track`` (:class:`Track`).
+
+    Output samples out.t[stats.out:] falling in each accepted step are filled by cubic Hermite
+    interpolation of y, then f and the contact outputs are evaluated there. With ``out.record`` each
+    accepted step appends one row per clearance joint to out.rec (stops with FULL when it is full).
     peaks (in/out): running maxima of the normal force per clearance joint and of |sensor
-    acceleration| (``sensor`` as in :func:`_sensor_acc`) over the dense output, not only the output
+    acceleration| (``sensor`` as in :func:`sensor_acc`) over the dense output, not only the output
     samples: where the values at the step ends have a local maximum (above PEAK_SEARCH_FRACTION of
     the running peak), the two steps around it are searched (:func:`_golden_max`). pk, pe, ps carry
     the previous step (its ends and f there, the end values, [t0, t1, steps known, mode changed])
-    across calls; pst starts at zeros.
-    After ``max_steps`` accepted steps it returns PAUSED with its state saved (call again to go on:
-    the steps taken do not depend on the pauses). Returns a status code; stats[S_DETAIL] holds the joint or coordinate involved, stats[S_VALUE]
-    the offending value.
+    across calls; pst starts at zeros. k[0] holds f(t, y) on entry, k[scheme.end] f at a step's end.
+    After ``control.max_steps`` accepted steps it returns PAUSED with its state saved (call again to go
+    on: the steps taken do not depend on the pauses). Returns a status code; stats' detail holds the
+    joint or coordinate involved, its value the offending value.
     """
-    adaptive, do_project, proj_tol, drift_tol, atol, rtol, hmin, hmax, max_steps = control
-    sensor, peaks, pk, pe, pst = track
+    st = stats[0]
+    sensor, peaks, pe, pst = track.sensor, track.peaks, track.pe, track.pst
+    P, W, speed, alpha, beta, inc, v0i = mdl.P, mdl.W, mdl.speed, mdl.alpha, mdl.beta, mdl.inc, mdl.v0i
     N = y.shape[0]
-    n = N // 2
-    nc = inc.shape[0]
+    end = scheme.end
     ynew = np.empty(N)
     ytmp = np.empty(N)
     yo = np.empty(N)
     fo = np.empty(N)
-    m = out_lam.shape[1]
-    lam = np.empty(m)
+    lam = np.empty(out.lam.shape[1])
     cnew = np.empty_like(cout_old)
     csamp = np.empty_like(cout_old)
-    iout = int(stats[S_OUT])
-    irec = int(stats[S_REC])
+    iout = int(st.out)
+    irec = int(st.rec)
     nsteps = 0
     factor_max = 5.0
-    err_old = stats[S_ERR_OLD] if stats[S_ERR_OLD] > 0.0 else 1e-4
-    nq = nc + 1
-    enew = np.empty(nq)
-    vals = np.empty(nq)
+    err_old = st.err_old if st.err_old > 0.0 else 1e-4
+    enew = np.empty(inc.shape[0] + 1)
+    vals = np.empty(inc.shape[0] + 1)
     if pst[2] == 0:  # values at the start
         _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
-        for j in range(nq):
-            peaks[j] = max(peaks[j], pe[1, j])
+        _raise_peaks(peaks, pe[1])
         pst[2] = 1
     while t < t_end:
-        if record and irec >= rec.shape[0]:
-            return _save(stats, FULL, t, h, iout, irec, err_old)
+        if out.record and irec >= out.rec.shape[0]:
+            return _save(st, FULL, t, h, iout, irec, err_old)
         hh = min(h, t_end - t)
         last = hh >= t_end - t
-        st, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W, atol, rtol)
-        stats[S_NFEV] += scheme.nfev
-        if st != 0:
-            stats[S_T] = t
-            return SINGULAR
+        status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W,
+                              control.atol, control.rtol)
+        st.nfev += scheme.nfev
+        if status != 0:
+            return _fail(st, SINGULAR, t, -1, math.nan)
         if not math.isfinite(err):
             err = 1e10
-        if adaptive and err > 1.0:
-            stats[S_REJ] += 1
-            h = hh * max(0.2, 0.9 * err ** -0.2)
+        if control.adaptive and err > 1.0:
+            st.rejected += 1
+            h = hh * max(0.2, 0.9 * err ** -scheme.expo)
             factor_max = 1.0
-            if h < hmin:
-                stats[S_T] = t
-                stats[S_H] = h
-                return STEP_COLLAPSE
+            if h < control.hmin:
+                st.h = h
+                return _fail(st, STEP_COLLAPSE, t, -1, math.nan)
             continue
-        # accepted
-        for i in range(N):
-            if not math.isfinite(ynew[i]):
-                stats[S_T] = t + hh
-                stats[S_DETAIL] = i
-                stats[S_VALUE] = ynew[i]
-                return NOT_FINITE
         t_new = t_end if last else t + hh
-        dp, dv = K.drift(t_new, ynew[:n], ynew[n:], speed, P, W)
-        if do_project and (dp > 10.0 * proj_tol or dv > 1e3 * proj_tol):
-            # project only when the drift is measurable: the FSAL derivative stays valid otherwise
-            ps = K.project(t_new, ynew[:n], ynew[n:], speed, P, W, proj_tol, 4)
-            if ps != 0:
-                stats[S_T] = t_new
-                return NO_PROJECTION if ps == K.NO_CONVERGENCE else SINGULAR
-            st = deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cnew, W)
-            stats[S_NFEV] += 1
-            if st != 0:
-                stats[S_T] = t_new
-                return SINGULAR
-            dp, dv = K.drift(t_new, ynew[:n], ynew[n:], speed, P, W)
-        stats[S_DRIFT_P] = max(stats[S_DRIFT_P], dp)
-        stats[S_DRIFT_V] = max(stats[S_DRIFT_V], dv)
-        if dp > drift_tol:
-            stats[S_T] = t_new
-            stats[S_VALUE] = dp
-            return DRIFT
-        for c in range(nc):
-            if cnew[c, K.CO_PEN] > blow_pen[c]:
-                stats[S_T] = t_new
-                stats[S_DETAIL] = c
-                stats[S_VALUE] = cnew[c, K.CO_PEN]
-                return BLOW_UP
-        # values at the step's end with its modes, without stabilisation (as the output samples)
-        if alpha == 0.0 and beta == 0.0:
-            for c in range(nc):
-                enew[c] = cnew[c, K.CO_FN]
-            enew[nc] = _sensor_acc(ynew, k[6], sensor)
-        else:
-            _peak_values(t_new, ynew, speed, P, inc, v0i, fo, lam, csamp, W, sensor, enew)
-            stats[S_NFEV] += 1
-        for j in range(nq):
-            peaks[j] = max(peaks[j], enew[j])
-            e = pe[1, j]
-            if (e > enew[j] and e > 0.0 and e >= PEAK_SEARCH_FRACTION * peaks[j]
-                    and (pst[2] < 2 or e >= pe[0, j])):
-                # a local maximum at t: the peak lies in this step or, modes unchanged, the previous one
-                v = _golden_max(j, t, y, k[0], t_new, ynew, k[6], speed, P, inc, v0i, yo, fo, lam, csamp,
-                                W, sensor, vals)
-                peaks[j] = max(peaks[j], v)
-                if pst[2] >= 2 and pst[3] == 0.0:
-                    v = _golden_max(j, pst[0], pk[0], pk[1], pst[1], pk[2], pk[3], speed, P, inc, v0i, yo, fo,
-                                    lam, csamp, W, sensor, vals)
-                    peaks[j] = max(peaks[j], v)
-                stats[S_NFEV] += 2 * _GOLDEN_ITERATIONS + 4
-                stats[S_PEAK_SEARCHES] += 1
-        for j in range(nq):
-            pe[0, j] = pe[1, j]
-            pe[1, j] = enew[j]
-        for i in range(N):
-            pk[0, i] = y[i]
-            pk[1, i] = k[0, i]
-            pk[2, i] = ynew[i]
-            pk[3, i] = k[6, i]
-        pst[0] = t
-        pst[1] = t_new
-        pst[2] = min(pst[2] + 1.0, 2.0)
-        # dense output on (t, t_new] with the modes of the step
-        while iout < out_t.shape[0] and out_t[iout] <= t_new:
-            ts = out_t[iout]
-            if ts <= t:
-                for i in range(N):
-                    yo[i] = y[i]
-            elif ts >= t_new:
-                for i in range(N):
-                    yo[i] = ynew[i]
-            else:
-                _hermite(t, y, k[0], t_new, ynew, k[6], ts, yo)
-            deriv(ts, yo, speed, P, 0.0, 0.0, inc, v0i, fo, out_lam[iout], csamp, W)
-            out_y[iout] = yo
-            out_a[iout] = fo[n:]
-            out_c[iout] = csamp
-            for c in range(nc):
-                peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
-            peaks[nc] = max(peaks[nc], _sensor_acc(yo, fo, sensor))
-            iout += 1
+        status = _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st)
+        if status != DONE:
+            return status
+        _track_peaks(mdl, track, t, y, k[0], t_new, ynew, k[end], lam, cnew, st, yo, fo, csamp, enew, vals)
+        iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
         pst[3] = 0.0
         if _update_modes(cout_old, cnew, inc, v0i):
-            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[6], lam, cnew, W)
-            stats[S_NFEV] += 1
+            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[end], lam, cnew, W)
+            st.nfev += 1
             pst[3] = 1.0
-        if record:
-            for c in range(nc):
-                r = rec[irec, c]
-                r[0] = t_new
-                r[1] = t_new - t
-                r[2] = cnew[c, K.CO_FN]
-                r[3] = cnew[c, K.CO_VT]
-                r[4] = cnew[c, K.CO_OMEGA]
-                r[5] = cnew[c, K.CO_PHIB]
-                r[6] = cnew[c, K.CO_PHIJ]
-                r[7] = cnew[c, K.CO_PEN]
+        if out.record:
+            _record(out.rec, irec, t, t_new, cnew)
             irec += 1
         for i in range(N):
             y[i] = ynew[i]
-            k[0, i] = k[6, i]
-        cout_old[:] = cnew
+            k[0, i] = k[end, i]
+        _copy_rows(cout_old, cnew)
         t = t_new
         nsteps += 1
-        stats[S_STEPS] += 1
-        if adaptive:
-            # PI step control (Hairer, Wanner: Solving ODE I, sec. II.4, beta = 0.04)
-            e = max(err, 1e-10)
-            f = 0.9 * e ** -0.17 * err_old ** 0.04
-            err_old = max(e, 1e-4)
-            h = min(hmax, hh * min(factor_max, max(0.2, f)))
+        st.steps += 1
+        if control.adaptive:
+            h, err_old = _next_step(hh, err, err_old, factor_max, control.hmax, scheme.expo_pi)
             factor_max = 5.0
-        if nsteps >= max_steps and t < t_end:  # back to Python now and then (Ctrl-C); call again to go on
-            return _save(stats, PAUSED, t, h, iout, irec, err_old)
-    return _save(stats, DONE, t, h, iout, irec, err_old)
+        if nsteps >= control.max_steps and t < t_end:  # back to Python now and then (Ctrl-C); call again
+            return _save(st, PAUSED, t, h, iout, irec, err_old)
+    return _save(st, DONE, t, h, iout, irec, err_old)
 
 
 @njit(cache=True)
@@ -386,8 +461,9 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
 
     For a fully driven mechanism with ideal joints: Newton on Phi(q, t) = 0 from a second-order
     predictor, velocities from Phi_q v = nu, then accelerations and multipliers (joint reactions)
-    from eq. 30 without stabilisation. Returns 0 or a kernel status; stats[S_T] the failing time.
+    from eq. 30 without stabilisation. Returns 0 or a kernel status; stats' t the failing time.
     """
+    record = stats[0]
     n = q.shape[0]
     inc = np.zeros(0, np.int64)
     v0i = np.zeros(0)
@@ -401,15 +477,15 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
             v[j] += a[j] * dt
         st = K.project(t, q, v, speed, P, W, tol, 30)
         if st != 0:
-            stats[S_T] = t
+            record.t = t
             return st
         st = K.accel(t, q, v, speed, P, 0.0, 0.0, inc, v0i, a, out_lam[i], out_c[i], W)
         if st != 0:
-            stats[S_T] = t
+            record.t = t
             return st
         out_y[i, :n] = q
         out_y[i, n:] = v
         out_a[i] = a
-        stats[S_STEPS] += 1
+        record.steps += 1
         t_prev = t
     return 0

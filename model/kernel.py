@@ -12,7 +12,7 @@ touches at most two bodies, so Phi_q is stored compactly: body index ``Jb[k, s]`
 the three entries ``Jv[k, s, :]`` per slot s.
 
 P = Params(minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, surf, surf_n, surf_t,
-           spr_b, spr_p, trq_b, trq_p, jb, body_rows, body_nrows, profile), a named tuple numba compiles:
+           spr_b, spr_p, trq_b, trq_p, jb, body_rows, body_nrows, s_first, profile), a named tuple numba compiles:
 - minv (n,): inverse masses/inertias; fext (n,): constant generalised forces (gravity).
 - rev_b (nr, 2), rev_s (nr, 4): ideal pin pairs: bodies (-1 = frame) and local points
   (x_i, y_i, x_j, y_j); constraint r_i + A_i s_i - r_j - A_j s_j = 0 (2 rows).
@@ -25,7 +25,8 @@ P = Params(minv, fext, rev_b, rev_s, pri_b, pri_s, drv_b, drv_p, clr_b, clr_p, s
 - spr_b (ns, 2), spr_p (ns, 7): point-to-point spring-dampers (x_i, y_i, x_j, y_j, k, c, l0).
 - trq_b (nt,), trq_p (nt, 2): applied torques T = T0 - c_rot * omega on a body.
 - jb (m, 2): constant body pattern of Phi_q; body_rows (nb, kmax, 2), body_nrows (nb,): rows
-  (row, slot) touching each body.
+  (row, slot) touching each body; s_first (m,): first row sharing a body with each row (the
+  envelope of S, which its Cholesky factor keeps: the solve skips what lies outside).
 - profile (k, 3): motor speed profile rows (time, angle, speed), empty for constant ``speed``.
 
 Status codes returned by kernels: 0 ok, 1 singular constraint Jacobian (singular pose),
@@ -47,7 +48,11 @@ from wearbench.model.contact import (
 from wearbench.model.worn_contact import contact_zones, zone_penetrations
 
 Params = namedtuple("Params", "minv fext rev_b rev_s pri_b pri_s drv_b drv_p clr_b clr_p surf surf_n surf_t "
-                               "spr_b spr_p trq_b trq_p jb body_rows body_nrows profile")
+                               "spr_b spr_p trq_b trq_p jb body_rows body_nrows s_first profile")
+# work arrays of the kernels, built once per run by :func:`workspace`: constraints (phi, Phi_q values Jv,
+# gamma, nu = -Phi_t), generalised forces g, the Schur complement S with its right-hand side and solution
+# lam, an n-vector tmp, the bodies' cos/sin and the worn-contact search's midpoint samples buf
+Workspace = namedtuple("Workspace", "phi Jv gam nu g S rhs lam tmp cs sn buf")
 
 # clearance parameter columns (CLR_WORN: 1 for worn surfaces; CLR_CURV: their largest |h_b''| + |h_j''|)
 CLR_SIX, CLR_SIY, CLR_SJX, CLR_SJY, CLR_R1, CLR_R2, CLR_K, CLR_N, CLR_CE, CLR_LAW, CLR_CF, \
@@ -58,6 +63,21 @@ CO_EX, CO_EY, CO_PEN, CO_FN, CO_FT, CO_VN, CO_VT, CO_OMEGA, CO_PHIB, CO_PHIJ = r
 NCO = 10
 
 OK, SINGULAR, NO_CONVERGENCE = 0, 1, 2
+
+
+def workspace(P: Params) -> Workspace:
+    """Fresh work arrays for the kernels of the mechanism packed in ``P``."""
+    n, m = P.minv.shape[0], P.jb.shape[0]
+    return Workspace(np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m), np.zeros(n), np.zeros((m, m)),
+                     np.zeros(m), np.zeros(m), np.zeros(n), np.zeros(n // 3), np.zeros(n // 3),
+                     np.zeros(P.surf.shape[2]))
+
+
+@njit(cache=True, inline="always")
+def _fill(a, value):
+    """a[:] = value as a plain loop (numba's slice assignment costs ~40 ns per call)."""
+    for i in range(a.shape[0]):
+        a[i] = value
 
 
 @njit(cache=True, inline="always")
@@ -128,17 +148,16 @@ def motor_angle(t, speed, profile):
     return profile[i, 1] + profile[i, 2] * tau + 0.5 * acc * tau * tau, profile[i, 2] + acc * tau, acc
 
 
-@njit(cache=True)
-def constraints(t, q, v, speed, P, phi, Jv, gam, nu):
-    """Fill Phi (m), compact Phi_q values Jv (m, 2, 3), gamma (m) and nu = -Phi_t (m)."""
+@njit(cache=True, inline="always")
+def constraints(t, q, v, speed, P, W):
+    """Fill Phi (m), compact Phi_q values Jv (m, 2, 3), gamma (m) and nu = -Phi_t (m) of the workspace W."""
     rev_b, rev_s, pri_b, pri_s, drv_b, drv_p = P.rev_b, P.rev_s, P.pri_b, P.pri_s, P.drv_b, P.drv_p
+    phi, Jv, gam, nu, cs, sn = W.phi, W.Jv, W.gam, W.nu, W.cs, W.sn
     nb = q.shape[0] // 3
-    cs = np.empty(nb)
-    sn = np.empty(nb)
     for b in range(nb):
         cs[b] = math.cos(q[3 * b + 2])
         sn[b] = math.sin(q[3 * b + 2])
-    Jv[:] = 0.0
+    _fill(Jv.reshape(-1), 0.0)
     k = 0
     for r in range(rev_b.shape[0]):
         bi, bj = rev_b[r, 0], rev_b[r, 1]
@@ -228,11 +247,13 @@ def _vel(q, v, b, px, py):
 
 
 @njit(cache=True)
-def _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi, pen, hb, hj, slope_b, slope_j,
+def _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, nx, ny, pen, hb, hj, slope_b, slope_j,
                 inck, v0k, scale, g):
-    """Apply the normal and friction force of one contact zone (direction psi, penetration pen,
-    force scaled by ``scale`` in [0, 1]); returns (fn, ft, vn, vt)."""
-    nx, ny = math.cos(psi), math.sin(psi)
+    """Apply the normal and friction force of one contact zone (normal (nx, ny) from the bearing's centre,
+    penetration pen, worn depths hb, hj and their slopes there, zero for new surfaces; force scaled by
+    ``scale`` in [0, 1]) to g; returns (fn, ft, vn, vt). The contact points on each body are the
+    surface points along the normal; the penetration rate is the normal speed of the journal's centre
+    relative to the bearing's (rolling terms are tangential) plus the worn surfaces' sweep."""
     tx, ty = -ny, nx
     qix, qiy = pix + (p[CLR_R1] + hb) * nx, piy + (p[CLR_R1] + hb) * ny
     qjx, qjy = pjx + (p[CLR_R2] - hj) * nx, pjy + (p[CLR_R2] - hj) * ny
@@ -255,9 +276,18 @@ def _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi, pen, hb, hj, s
     return fn, ft, vn, vt
 
 
-@njit(cache=True)
-def clearance_forces(q, v, P, inc, v0i, g, cout):
-    """Add the clearance contact forces to g; fill cout (nc, NCO).
+@njit(cache=True, inline="always")
+def eccentricity(q, bi, bj, p):
+    """Bearing centre (pix, piy), journal centre (pjx, pjy) and e = r_journal - r_bearing of a clearance
+    joint with parameter row p (the one place r1 - r2 of the paper's eq. 1 is formed)."""
+    pix, piy = _pos(q, bi, p[CLR_SIX], p[CLR_SIY])
+    pjx, pjy = _pos(q, bj, p[CLR_SJX], p[CLR_SJY])
+    return pix, piy, pjx, pjy, pjx - pix, pjy - piy
+
+
+@njit(cache=True, inline="always")
+def clearance_forces(q, v, P, inc, v0i, W, cout):
+    """Add the clearance contact forces to W.g; fill cout (nc, NCO).
 
     Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
@@ -273,18 +303,15 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
     S = max(s, c), w_i = (f_i - S) / (f_1 + f_2 - 2 S); the second zone fades in smoothly
     (smoothstep) between overlap ratios 0.5 and 1 and the first zone's share blends with it.
     The record (cout) keeps the top zone's direction, penetration and speeds, and the summed
-    normal and friction force magnitudes.
+    normal and friction force magnitudes. Both surfaces go through one zone force (:func:`_zone_force`).
     ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while
     the flag is off the current normal speed stands in for the impact speed (contact onset).
     """
-    clr_b, clr_p, surf, surf_n, surf_t = P.clr_b, P.clr_p, P.surf, P.surf_n, P.surf_t
-    buf = np.empty(0)  # the contact search's midpoint samples (allocated for the first worn joint)
+    clr_b, clr_p, surf_n, surf_t, g = P.clr_b, P.clr_p, P.surf_n, P.surf_t, W.g
     for k in range(clr_b.shape[0]):
         bi, bj = clr_b[k, 0], clr_b[k, 1]
         p = clr_p[k]
-        pix, piy = _pos(q, bi, p[CLR_SIX], p[CLR_SIY])
-        pjx, pjy = _pos(q, bj, p[CLR_SJX], p[CLR_SJY])
-        ex, ey = pjx - pix, pjy - piy
+        pix, piy, pjx, pjy, ex, ey = eccentricity(q, bi, bj, p)
         emag = math.sqrt(ex * ex + ey * ey)
         thi = 0.0 if bi < 0 else q[3 * bi + 2]
         thj = 0.0 if bj < 0 else q[3 * bj + 2]
@@ -298,47 +325,24 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         psi = alpha
         pen = emag - clear
         if p[CLR_WORN] > 0.0 and emag > 0.0:
-            nb, nj = surf_n[k, 0], surf_n[k, 1]
-            if buf.size == 0:
-                buf = np.empty(surf.shape[2])
             psi, overlap, hb, hj, slope_b, slope_j, psi2, f2, sad, hb2, hj2, sb2, sj2 = contact_zones(
-                surf_t[k, 0], surf_t[k, 1], nb, nj, emag, alpha, thi, thj, clear, p[CLR_CURV], buf)
+                surf_t[k, 0], surf_t[k, 1], surf_n[k, 0], surf_n[k, 1], emag, alpha, thi, thj, clear,
+                p[CLR_CURV], W.buf)
             pen = overlap - clear
             pen1 = pen
             fn2 = 0.0
             ft2 = 0.0
             if f2 > -math.inf:  # searched only in contact
                 pen1, pen2, r = zone_penetrations(overlap, f2, sad, clear)
-                fn2, ft2, _, _ = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi2,
-                                             pen2, hb2, hj2, sb2, sj2, inc[k], v0i[k], r, g)
-            fn, ft, vn, vt = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, psi, pen1, hb,
-                                         hj, slope_b, slope_j, inc[k], v0i[k], 1.0, g)
+                fn2, ft2, _, _ = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, math.cos(psi2),
+                                             math.sin(psi2), pen2, hb2, hj2, sb2, sj2, inc[k], v0i[k], r, g)
+            fn, ft, vn, vt = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, math.cos(psi),
+                                         math.sin(psi), pen1, hb, hj, slope_b, slope_j, inc[k], v0i[k], 1.0, g)
             fn += fn2
             ft += ft2
         else:
-            nx, ny = ux, uy
-            tx, ty = -ny, nx
-            # contact points on each body and their material velocities
-            qix, qiy = pix + p[CLR_R1] * nx, piy + p[CLR_R1] * ny
-            qjx, qjy = pjx + p[CLR_R2] * nx, pjy + p[CLR_R2] * ny
-            vix, viy = _vel(q, v, bi, qix, qiy)
-            vjx, vjy = _vel(q, v, bj, qjx, qjy)
-            # centre velocities give the rate of the penetration (rolling terms are tangential)
-            cix, ciy = _vel(q, v, bi, pix, piy)
-            cjx, cjy = _vel(q, v, bj, pjx, pjy)
-            dex, dey = cjx - cix, cjy - ciy
-            vn = ux * dex + uy * dey
-            vt = (vjx - vix) * tx + (vjy - viy) * ty
-            fn = 0.0
-            ft = 0.0
-            if pen > 0.0:
-                v0 = v0i[k] if inc[k] != 0 else impact_speed(vn)
-                fn = normal_force(pen, vn, p[CLR_K], p[CLR_N], p[CLR_CE], v0, int(p[CLR_LAW]))
-                ft = friction_force(fn, vt, p[CLR_CF], p[CLR_FV0], p[CLR_FVM])
-                fx = -fn * nx + ft * tx
-                fy = -fn * ny + ft * ty
-                _apply(g, bj, fx, fy, qjx, qjy, q)
-                _apply(g, bi, -fx, -fy, qix, qiy, q)
+            fn, ft, vn, vt = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, ux, uy, pen, 0.0, 0.0,
+                                         0.0, 0.0, inc[k], v0i[k], 1.0, g)
         c = cout[k]
         c[CO_EX] = ex
         c[CO_EY] = ey
@@ -352,11 +356,12 @@ def clearance_forces(q, v, P, inc, v0i, g, cout):
         c[CO_PHIJ] = (psi - thj) % (2.0 * math.pi)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def element_forces(q, v, P, g):
     """Generalised forces of gravity, spring-dampers and applied torques (N, N m) into g."""
     fext, spr_b, spr_p, trq_b, trq_p = P.fext, P.spr_b, P.spr_p, P.trq_b, P.trq_p
-    g[:] = fext
+    for i in range(g.shape[0]):
+        g[i] = fext[i]
     for k in range(spr_b.shape[0]):
         bi, bj = spr_b[k, 0], spr_b[k, 1]
         p = spr_p[k]
@@ -378,11 +383,11 @@ def element_forces(q, v, P, g):
         g[3 * b + 2] += trq_p[k, 0] - trq_p[k, 1] * v[3 * b + 2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _schur(P, Jv, S):
     """S = Phi_q M^-1 Phi_q^T from the compact Jacobian."""
     minv, body_rows, body_nrows = P.minv, P.body_rows, P.body_nrows
-    S[:] = 0.0
+    _fill(S.reshape(-1), 0.0)
     for b in range(body_nrows.shape[0]):
         mx, my, mt = minv[3 * b], minv[3 * b + 1], minv[3 * b + 2]
         nr = body_nrows[b]
@@ -398,35 +403,44 @@ def _schur(P, Jv, S):
 
 
 @njit(cache=True)
-def _cholesky_solve(S, rhs, x):
-    """Solve S x = rhs in place (S overwritten by its Cholesky factor). Returns OK or SINGULAR."""
+def _cholesky_solve(S, rhs, x, first):
+    """Solve S x = rhs in place (S overwritten by its Cholesky factor). Returns OK or SINGULAR.
+
+    Only the envelope of S is worked on: row i's entries left of column ``first[i]`` are zero and
+    stay zero in the factor, so the arithmetic on the rest is that of the dense factorisation
+    (bit-identical results) without the products of zeros."""
     m = S.shape[0]
     scale = 0.0
     for i in range(m):
         scale = max(scale, S[i, i])
     tiny = 1e-13 * scale
     for j in range(m):
+        fj = first[j]
         d = S[j, j]
-        for p in range(j):
+        for p in range(fj, j):
             d -= S[j, p] * S[j, p]
         if not d > tiny:
             return SINGULAR
         d = math.sqrt(d)
         S[j, j] = d
         for i in range(j + 1, m):
+            fi = first[i]
+            if fi > j:
+                continue
             s = S[i, j]
-            for p in range(j):
+            for p in range(max(fi, fj), j):
                 s -= S[i, p] * S[j, p]
             S[i, j] = s / d
     for i in range(m):
         s = rhs[i]
-        for p in range(i):
+        for p in range(first[i], i):
             s -= S[i, p] * x[p]
         x[i] = s / S[i, i]
     for i in range(m - 1, -1, -1):
         s = x[i]
         for p in range(i + 1, m):
-            s -= S[p, i] * x[p]
+            if first[p] <= i:
+                s -= S[p, i] * x[p]
         x[i] = s / S[i, i]
     return OK
 
@@ -435,7 +449,7 @@ def _cholesky_solve(S, rhs, x):
 def _jt_times(P, Jv, lam, out):
     """out = Phi_q^T lam."""
     jb = P.jb
-    out[:] = 0.0
+    _fill(out, 0.0)
     for k in range(jb.shape[0]):
         for s in range(2):
             b = jb[k, s]
@@ -461,14 +475,14 @@ def _j_times(P, Jv, x, k):
 def accel(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
     """Accelerations a (n) and multipliers lam (m) of eq. 30; contact outputs into cout.
 
-    alpha, beta: Baumgarte coefficients (0, 0 for none). W: work arrays (phi, Jv, gam, nu, g, S, rhs, tmp).
+    alpha, beta: Baumgarte coefficients (0, 0 for none). W: the :class:`Workspace`.
     Returns OK or SINGULAR.
     """
     minv = P.minv
-    phi, Jv, gam, nu, g, S, rhs, tmp = W
-    constraints(t, q, v, speed, P, phi, Jv, gam, nu)
+    phi, Jv, gam, nu, g, S, rhs, tmp = W.phi, W.Jv, W.gam, W.nu, W.g, W.S, W.rhs, W.tmp
+    constraints(t, q, v, speed, P, W)
     element_forces(q, v, P, g)
-    clearance_forces(q, v, P, inc, v0i, g, cout)
+    clearance_forces(q, v, P, inc, v0i, W, cout)
     m = phi.shape[0]
     n = q.shape[0]
     for i in range(n):
@@ -480,7 +494,7 @@ def accel(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
         rhs[k] = _j_times(P, Jv, tmp, k) - r
     if m > 0:
         _schur(P, Jv, S)
-        if _cholesky_solve(S, rhs, lam) != OK:
+        if _cholesky_solve(S, rhs, lam, P.s_first) != OK:
             return SINGULAR
     _jt_times(P, Jv, lam, tmp)
     for i in range(n):
@@ -489,16 +503,23 @@ def accel(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
 
 
 @njit(cache=True)
-def drift(t, q, v, speed, P, W):
-    """Largest position (m or rad) and velocity constraint violation: (|Phi|_inf, |Phi_q v - nu|_inf)."""
-    phi, Jv, gam, nu = W[0], W[1], W[2], W[3]
-    constraints(t, q, v, speed, P, phi, Jv, gam, nu)
+def drift_of(P, v, W):
+    """Largest position (m or rad) and velocity constraint violation (|Phi|_inf, |Phi_q v - nu|_inf)
+    from the constraints already in the workspace W (evaluated at the state whose velocities are v)."""
+    phi, Jv, nu = W.phi, W.Jv, W.nu
     dp = 0.0
     dv = 0.0
     for k in range(phi.shape[0]):
         dp = max(dp, abs(phi[k]))
         dv = max(dv, abs(_j_times(P, Jv, v, k) - nu[k]))
     return dp, dv
+
+
+@njit(cache=True)
+def drift(t, q, v, speed, P, W):
+    """Largest position (m or rad) and velocity constraint violation: (|Phi|_inf, |Phi_q v - nu|_inf)."""
+    constraints(t, q, v, speed, P, W)
+    return drift_of(P, v, W)
 
 
 @njit(cache=True)
@@ -510,13 +531,12 @@ def project(t, q, v, speed, P, W, tol, maxit):
     Returns OK, SINGULAR or NO_CONVERGENCE.
     """
     minv = P.minv
-    phi, Jv, gam, nu, _, S, rhs, tmp = W
+    phi, Jv, nu, S, rhs, lam, tmp = W.phi, W.Jv, W.nu, W.S, W.rhs, W.lam, W.tmp
     m = phi.shape[0]
     if m == 0:
         return OK
-    lam = np.empty(m)
     for it in range(maxit + 1):
-        constraints(t, q, v, speed, P, phi, Jv, gam, nu)
+        constraints(t, q, v, speed, P, W)
         err = 0.0
         for k in range(m):
             err = max(err, abs(phi[k]))
@@ -527,7 +547,7 @@ def project(t, q, v, speed, P, W, tol, maxit):
         _schur(P, Jv, S)
         for k in range(m):
             rhs[k] = phi[k]
-        if _cholesky_solve(S, rhs, lam) != OK:
+        if _cholesky_solve(S, rhs, lam, P.s_first) != OK:
             return SINGULAR
         _jt_times(P, Jv, lam, tmp)
         for i in range(q.shape[0]):
@@ -535,7 +555,7 @@ def project(t, q, v, speed, P, W, tol, maxit):
     _schur(P, Jv, S)
     for k in range(m):
         rhs[k] = _j_times(P, Jv, v, k) - nu[k]
-    if _cholesky_solve(S, rhs, lam) != OK:
+    if _cholesky_solve(S, rhs, lam, P.s_first) != OK:
         return SINGULAR
     _jt_times(P, Jv, lam, tmp)
     for i in range(v.shape[0]):

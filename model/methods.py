@@ -16,11 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DOPRI5", "METHODS", "NSTAGES", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Method", "RK4Paper", "Scheme",
+__all__ = ["DOPRI5", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Method", "RK4Paper", "Scheme",
            "Tableau", "get_method"]
 
-NSTAGES = 7  # rows of the stage array k; k[NSTAGES - 1] holds f at the end of the step
-Scheme = namedtuple("Scheme", "a c b b_den e fsal stages nfev")  # a tableau as the compiled step reads it
+# a tableau as the compiled step reads it: ``end`` is the row of the stage array k (end + 1 rows) holding f
+# at the end of the step; expo and expo_pi the step controller's exponents (1 / (q + 1) with q the order of
+# the embedded estimate, and 1 / (q + 1) - 0.75 * 0.04 for the PI controller)
+Scheme = namedtuple("Scheme", "a c b b_den e fsal stages nfev end expo expo_pi")
 
 
 @dataclass(frozen=True)
@@ -29,8 +31,9 @@ class Tableau:
 
     c: stage nodes; a: stage coefficients (row s uses k[0..s-1]); b: weights as exact numbers over a
     common denominator ``b_den`` (ignored with ``fsal``: the last stage is the solution); e: weights of
-    the embedded error estimate (empty: a fixed-step method). With ``fsal`` the last of the 7 stages is
-    evaluated at the new state, so its derivative starts the next step.
+    the embedded error estimate (empty: a fixed-step method) of order ``error_order``. With ``fsal`` the
+    last stage is evaluated at the new state, so its derivative starts the next step; without, one more
+    evaluation at the new state follows the stages. Any number of stages.
     """
 
     name: str
@@ -41,13 +44,19 @@ class Tableau:
     b_den: float = 1.0
     e: tuple[float, ...] = ()
     fsal: bool = False
+    error_order: int = 0
     reference: str = ""
 
     def __post_init__(self) -> None:
         stages = len(self.c)
-        if len(self.a) != stages or (self.fsal and stages != NSTAGES) or (not self.fsal and stages >= NSTAGES):
-            raise ValueError(f"tableau {self.name}: {stages} stages; expected {NSTAGES} with FSAL (the last at the "
-                             f"new state) or fewer than {NSTAGES} without, and one row of a per stage")
+        if len(self.a) != stages or any(len(row) > s for s, row in enumerate(self.a)):
+            raise ValueError(f"tableau {self.name}: {stages} nodes; expected one row of a per stage, row s with at "
+                             "most s entries (explicit)")
+        if self.fsal and (self.c[-1] != 1.0 or tuple(self.a[-1]) != tuple(self.b[:stages - 1])):
+            raise ValueError(f"tableau {self.name}: FSAL needs the last stage at c = 1 with the weights b as its row")
+        if len(self.e) > stages + (0 if self.fsal else 1) or (self.e and self.error_order < 1):
+            raise ValueError(f"tableau {self.name}: error weights for at most the stages and the end derivative, "
+                             "and the embedded estimate's order error_order >= 1")
 
     @property
     def adaptive(self) -> bool:
@@ -56,11 +65,14 @@ class Tableau:
     def scheme(self) -> Scheme:
         """The arrays the compiled step reads."""
         stages = len(self.c)
-        a = np.zeros((stages, NSTAGES))
+        end = stages - 1 if self.fsal else stages
+        a = np.zeros((stages, end + 1))
         for s, row in enumerate(self.a):
             a[s, :len(row)] = row
+        q1 = self.error_order + 1 if self.error_order else 5
         return Scheme(a, np.array(self.c, dtype=float), np.array(self.b, dtype=float), float(self.b_den),
-                      np.array(self.e, dtype=float), self.fsal, stages, stages - 1 + (0 if self.fsal else 1))
+                      np.array(self.e, dtype=float), self.fsal, stages, stages - 1 + (0 if self.fsal else 1), end,
+                      1.0 / q1, round(1.0 / q1 - 0.75 * 0.04, 12))
 
 
 DOPRI5 = Tableau(
@@ -72,7 +84,7 @@ DOPRI5 = Tableau(
        (35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84)),
     b=(35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0),
     e=(71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40),
-    fsal=True, reference="Dormand-Prince 5(4): Hairer, Norsett, Wanner, Solving ODE I, table II.5.2")
+    fsal=True, error_order=4, reference="Dormand-Prince 5(4): Hairer, Norsett, Wanner, Solving ODE I, table II.5.2")
 RK4 = Tableau(
     "rk4", 4, c=(0.0, 0.5, 0.5, 1.0), a=((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), b=(1, 2, 2, 1), b_den=6.0,
     reference="classical Runge-Kutta 4 (the paper's integrator)")

@@ -199,7 +199,10 @@ def _pack_jacobian_pattern(rev_b: np.ndarray, pri_b: np.ndarray, drv_b: np.ndarr
     for bb, r in enumerate(rows):
         for x, ks in enumerate(r):
             body_rows[bb, x] = ks
-    return jb_a, body_rows, body_nrows
+    # envelope of S = Phi_q M^-1 Phi_q^T: the first row sharing a body with each row
+    s_first = np.array([min([k] + [kk for bb in pair if bb >= 0 for kk, _ in rows[bb]]) for k, pair in enumerate(jb)],
+                       dtype=np.int64)
+    return jb_a, body_rows, body_nrows, s_first
 
 
 def pack_params(bench: Bench, index: dict[str, int], ideal: set[str], forces: Sequence[Spring | Torque],
@@ -218,12 +221,12 @@ def pack_params(bench: Bench, index: dict[str, int], ideal: set[str], forces: Se
     pri_b, pri_s = _pack_prismatics(bench, b, prismatic)
     drv_b, drv_p, drivers = _pack_drivers(bench, index)
     spr_b, spr_p, trq_b, trq_p = _pack_forces(bench, b, index, forces)
-    jb, body_rows, body_nrows = _pack_jacobian_pattern(rev_b, pri_b, drv_b, len(index))
+    jb, body_rows, body_nrows, s_first = _pack_jacobian_pattern(rev_b, pri_b, drv_b, len(index))
     # constraint row -> joint name, in kernel order (pins, prismatic, drivers)
     row_joints = ([j.name for j in pinned for _ in range(2 * len(_pin_pairs(j)))]
                   + [j.name for j in prismatic for _ in range(2)] + [d.joint for d in bench.drivers])
     P = K.Params(minv=minv, fext=fext, rev_b=rev_b, rev_s=rev_s, pri_b=pri_b, pri_s=pri_s, drv_b=drv_b,
                  drv_p=drv_p, clr_b=clr_b, clr_p=clr_p, surf=surf, surf_n=surf_n, surf_t=surf_t, spr_b=spr_b, spr_p=spr_p,
-                 trq_b=trq_b, trq_p=trq_p, jb=jb, body_rows=body_rows, body_nrows=body_nrows,
+                 trq_b=trq_b, trq_p=trq_p, jb=jb, body_rows=body_rows, body_nrows=body_nrows, s_first=s_first,
                  profile=np.zeros((0, 3)))
     return P, tuple(row_joints), tuple(reaction_rows), tuple(j.name for j in contacts), tuple(drivers)

@@ -78,11 +78,9 @@ class Scene:
                 "exponent": p[K.CLR_N], "restitution": p[K.CLR_CE], "law": int(p[K.CLR_LAW]),
                 "friction_coefficient": p[K.CLR_CF]}
 
-    def work(self) -> tuple:
+    def work(self) -> K.Workspace:
         """Fresh work arrays for the kernel."""
-        n, m = self.n, self.m
-        return (np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m), np.zeros(n),
-                np.zeros((m, m)), np.zeros(m), np.zeros(n))
+        return K.workspace(self.params)
 
 
 def _dense_jacobian(P, Jv: np.ndarray, n: int) -> np.ndarray:
@@ -149,20 +147,19 @@ def _guess(bench: Bench, index: dict[str, int]) -> np.ndarray:
 
 def _assemble(bench: Bench, P, row_joints, n: int, q: np.ndarray) -> np.ndarray:
     """Newton (least squares) on all ideal constraints at t = 0; BenchError if it does not close."""
-    m = len(row_joints)
-    W = (np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m))
+    W = K.workspace(P)
     v = np.zeros(n)
     for _ in range(60):
-        K.constraints(0.0, q, v, bench.speed, P, *W)
-        if np.max(np.abs(W[0]), initial=0.0) <= _ASSEMBLY_TOL:
+        K.constraints(0.0, q, v, bench.speed, P, W)
+        if np.max(np.abs(W.phi), initial=0.0) <= _ASSEMBLY_TOL:
             return q
-        J = _dense_jacobian(P, W[1], n)
-        dq = np.linalg.lstsq(J, -W[0], rcond=None)[0]
+        J = _dense_jacobian(P, W.Jv, n)
+        dq = np.linalg.lstsq(J, -W.phi, rcond=None)[0]
         step = np.max(np.abs(dq))
         q = q + (dq if step < 0.2 else dq * (0.2 / step))
-    k = int(np.argmax(np.abs(W[0])))
+    k = int(np.argmax(np.abs(W.phi)))
     raise BenchError(bench.path or bench.name, "assembly", row_joints[k],
-                     f"mechanism does not assemble at t = 0: largest residual {abs(W[0][k]):.3g} "
+                     f"mechanism does not assemble at t = 0: largest residual {abs(W.phi[k]):.3g} "
                      f"(m or rad) at joint {row_joints[k]}; check lengths, ground points and [assembly]")
 
 
@@ -191,10 +188,7 @@ def build_scene(bench: Bench, *, clearances: Mapping[str, float | None] | None =
     q0 = _assemble(bench, ideal_P, ideal_rows, n, _guess(bench, index))
     # velocities: minimum kinetic-energy solution of the ideal velocity equations (exact at dof 0)
     v0 = np.zeros(n)
-    m_ideal = len(ideal_rows)
-    W = (np.zeros(m_ideal), np.zeros((m_ideal, 2, 3)), np.zeros(m_ideal), np.zeros(m_ideal), np.zeros(n),
-         np.zeros((m_ideal, m_ideal)), np.zeros(m_ideal), np.zeros(n))
-    K.project(0.0, q0, v0, 1.0, ideal_P, W, _ASSEMBLY_TOL, 20)  # per unit motor speed
+    K.project(0.0, q0, v0, 1.0, ideal_P, K.workspace(ideal_P), _ASSEMBLY_TOL, 20)  # per unit motor speed
     P, row_joints, reaction_rows, clr_names, drivers = pack_params(bench, index, set(), forces, surfaces)
     # springs without a free length take their length at t = 0
     spr_p = P.spr_p
@@ -205,9 +199,9 @@ def build_scene(bench: Bench, *, clearances: Mapping[str, float | None] | None =
             pj = _point(q0, bj, spr_p[k, 2:4])
             spr_p[k, 6] = float(np.hypot(*(pj - pi)))
     m = len(row_joints)
-    Wd = (np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m))
-    K.constraints(0.0, q0, v0 * bench.speed, bench.speed, P, *Wd)
-    rank = int(np.linalg.matrix_rank(_dense_jacobian(P, Wd[1], n))) if m else 0
+    Wd = K.workspace(P)
+    K.constraints(0.0, q0, v0 * bench.speed, bench.speed, P, Wd)
+    rank = int(np.linalg.matrix_rank(_dense_jacobian(P, Wd.Jv, n))) if m else 0
     dof = n - rank
     notes = []
     for j in bench.clearance_joints:

@@ -137,8 +137,8 @@ def _singular_joints(scene: Scene, t: float, y: np.ndarray, speed: float) -> str
 
     m, n = scene.m, scene.n
     W = scene.work()
-    K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W[0], W[1], W[2], W[3])
-    u, _, _ = np.linalg.svd(_dense_jacobian(scene.params, W[1], n))
+    K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W)
+    u, _, _ = np.linalg.svd(_dense_jacobian(scene.params, W.Jv, n))
     weights = np.abs(u[:, -1]) if m else np.zeros(0)
     names = []
     for k in np.argsort(-weights):
@@ -149,7 +149,7 @@ def _singular_joints(scene: Scene, t: float, y: np.ndarray, speed: float) -> str
 
 def _fail(scene: Scene, status: int, stats: np.ndarray, y: np.ndarray, cout: np.ndarray, speed: float,
           method: str, drift_tol: float) -> SimulationError:
-    t = float(stats[I.S_T])
+    t = float(stats[0]["t"])
     state = _state(scene, y, cout)
     where = f"at t = {t:.6g} s ({method})"
     if status == I.SINGULAR or status == I.NO_PROJECTION:
@@ -159,29 +159,29 @@ def _fail(scene: Scene, status: int, stats: np.ndarray, y: np.ndarray, cout: np.
         return SimulationError(f"{what} {where}: the mechanism reaches a singular pose at joint(s) {joints}",
                                t=t, joint=joints, quantity="constraint Jacobian", state=state)
     if status == I.NOT_FINITE:
-        i = int(stats[I.S_DETAIL])
+        i = int(stats[0]["detail"])
         n = scene.n
         kind = "velocity" if i >= n else "coordinate"
         body, comp = scene.bodies[(i % n) // 3], ["x", "y", "theta"][(i % n) % 3]
-        return SimulationError(f"non-finite {kind} {comp} of body {body} {where} (value {stats[I.S_VALUE]})",
+        return SimulationError(f"non-finite {kind} {comp} of body {body} {where} (value {stats[0]['value']})",
                                t=t, joint=body, quantity=f"{kind} {comp}", state=state)
     if status == I.STEP_COLLAPSE:
         k = int(np.argmax(cout[:, K.CO_FN])) if cout.shape[0] else -1
         joint = scene.clearance_joints[k] if k >= 0 else None
         extra = f"; largest contact force at joint {joint}: {cout[k, K.CO_FN]:.4g} N" if joint else ""
-        return SimulationError(f"step size collapsed to {stats[I.S_H]:.3g} s {where}{extra}", t=t, joint=joint,
+        return SimulationError(f"step size collapsed to {stats[0]['h']:.3g} s {where}{extra}", t=t, joint=joint,
                                quantity="step size", state=state)
     if status == I.DRIFT:
         W = scene.work()
         n = scene.n
-        K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W[0], W[1], W[2], W[3])
-        joint = scene.row_joints[int(np.argmax(np.abs(W[0])))]
-        return SimulationError(f"constraint drift {stats[I.S_VALUE]:.3g} (m or rad) exceeds {drift_tol:g} "
+        K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W)
+        joint = scene.row_joints[int(np.argmax(np.abs(W.phi)))]
+        return SimulationError(f"constraint drift {stats[0]['value']:.3g} (m or rad) exceeds {drift_tol:g} "
                                f"{where} at joint {joint}", t=t, joint=joint, quantity="constraint drift",
                                state=state)
     if status == I.BLOW_UP:
-        joint = scene.clearance_joints[int(stats[I.S_DETAIL])]
-        return SimulationError(f"penetration {stats[I.S_VALUE]:.4g} m at joint {joint} {where} exceeds "
+        joint = scene.clearance_joints[int(stats[0]["detail"])]
+        return SimulationError(f"penetration {stats[0]['value']:.4g} m at joint {joint} {where} exceeds "
                                f"{_BLOW_UP:.0%} of the journal radius: the contact blew up (step too large for "
                                "the contact stiffness) or the mechanism jams", t=t, joint=joint,
                                quantity="penetration", state=state)
@@ -268,7 +268,7 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     out_a = np.zeros((times.size, n))
     out_c = np.zeros((times.size, nc, K.NCO))
     out_lam = np.zeros((times.size, m))
-    stats = np.zeros(I.NSTATS)
+    stats = I.new_stats()
     W = scene.work()
     name = method if isinstance(method, str) else method.name
     if name == "kinematics" or (name == "default" and scene.dof == 0 and nc == 0 and initial is None):
@@ -298,7 +298,8 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
                               "t = 0)", t=0.0, quantity="initial state")
     inc = np.zeros(nc, dtype=np.int64)
     v0i = np.zeros(nc)
-    k = np.zeros((7, 2 * n))
+    scheme = meth.tableau.scheme()
+    k = np.zeros((scheme.end + 1, 2 * n))
     cout = np.zeros((nc, K.NCO))
     lam = np.zeros(m)
     alpha, beta = meth.baumgarte
@@ -319,20 +320,21 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         sensor[:] = (b, sx, sy, axis)
     peaks = np.zeros(nc + 1)
     pk, pe, ps = np.zeros((4, 2 * n)), np.zeros((2, nc + 1)), np.zeros(4)
-    scheme = meth.tableau.scheme()
     control = I.Control(meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_, 1e-13, hmax,
                         _STEPS_PER_CALL)
     track = I.Track(sensor, peaks, pk, pe, ps)
+    mdl = I.Model(P, speed, alpha, beta, inc, v0i, blow, W)
+    out = I.Output(times, out_y, out_a, out_c, out_lam, rec, record_contacts)
     while True:
-        status = I.run_loop(scheme, control, float(stats[I.S_T]), y, h, t_end, speed, P, alpha, beta, inc, v0i,
-                            times, out_y, out_a, out_c, out_lam, rec, record_contacts, blow, k, cout, stats, W, track)
+        status = I.run_loop(scheme, control, mdl, float(stats[0]["t"]), y, h, t_end, out, k, cout, stats, track)
         if status == I.FULL:
             rec = np.concatenate([rec, np.zeros_like(rec)])
-            h = float(stats[I.S_H])
+            out = out._replace(rec=rec)
+            h = float(stats[0]["h"])
             continue
         if status == I.PAUSED:  # Python runs between calls: Ctrl-C acts within a call's time
-            h = float(stats[I.S_H])
-            if stats[I.S_STEPS] < _MAX_STEPS:
+            h = float(stats[0]["h"])
+            if stats[0]["steps"] < _MAX_STEPS:
                 continue
             status = I.TOO_MANY_STEPS
         if status != I.DONE:
@@ -340,7 +342,7 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         break
     contacts = None
     if record_contacts:
-        used = rec[: int(stats[I.S_REC])]
+        used = rec[: int(stats[0]["rec"])]
         contacts = {j: pd.DataFrame(used[:, c, :], columns=list(CONTACT_COLUMNS))
                     for c, j in enumerate(scene.clearance_joints)}
     table = _table(scene, times, out_y, out_a, out_c, out_lam)
@@ -349,7 +351,7 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     summary["peak_fn"] = {j: float(peaks[c]) for c, j in enumerate(scene.clearance_joints)}
     if scene.sensor is not None and math.isfinite(summary["peak_slider_acc"]):
         summary["peak_slider_acc"] = float(peaks[nc])
-    summary["peak_searches"] = int(stats[I.S_PEAK_SEARCHES])
+    summary["peak_searches"] = int(stats[0]["peak_searches"])
     return SimulationResult(table, summary, contacts, scene, (y[:n].copy(), y[n:].copy()))
 
 
@@ -359,13 +361,13 @@ def _summary(scene: Scene, method: str, stats: np.ndarray, table: pd.DataFrame, 
     return {
         "method": method,
         "wall_time_s": time.perf_counter() - wall0,
-        "steps": int(stats[I.S_STEPS]),
-        "rejected_steps": int(stats[I.S_REJ]),
-        "function_evaluations": int(stats[I.S_NFEV]),
+        "steps": int(stats[0]["steps"]),
+        "rejected_steps": int(stats[0]["rejected"]),
+        "function_evaluations": int(stats[0]["nfev"]),
         "peak_slider_acc": float(np.max(np.abs(acc))) if np.isfinite(acc).all() else float("nan"),
         "peak_fn": {j: float(table[f"{j}_fn"].max()) for j in scene.clearance_joints},
-        "max_constraint_drift": float(stats[I.S_DRIFT_P]),
-        "max_velocity_drift": float(stats[I.S_DRIFT_V]),
+        "max_constraint_drift": float(stats[0]["drift_p"]),
+        "max_velocity_drift": float(stats[0]["drift_v"]),
         "dof": scene.dof,
         "description": scene.description,
         "speed": speed,

@@ -1,0 +1,289 @@
+"""Where a simulated revolution's time goes: the test bed (0.3 mm) on new and on 400,000-cycle worn surfaces.
+
+For each state it runs ``--revolutions`` motor revolutions of the nominal bench with the default
+method (DOPRI5 + projection, 20 kHz table) and splits the wall time:
+
+- **Python** between compiled calls: ``simulate``'s set-up, the table and the pauses of the loop
+  (wall time minus the time inside the compiled loop ``run_loop``);
+- the compiled loop's right-hand-side evaluations by where they are spent: accepted steps,
+  rejected steps, the dense output (one evaluation per table sample), the peak search
+  (golden-section on the dense output) and re-evaluations after a projection or a contact-mode
+  change, each as its count times the measured cost of one evaluation;
+- **step control**: what remains of the compiled loop (stage combinations, error norm, drift check
+  and projection, Hermite interpolation, contact records, peak bookkeeping).
+
+The cost of one evaluation is measured on the run's own states (the table's samples: the same
+positions, speeds and contacts) part by part: the constraint Jacobian (Phi, Phi_q, gamma), the
+force elements, the contact search and contact forces, the Schur complement Phi_q M^-1 Phi_q^T
+(the mass matrix is diagonal: this is where it enters), the linear solve (Cholesky) and the whole
+evaluation ``deriv``; the parts are timed in compiled loops, so call overhead is excluded.
+
+All times are the process's CPU time (``time.process_time``; the loop is single-threaded), so a busy
+shared machine inflates them less than wall time would; ratios are still best measured in one run.
+
+With ``--baseline DIR`` (a scratch copy of an earlier version whose ``wearbench`` package lies in
+``DIR/wearbench``, e.g. main at f183162 exported by ``git archive``) it also times that version in a
+subprocess, interleaved with this one (best of ``--repeat``), and prints the ratio per state.
+
+Run:  .venv/bin/python benchmarks/profile_revolution.py [--revolutions 3] [--repeat 3]
+          [--baseline /tmp/wb_base_f183162]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+STATES = ("0.3 mm new", "0.3 mm second wear")
+
+
+def _scenes():
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.model.realisation import state_scene
+
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    by_name = {s.name: s for s in bench.states}
+    return {name: state_scene(bench, by_name[name]) for name in STATES}
+
+
+def _timed_runs(revolutions: float) -> dict:
+    """One timed run per state (compiled beforehand): wall time and step counts."""
+    from wearbench.model import simulate
+
+    out = {}
+    for name, scene in _scenes().items():
+        simulate(scene, t_end=1e-3)
+        t0 = time.process_time()
+        res = simulate(scene, revolutions=revolutions)
+        wall = time.process_time() - t0
+        s = res.summary
+        out[name] = {"wall": wall, "steps": s["steps"], "rejected": s["rejected_steps"],
+                     "nfev": s["function_evaluations"], "peak_fn": s["peak_fn"],
+                     "peak_acc": s["peak_slider_acc"]}
+    return out
+
+
+def _part_timers():
+    """Compiled loops timing each part of one evaluation over a set of states (built on first use)."""
+    from numba import njit
+    from wearbench.model import integrators as I
+    from wearbench.model import kernel as K
+
+    @njit
+    def constraints(reps, ts, ys, speed, P, W):
+        n = ys.shape[1] // 2
+        for _ in range(reps):
+            for i in range(ts.shape[0]):
+                K.constraints(ts[i], ys[i, :n], ys[i, n:], speed, P, W)
+
+    @njit
+    def elements(reps, ts, ys, speed, P, W):
+        n = ys.shape[1] // 2
+        for _ in range(reps):
+            for i in range(ts.shape[0]):
+                K.element_forces(ys[i, :n], ys[i, n:], P, W.g)
+
+    @njit
+    def contacts(reps, ts, ys, speed, P, W, inc, v0i, cout):
+        n = ys.shape[1] // 2
+        for _ in range(reps):
+            for i in range(ts.shape[0]):
+                K.clearance_forces(ys[i, :n], ys[i, n:], P, inc[i], v0i[i], W, cout)
+
+    @njit
+    def schur(reps, ts, ys, speed, P, W, Jvs):
+        for _ in range(reps):
+            for i in range(ts.shape[0]):
+                K._schur(P, Jvs[i], W.S)
+
+    @njit
+    def solve(reps, Ss, rhs, S, lam, first):
+        for _ in range(reps):
+            for i in range(Ss.shape[0]):
+                S[:] = Ss[i]
+                K._cholesky_solve(S, rhs, lam, first)
+
+    @njit
+    def copy_only(reps, Ss, rhs, S, lam, first):
+        for _ in range(reps):
+            for i in range(Ss.shape[0]):
+                S[:] = Ss[i]
+
+    @njit
+    def evaluation(reps, ts, ys, speed, P, W, inc, v0i, dy, lam, cout):
+        for _ in range(reps):
+            for i in range(ts.shape[0]):
+                I.deriv(ts[i], ys[i], speed, P, 0.0, 0.0, inc[i], v0i[i], dy, lam, cout, W)
+
+    return constraints, elements, contacts, schur, solve, copy_only, evaluation
+
+
+def _clock(fn, *args, budget: float = 0.3) -> float:
+    """Seconds per call of fn(reps, *args), reps grown until a call takes ``budget`` (best of 3)."""
+    fn(1, *args)
+    reps = 1
+    while True:
+        t0 = time.process_time()
+        fn(reps, *args)
+        dt = time.process_time() - t0
+        if dt > budget / 3 or reps > 1 << 20:
+            break
+        reps *= 2
+    best = dt
+    for _ in range(2):
+        t0 = time.process_time()
+        fn(reps, *args)
+        best = min(best, time.process_time() - t0)
+    return best / reps
+
+
+def _profile(name: str, scene, revolutions: float) -> dict:
+    """Run ``scene`` once with the compiled loop timed and its states kept, then time the parts."""
+    from wearbench.model import integrators as I
+    from wearbench.model import kernel as K
+    from wearbench.model import simulate
+
+    simulate(scene, t_end=1e-3)  # compile
+    inner = I.run_loop
+    spent = [0.0, 0]
+    kept = {}
+
+    def timed_loop(*args):
+        t0 = time.process_time()
+        status = inner(*args)
+        spent[0] += time.process_time() - t0
+        spent[1] += 1
+        kept["times"], kept["out_y"] = args[7].t, args[7].y
+        return status
+
+    I.run_loop = timed_loop
+    try:
+        t0 = time.process_time()
+        res = simulate(scene, revolutions=revolutions)
+        wall = time.process_time() - t0
+    finally:
+        I.run_loop = inner
+    s = res.summary
+    every = max(1, kept["times"].size // 400)
+    ts = np.ascontiguousarray(kept["times"][::every])
+    ys = np.ascontiguousarray(kept["out_y"][::every])
+    P, W, speed = scene.params, scene.work(), scene.bench.speed
+    n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
+    pen = np.stack([res.table[f"{j}_pen"].to_numpy()[::every] for j in scene.clearance_joints], axis=1)
+    vn = np.stack([res.table[f"{j}_vn"].to_numpy()[::every] for j in scene.clearance_joints], axis=1)
+    inc = np.ascontiguousarray((pen > 0).astype(np.int64))
+    v0i = np.ascontiguousarray(np.maximum(np.abs(vn), 1e-3))
+    cout = np.zeros((nc, K.NCO))
+    Jvs = np.zeros((ts.size, m, 2, 3))
+    Ss = np.zeros((ts.size, m, m))
+    for i in range(ts.size):
+        K.constraints(ts[i], ys[i, :n].copy(), ys[i, n:].copy(), speed, P, W)
+        Jvs[i] = W.Jv
+        K._schur(P, W.Jv, W.S)
+        Ss[i] = W.S
+    constraints, elements, contacts, schur, solve, copy_only, evaluation = _part_timers()
+    solve_args = (Ss, np.ones(m), np.zeros((m, m)), np.zeros(m), P.s_first)
+    per = ts.size
+    cost = {
+        "constraint Jacobian (Phi, Phi_q, gamma)": _clock(constraints, ts, ys, speed, P, W) / per,
+        "force elements (gravity, springs)": _clock(elements, ts, ys, speed, P, W) / per,
+        "contact search + contact forces": _clock(contacts, ts, ys, speed, P, W, inc, v0i, cout) / per,
+        "Schur complement Phi_q M^-1 Phi_q^T": _clock(schur, ts, ys, speed, P, W, Jvs) / per,
+        "linear solve (Cholesky, m x m)": max(0.0, (_clock(solve, *solve_args) - _clock(copy_only, *solve_args))
+                                                / per),
+    }
+    one = _clock(evaluation, ts, ys, speed, P, W, inc, v0i, np.zeros(2 * n), np.zeros(m), cout) / per
+    cost["rest of an evaluation (a = M^-1 (g - Phi_q^T lam), rhs)"] = max(0.0, one - sum(cost.values()))
+    stages = 6  # DOPRI5 with FSAL: six new evaluations per attempted step
+    steps, rej, nfev = s["steps"], s["rejected_steps"], s["function_evaluations"]
+    peak_evals = s["peak_searches"] * (2 * I._GOLDEN_ITERATIONS + 4)
+    counts = {
+        "accepted steps": stages * steps,
+        "rejected steps": stages * rej,
+        "dense output (table samples)": res.table.shape[0],
+        "peak search (dense output)": peak_evals,
+        "re-evaluation (projection, mode change)": max(0, nfev - stages * (steps + rej) - peak_evals),
+    }
+    loop = spent[0]
+    evals = sum(counts.values()) * one
+    return {"state": name, "wall": wall, "loop": loop, "calls": spent[1], "python": wall - loop,
+            "one": one, "cost": cost, "counts": counts, "control": loop - evals, "steps": steps, "rejected": rej,
+            "nfev": nfev, "revolutions": revolutions}
+
+
+def _print_profile(p: dict) -> None:
+    rev = p["revolutions"]
+    wall = p["wall"]
+    print(f"\n{p['state']}: {wall / rev * 1e3:.0f} ms per revolution ({rev:g} revolutions in {wall:.2f} s; "
+          f"{p['steps'] / rev:.0f} accepted + {p['rejected'] / rev:.0f} rejected steps, "
+          f"{p['nfev'] / rev:.0f} step evaluations per revolution; one evaluation {p['one'] * 1e6:.2f} us)")
+    print(f"  {'where':<58} {'evals/rev':>10} {'ms/rev':>8} {'share':>7}")
+    rows = [(f"RHS in {what}", cnt / rev, cnt * p["one"]) for what, cnt in p["counts"].items()]
+    rows.append(("step control (combinations, error norm, drift/projection, records)", None, p["control"]))
+    rows.append((f"Python between compiled calls ({p['calls']} calls)", None, p["python"]))
+    for what, cnt, sec in rows:
+        c = f"{cnt:10.0f}" if cnt is not None else f"{'':>10}"
+        print(f"  {what:<58} {c} {sec / rev * 1e3:8.1f} {sec / wall:7.1%}")
+    print("  one evaluation, part by part (us; share of an evaluation):")
+    for what, sec in p["cost"].items():
+        print(f"    {what:<56} {sec * 1e6:8.3f} {sec / p['one']:7.1%}")
+
+
+def _baseline(path: str, revolutions: float) -> dict:
+    env = dict(os.environ, PYTHONPATH=path)
+    cmd = [sys.executable, os.path.abspath(__file__), "--time-only", "--revolutions", str(revolutions)]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--revolutions", type=float, default=3.0)
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs per version (best of)")
+    ap.add_argument("--baseline", help="directory holding an earlier version's wearbench package (timed "
+                    "interleaved with this one)")
+    ap.add_argument("--time-only", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.time_only:
+        import wearbench.model
+
+        out = _timed_runs(args.revolutions)
+        out["_source"] = os.path.dirname(wearbench.model.__file__)
+        print(json.dumps(out))
+        return
+    import wearbench.model
+
+    print(f"test bed ninebar-testbed, 0.3 mm, nominal bench, default method, 20 kHz table; "
+          f"wearbench from {os.path.dirname(wearbench.model.__file__)}")
+    for name, scene in _scenes().items():
+        _print_profile(_profile(name, scene, args.revolutions))
+    if not args.baseline:
+        return
+    best: dict[str, dict[str, dict]] = {"this": {}, "baseline": {}}
+    for _ in range(args.repeat):
+        for label, runs in (("baseline", _baseline(args.baseline, args.revolutions)),
+                            ("this", _timed_runs(args.revolutions))):
+            for name in STATES:
+                if name not in best[label] or runs[name]["wall"] < best[label][name]["wall"]:
+                    best[label][name] = runs[name]
+    rev = args.revolutions
+    print(f"\nthis version against {args.baseline} (best of {args.repeat}, interleaved, same machine, "
+          f"{rev:g} revolutions)")
+    print(f"  {'state':<20} {'base ms/rev':>11} {'this ms/rev':>11} {'speed-up':>8} | {'base steps':>10} "
+          f"{'rej':>6} {'this steps':>10} {'rej':>6}")
+    for name in STATES:
+        b, t = best["baseline"][name], best["this"][name]
+        print(f"  {name:<20} {b['wall'] / rev * 1e3:11.1f} {t['wall'] / rev * 1e3:11.1f} "
+              f"{b['wall'] / t['wall']:7.2f}x | {b['steps']:10d} {b['rejected']:6d} {t['steps']:10d} {t['rejected']:6d}")
+    new, worn = (best["this"][s]["wall"] for s in STATES)
+    print(f"  worn / new (this version): {worn / new:.2f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,221 @@
+"""Statistics of the test bed's cycles: this version against a stored baseline and a tight-tolerance reference.
+
+Speed work changes rounding, and the clearance dynamics are chaotic, so a changed kernel cannot be
+checked pointwise over many revolutions; it is checked in distribution. For each state (0.3 mm new,
+0.3 mm second wear) the script simulates realisations of the test bed (seeds 0..``--seeds``-1, the
+ensembles' draws: bench within its tolerances, random journal start, 2 settling revolutions) and
+cuts what follows into crank cycles. Per cycle and clearance joint it takes
+
+- the number of impacts (contact onsets on the 20 kHz table),
+- the impact energy per unit effective mass (sum of vn^2 / 2 at the onsets, J/kg) in each quarter
+  of the crank revolution (impact energies by crank angle),
+- the peak normal contact force (N),
+
+and per cycle the peak |slider acceleration| (m/s^2). Each feature's cycles are compared between
+versions by the two-sample Kolmogorov-Smirnov test; the p-values are Holm-corrected for the number
+of features of a state, and a state passes when no corrected p is below 0.01.
+
+Three samples per state: this version at the default tolerance, the baseline version (numbers
+stored in ``benchmarks/data/statistics_baseline.npz``, written by running this script with the old
+code importable, ``--dump``) and this version at the tight tolerance (method "accurate": rtol 1e-8,
+atol 1e-11 m). It also prints the reference against the baseline, the yardstick of what a
+tolerance alone changes.
+
+Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolutions 14]
+      (or its parts in parallel: --dump this.npz; --dump ref.npz --method accurate; then --this this.npz
+      --reference ref.npz)
+      PYTHONPATH=/tmp/wb_base_f183162 .venv/bin/python benchmarks/statistics_equivalence.py \
+          --dump benchmarks/data/statistics_baseline.npz        (the baseline, once, with the old code)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+STATES = ("0.3 mm new", "0.3 mm second wear")
+SECTORS = 4
+ALPHA = 0.01
+BASELINE = Path(__file__).with_name("data") / "statistics_baseline.npz"
+
+
+def _realisation_table(bench, state, seed: int, revolutions: float, method: str):
+    """The full table of one realisation (as ``simulate_state`` runs it) and the kept mask."""
+    from wearbench.model import realisation as R
+
+    kept = {}
+    inner = R.simulate
+
+    def capture(*args, **kw):
+        kw["method"] = method
+        res = inner(*args, **kw)
+        kept["res"] = res
+        return res
+
+    R.simulate = capture
+    try:
+        run = R.simulate_state(bench, state, seed, revolutions=revolutions, settle=2.0)
+    finally:
+        R.simulate = inner
+    table = kept["res"].table
+    t = table["t"].to_numpy()
+    keep = t >= t[-1] - run.t[-1] - 1e-12
+    return table, keep, run
+
+
+def _cycle_features(bench, table, keep, joints) -> dict[str, np.ndarray]:
+    """Per-cycle features of the kept part of a table (see the module docstring)."""
+    driver = bench.encoder_driver
+    crank = table[f"theta_{driver.joint}"].to_numpy()[keep]
+    turn = (crank - crank[0]) * np.sign(crank[-1] - crank[0])
+    cycle = np.floor(turn / (2 * math.pi) + 1e-9).astype(int)
+    ncyc = int(np.floor(turn[-1] / (2 * math.pi) + 1e-6))  # whole cycles only
+    angle = np.mod(turn, 2 * math.pi)
+    out: dict[str, np.ndarray] = {}
+    acc = np.abs(table["slider_acc"].to_numpy()[keep])
+    out["peak |slider acc|"] = np.array([acc[cycle == c].max() for c in range(ncyc)])
+    for j in joints:
+        pen = table[f"{j}_pen"].to_numpy()[keep]
+        vn = table[f"{j}_vn"].to_numpy()[keep]
+        fn = table[f"{j}_fn"].to_numpy()[keep]
+        onset = np.flatnonzero((pen[:-1] <= 0.0) & (pen[1:] > 0.0)) + 1
+        f = pen[onset - 1] / (pen[onset - 1] - pen[onset])
+        v0 = vn[onset - 1] + f * (vn[onset] - vn[onset - 1])
+        energy = 0.5 * v0 ** 2
+        c_on = cycle[onset]
+        sector = np.minimum((angle[onset] / (2 * math.pi) * SECTORS).astype(int), SECTORS - 1)
+        ok = c_on < ncyc
+        out[f"{j} impacts"] = np.bincount(c_on[ok], minlength=ncyc).astype(float)
+        for s in range(SECTORS):
+            sel = ok & (sector == s)
+            out[f"{j} energy {90 * s}-{90 * (s + 1)} deg"] = np.bincount(c_on[sel], weights=energy[sel],
+                                                                         minlength=ncyc)
+        out[f"{j} peak fn"] = np.array([fn[cycle == c].max() for c in range(ncyc)])
+    return out
+
+
+def collect(seeds: int, revolutions: float, method: str) -> tuple[dict[str, dict[str, np.ndarray]], dict]:
+    """Per-cycle features of every state (concatenated over seeds) and the time spent per state."""
+    from wearbench.bench.load import load_bench, shipped_bench
+
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    by_name = {s.name: s for s in bench.states}
+    joints = [j.name for j in bench.joints if j.clearance is not None]
+    feats: dict[str, dict[str, list]] = {}
+    spent = {}
+    for name in STATES:
+        t0 = time.process_time()
+        acc: dict[str, list] = {}
+        for seed in range(seeds):
+            table, keep, _ = _realisation_table(bench, by_name[name], seed, revolutions, method)
+            for k, v in _cycle_features(bench, table, keep, joints).items():
+                acc.setdefault(k, []).append(v)
+        feats[name] = {k: np.concatenate(v) for k, v in acc.items()}
+        spent[name] = time.process_time() - t0
+    return feats, spent
+
+
+def _load_or_collect(path: str | None, seeds: int, revs: float, method: str | None):
+    """Features and CPU seconds per state from a --dump file, or simulated here with ``method``."""
+    if path is None:
+        return collect(seeds, revs, method)
+    data = np.load(path)
+    if float(data["revolutions"]) != revs or int(data["seeds"]) > seeds:
+        raise SystemExit(f"{path}: {int(data['seeds'])} seeds x {float(data['revolutions']):g} revolutions; "
+                         f"expected at most {seeds} x {revs:g} (write it again with --dump)")
+    return _unflat(data), dict(zip(STATES, (float(x) for x in data["seconds"]), strict=True))
+
+
+def _flat(feats) -> dict[str, np.ndarray]:
+    return {f"{s}|{k}": v for s, d in feats.items() for k, v in d.items()}
+
+
+def _unflat(data) -> dict[str, dict[str, np.ndarray]]:
+    out: dict[str, dict[str, np.ndarray]] = {}
+    for key in data.files:
+        if "|" in key:
+            s, k = key.split("|", 1)
+            out.setdefault(s, {})[k] = data[key]
+    return out
+
+
+def holm(p: np.ndarray) -> np.ndarray:
+    """Holm-Bonferroni adjusted p-values (monotone, capped at 1)."""
+    p = np.asarray(p, dtype=float)
+    order = np.argsort(p)
+    adj = np.empty_like(p)
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, (p.size - rank) * p[i])
+        adj[i] = min(1.0, running)
+    return adj
+
+
+def compare(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> list[tuple[str, float, float, float, float]]:
+    """(feature, mean a, mean b, KS p, Holm-adjusted p) per feature."""
+    keys = sorted(set(a) & set(b))
+    p = np.array([stats.ks_2samp(a[k], b[k]).pvalue for k in keys])
+    adj = holm(p)
+    return [(k, float(np.mean(a[k])), float(np.mean(b[k])), float(p[i]), float(adj[i])) for i, k in enumerate(keys)]
+
+
+def _report(title: str, rows) -> bool:
+    worst = min(r[4] for r in rows)
+    ok = worst >= ALPHA
+    print(f"  {title}: {'equal in distribution' if ok else 'DIFFERENT'} (smallest Holm-adjusted p {worst:.3g}, "
+          f"{len(rows)} features)")
+    for k, ma, mb, p, adj in rows:
+        print(f"    {k:<28} {ma:12.4g} {mb:12.4g}   p {p:6.3f}  adj {adj:6.3f}")
+    return ok
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=16)
+    ap.add_argument("--revolutions", type=float, default=14.0, help="kept revolutions per realisation")
+    ap.add_argument("--dump", help="only write the importable version's features to this .npz")
+    ap.add_argument("--method", default="default", help="with --dump: the method (default, or accurate for the "
+                    "reference)")
+    ap.add_argument("--baseline", default=str(BASELINE), help="stored baseline features (.npz)")
+    ap.add_argument("--this", help="this version's features from a --dump file instead of simulating them")
+    ap.add_argument("--reference", help="the reference's features from a --dump --method accurate file")
+    args = ap.parse_args()
+    import wearbench.model
+
+    source = os.path.dirname(wearbench.model.__file__)
+    if args.dump:
+        feats, spent = collect(args.seeds, args.revolutions, args.method)
+        np.savez_compressed(args.dump, **_flat(feats), seeds=args.seeds, revolutions=args.revolutions,
+                            source=source, method=args.method, seconds=np.array([spent[s] for s in STATES]))
+        print(f"wrote {args.dump} from {source} ({args.method}): "
+              f"{[(s, len(next(iter(feats[s].values())))) for s in STATES]} cycles")
+        return
+    seeds, revs = args.seeds, args.revolutions
+    this, t_this = _load_or_collect(args.this, seeds, revs, "default")
+    ref, t_ref = _load_or_collect(args.reference, seeds, revs, "accurate")
+    base, _ = _load_or_collect(args.baseline, seeds, revs, None)
+    base_file = np.load(args.baseline)
+    print(f"test bed, {seeds} realisations x {revs:g} revolutions per state; baseline {args.baseline} "
+          f"(written by {base_file['source']}); this version {source}")
+    passed = True
+    for name in STATES:
+        n, n_ref = (len(next(iter(x[name].values()))) for x in (this, ref))
+        same = all(np.array_equal(this[name][k], base[name][k]) for k in this[name])
+        print(f"\n{name}: {n} cycles (this version, baseline), {n_ref} (reference); simulated in "
+              f"{t_this[name]:.0f} s CPU (this version), {t_ref[name]:.0f} s (reference); this version's "
+              f"features {'equal the baseline bit for bit' if same else 'differ from the baseline'}")
+        print(f"    {'feature':<28} {'mean this':>12} {'mean other':>12}")
+        passed &= _report("this vs baseline", compare(this[name], base[name]))
+        passed &= _report("this vs tight reference", compare(this[name], ref[name]))
+        _report("baseline vs tight reference (yardstick)", compare(base[name], ref[name]))
+    print(f"\n{'PASS' if passed else 'FAIL'}: no feature with Holm-adjusted p < {ALPHA} in any comparison of this version")
+
+
+if __name__ == "__main__":
+    main()
