@@ -84,13 +84,18 @@ def main() -> None:
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-estimate-")
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.cli.estimator import design_from_args
     from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
-    from wearbench.validation.estimate import build_estimator, estimate_features, fit_estimator
+    from wearbench.validation.estimate import (
+        EstimatorDesign,
+        build_estimator,
+        estimate_features,
+        fit_estimator,
+    )
     from wearbench.validation.features import CycleFeatures, FeatureSpec
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
-    design = design_from_args(args)
+    design = EstimatorDesign.parse(args.design_clearances, args.design_cycles, realisations=args.realisations,
+                                   ensemble_cycles=args.ensemble_cycles)
     rng = np.random.default_rng(args.seed)
     lo, hi, n_max = design.clearances[0], design.clearances[-1], design.cycles[-1]
     truths = [(float(rng.uniform(lo, hi)), float(rng.uniform(0, n_max)), args.seed + k) for k in range(args.truths)]

@@ -57,9 +57,9 @@ def main() -> None:
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-identify-")
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.cli.demo import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.model.compute import Task, compute_client, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
+    from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.validation import CompareOptions, load_session, rank_theories
     from wearbench.validation.assess import assess_sessions, session_features
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles

@@ -1,7 +1,7 @@
 """Five-cycle window validation on non-twin truths: does a window's verdict separate the right
 theory from a wrong one, is it calibrated, is the sensor delay found, and what does it cost.
 
-Truths are made as in ``benchmarks/identify.py`` (its helpers, the demo's ``prepare_truth`` and
+Truths are made as in ``benchmarks/identify.py`` (its helpers, ``wearbench.testing.truths``'s ``prepare_truth`` and
 ``record_state``): each session's emulator plays a bench drawn from the bench file's [tolerances]
 with its own seed (never an ensemble draw: those use seeds 1..M), through the test bed's sensor chain
 (stud-mounted resonance, 8th-order anti-alias filter, noise, 16-bit ADC), recorded through the sim
@@ -49,8 +49,8 @@ def true_sensor_delay(bench, accel_delay: float) -> float:
 
 def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, float]]:
     """(true state, session path, true sensor delay) of every truth, recorded once into ``folder``."""
-    from wearbench.cli.demo import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.model.compute import Task, compute_client, run_tasks, task_key
+    from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
 
     folder.mkdir(parents=True, exist_ok=True)
     truths = []

@@ -15,19 +15,15 @@ each five-cycle window against every state's ensemble windows, in one report. ``
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
 
 BENCH = "ninebar-testbed"
 TRUTH_SEED = 2026  # truth i is drawn with TRUTH_SEED + i; the ensembles use seeds from 1
-
-
-def slug(name: str) -> str:
-    return name.replace(" ", "_").replace(".", "p")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,66 +49,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the emulator plays the nominal model (a twin: earlier versions' demo, for comparison)")
     add_compute_arguments(p)
     p.set_defaults(func=run)
-
-
-def truth_revolutions(cycles: int) -> int:
-    """Revolutions of the truth's run for a session of ``cycles``: the device plays its run, then wraps
-    (replays it), so the run covers the session and its start-up (twice the cycles, at least the default)."""
-    from wearbench.hardware.emulators.config import DEFAULT_REVOLUTIONS
-
-    return max(DEFAULT_REVOLUTIONS, 2 * cycles)
-
-
-def record_state(bench, state, seed: int | None, out: Path, *, backend: str, cycles: int, on_progress=None,
-                 recorders: list | None = None, **emulator):
-    """Record one session of the emulated ``bench`` whose hidden truth is ``state`` drawn with ``seed``
-    (None: the nominal model, a twin) through the ``backend`` driver to ``out``; the SessionResult.
-    ``emulator``: top-level ``[emulator]`` keys (e.g. ``revolutions``) for ``emulator_config``;
-    ``recorders``: the Recorder is appended to it before it runs (so another thread can stop it)."""
-    from wearbench.acquisition.backends import open_rig
-    from wearbench.acquisition.recorder import Recorder, SessionPlan
-    from wearbench.acquisition.session_writer import SessionWriter
-    from wearbench.hardware.emulators.config import emulator_config
-
-    table = emulator_config(bench, state, seed, **emulator).to_table()
-    plan = SessionPlan(speed=bench.speed, cycles=cycles, operator="wearbench demo",
-                       clearances=dict(state.clearances),
-                       wear={j: str(p) for j, p in state.surfaces.items()})  # the files: attached
-    proc = None
-    if backend == "serial":
-        from wearbench.hardware.emulators.serial_server import start_serial_emulator
-
-        proc, port = start_serial_emulator(bench, table)
-        options: dict = {"port": port}
-    else:
-        options = {"speedup": math.inf, "config": table}
-    try:
-        rig = open_rig(bench.with_clearances(plan.clearances), backend, options)
-        try:
-            # the demo owns its sessions folder: a rerun replaces its own files (safely, on finish)
-            recorder = Recorder(rig, bench, plan, out, on_progress=on_progress,
-                                writer=SessionWriter(out, replace=True))
-            if recorders is not None:
-                recorders.append(recorder)
-            result = recorder.run()
-        finally:
-            rig.close()
-    finally:
-        if proc is not None:
-            proc.terminate()
-            proc.wait(timeout=30)
-    if not result.completed:
-        raise RuntimeError(f"demo: session {out} stopped early: {result.reason} (the file holds what was "
-                           "recorded until then)")
-    return result
-
-
-def prepare_truth(bench, state, seed: int | None, **emulator) -> str:
-    """Compute the emulator's signal table for a truth (cached on disk, so recording starts at once)."""
-    from wearbench.hardware.emulators.config import emulator_config
-    from wearbench.hardware.emulators.device import BenchDevice
-
-    return BenchDevice(bench, emulator_config(bench, state, seed, **emulator)).prepare(bench.speed).source
 
 
 def run(args: argparse.Namespace) -> int:

@@ -23,18 +23,13 @@ def add_design_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def design_from_args(args: argparse.Namespace):
-    from wearbench.bench.units import parse_quantity
-    from wearbench.validation.ensemble import EnsembleSettings
     from wearbench.validation.estimate import EstimatorDesign
 
     try:
-        clearances = tuple(parse_quantity(v, "length", bare_unit="mm") for v in args.design_clearances.split(","))
-        cycles = tuple(float(v) for v in args.design_cycles.split(","))
+        return EstimatorDesign.parse(args.design_clearances, args.design_cycles, realisations=args.realisations,
+                                     ensemble_cycles=args.ensemble_cycles)
     except ValueError as exc:
-        raise ValueError(f"--design-clearances {args.design_clearances!r} / --design-cycles {args.design_cycles!r}: "
-                         f"{exc}") from None
-    return EstimatorDesign(clearances, cycles, EnsembleSettings(realisations=args.realisations,
-                                                                cycles=args.ensemble_cycles))
+        raise ValueError(f"--design-clearances / --design-cycles: {exc}") from None
 
 
 def register(sub: argparse._SubParsersAction) -> None:

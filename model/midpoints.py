@@ -18,7 +18,13 @@ import math
 
 import numpy as np
 from numba import njit
-from wearbench.model.contact import hermite, node_slopes, region_coordinate, region_interval, table_depth
+from wearbench.model.contact import (
+    hermite,
+    node_slopes,
+    region_coordinate,
+    region_interval,
+    table_depth,
+)
 
 __all__ = ["TABLE_ROWS", "fill_midpoints", "midpoint_window", "surface_curvature", "surface_tables"]
 

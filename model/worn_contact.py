@@ -21,7 +21,12 @@ import math
 import numpy as np
 from numba import njit
 from wearbench.model.contact import depth_eval, region_coordinate, rewrap, table_eval
-from wearbench.model.midpoints import fill_midpoints, midpoint_window, surface_curvature, surface_tables
+from wearbench.model.midpoints import (
+    fill_midpoints,
+    midpoint_window,
+    surface_curvature,
+    surface_tables,
+)
 
 __all__ = ["SECOND_ZONE_RATIO", "contact_zones", "overlap_at", "search_second_zone", "search_top_zone",
            "second_zone", "worn_contact", "zone_penetrations"]

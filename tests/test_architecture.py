@@ -1,6 +1,8 @@
 """The layers of wearbench point down: each package imports only the layers below it, and no two
 modules import each other (directly or round a longer circle). Read from the source, every import
-counted (also those inside functions), so a lazy import cannot hide an upward edge.
+counted (also those inside functions and those named by a string to ``importlib.import_module``), so
+a lazy import cannot hide an upward edge. The benchmarks are read too: they stand beside the command
+line, may import every library layer, but not the program itself.
 
 The rules are the README's "Architecture" section; this test is their owner.
 """
@@ -8,12 +10,14 @@ The rules are the README's "Architecture" section; this test is their owner.
 from __future__ import annotations
 
 import ast
+import itertools
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("bench", "model", "hardware", "acquisition", "validation", "cli", "testing")
+PACKAGES = ("bench", "model", "hardware", "acquisition", "validation", "testing", "cli")
+LIBRARY = ("bench", "model", "hardware", "hardware.protocol", "hardware.emulators", "acquisition", "validation")
 
 # layer -> the layers it may import (itself always allowed)
 ALLOWED: dict[str, set[str]] = {
@@ -24,19 +28,21 @@ ALLOWED: dict[str, set[str]] = {
     "hardware": {"bench"},  # hardware/__init__.py
     "acquisition": {"bench", "hardware.protocol"},
     "validation": {"bench", "model", "acquisition"},
-    "cli": {"bench", "model", "hardware", "hardware.protocol", "hardware.emulators", "acquisition",
-            "validation"},
-    # the pytest plugin: emulators, recorder and identification together, like the command line
-    "testing": {"bench", "model", "hardware", "hardware.protocol", "hardware.emulators", "acquisition",
-                "validation"},
+    # the pytest plugin and emulated sessions: emulators, recorder and identification together
+    "testing": set(LIBRARY),
+    "cli": set(LIBRARY) | {"testing"},
+    "benchmarks": set(LIBRARY) | {"testing"},  # scripts beside the program: not the program itself
 }
 # the one sanctioned exception: the simulated device of the sim backend runs in-process
 EXCEPTIONS: dict[str, set[str]] = {"wearbench.acquisition.backends.sim": {"hardware.emulators"}}
 
 
 def layer(module: str) -> str:
-    """The layer of ``wearbench.X.Y...``: the package, or hardware's subpackage."""
+    """The layer of ``wearbench.X.Y...``: the package, or hardware's subpackage (``benchmarks.X``:
+    the benchmarks)."""
     parts = module.split(".")
+    if parts[0] == "benchmarks":
+        return "benchmarks"
     if parts[1] == "hardware" and len(parts) > 2 and parts[2] in ("protocol", "emulators"):
         return f"hardware.{parts[2]}"
     return parts[1]
@@ -55,11 +61,43 @@ def library_modules() -> dict[str, Path]:
     return modules
 
 
-def imports(source: str, module: str, known: set[str]) -> set[str]:
-    """The wearbench modules ``source`` (module ``module``) imports, anywhere in the file."""
+def _import_nodes(tree: ast.Module):
+    """Every import statement and ``import_module("...")`` call of a module, with whether it runs
+    when the module is imported (at module level, not inside a function)."""
+    lazy: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            lazy |= {id(n) for n in ast.walk(node) if n is not node}
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Import, ast.ImportFrom)) or _imported_by_name(node) is not None:
+            yield node, id(node) not in lazy
+
+
+def _imported_by_name(node: ast.AST) -> str | None:
+    """The module a call ``importlib.import_module(NAME)`` (or ``__import__``) names: the string, or
+    the literal head of an f-string (``f"wearbench.model.{name}"`` -> ``wearbench.model``)."""
+    if not (isinstance(node, ast.Call) and node.args):
+        return None
+    func = node.func
+    name = func.attr if isinstance(func, ast.Attribute) else func.id if isinstance(func, ast.Name) else ""
+    if name not in ("import_module", "__import__"):
+        return None
+    arg = node.args[0]
+    if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+        return arg.value
+    if isinstance(arg, ast.JoinedStr) and arg.values and isinstance(arg.values[0], ast.Constant):
+        return str(arg.values[0].value).rstrip(".")
+    return None
+
+
+def imports(source: str, module: str, known: set[str], *, eager_only: bool = False) -> set[str]:
+    """The wearbench modules ``source`` (module ``module``) imports, anywhere in the file (with
+    ``eager_only``, only those imported when the module itself is)."""
     found = set()
     package = module if module + ".__init__" in known else module.rpartition(".")[0]
-    for node in ast.walk(ast.parse(source)):
+    for node, eager in _import_nodes(ast.parse(source)):
+        if eager_only and not eager:
+            continue
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -71,18 +109,32 @@ def imports(source: str, module: str, known: set[str]) -> set[str]:
             # "from wearbench.model import simulate" imports the submodule when there is one
             names = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names]
         else:
-            continue
+            names = [_imported_by_name(node)]
         found |= {n for n in names if n.startswith("wearbench.") and n != module}
     return found
 
 
-def graph() -> dict[str, set[str]]:
+def graph(sources: dict[str, str] | None = None) -> dict[str, set[str]]:
+    """Import edges between the library's modules and the benchmarks (``sources``: module -> source
+    in place of the files, for the checker's own tests). A package's ``__init__`` keeps its edges to
+    its own submodules only where it imports them eagerly: a lazy face is no circle, an eager one
+    that a submodule imports back is one (it fails on import)."""
     modules = library_modules()
     known = set(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
+    texts = {m: p.read_text(encoding="utf-8") for m, p in {**modules, **benchmark_scripts()}.items()}
+    texts.update(sources or {})
     edges = {}
-    for module, path in modules.items():
-        edges[module] = {_resolve(n, modules) for n in imports(path.read_text(encoding="utf-8"), module, known)}
+    for module, text in texts.items():
+        targets = {_resolve(n, modules) for n in imports(text, module, known)}
+        if module + ".__init__" in known:
+            eager = {_resolve(n, modules) for n in imports(text, module, known, eager_only=True)}
+            targets = {t for t in targets if t.rpartition(".")[0] != module or t in eager}
+        edges[module] = targets
     return edges
+
+
+def benchmark_scripts() -> dict[str, Path]:
+    return {f"benchmarks.{p.stem}": p for p in sorted((ROOT / "benchmarks").glob("*.py"))}
 
 
 def _resolve(name: str, modules: dict[str, Path]) -> str:
@@ -102,10 +154,8 @@ def upward_edges(edges: dict[str, set[str]]) -> list[str]:
 
 
 def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
-    """Strongly connected components of more than one module (Tarjan), each a circle of imports.
-    A package's ``__init__`` importing its own submodules is not counted (that is how packages
-    expose a name; the submodules never need the package back)."""
-    graph_ = {m: {t for t in ts if m != t.rpartition(".")[0]} for m, ts in edges.items()}
+    """Strongly connected components of more than one module (Tarjan), each a circle of imports."""
+    graph_ = edges
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -147,12 +197,53 @@ def test_no_two_modules_import_each_other():
     assert cycles(graph()) == []
 
 
+_LAUNCHERS = {"system", "popen", "run", "Popen", "call", "check_call", "check_output", "create_subprocess_shell",
+              "create_subprocess_exec", "spawnlp", "execlp", "execvp"}
+
+
+def launches_program(source: str) -> bool:
+    """Whether ``source`` starts the ``wearbench`` program: names ``wearbench.cli`` (an import or
+    ``-m wearbench.cli``) or builds a command line whose program is ``wearbench``
+    (``["wearbench", "record", ...]``, ``("wearbench", ...)``, ``shutil.which("wearbench")``)."""
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.startswith("wearbench.cli"):
+            return True
+        if (isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) in _LAUNCHERS
+                and any(isinstance(a, ast.Constant) and str(a.value).split()[:1] == ["wearbench"] for a in node.args)):
+            return True  # a shell command line: os.system("wearbench emulate ...")
+        if isinstance(node, (ast.List, ast.Tuple)) and node.elts:
+            first = node.elts[0]
+            second = node.elts[1] if len(node.elts) > 1 else None
+            if (isinstance(first, ast.Constant) and first.value in ("wearbench", "wearbench.cli")
+                    and (isinstance(second, ast.Starred) or isinstance(second, ast.Constant)
+                         and isinstance(second.value, str))):
+                return True
+            heads = [e.value for e in node.elts if isinstance(e, ast.Constant)]
+            if any(a == "-m" and b in ("wearbench", "wearbench.cli") for a, b in itertools.pairwise(heads)):
+                return True
+        if isinstance(node, ast.Call) and any(isinstance(a, ast.Constant) and a.value == "wearbench"
+                                              for a in node.args) and getattr(node.func, "attr", "") == "which":
+            return True
+    return False
+
+
 def test_no_library_module_starts_the_command_line_program():
     """Emulators and recorders start through functions; only ``wearbench.cli`` is the program."""
-    offenders = [m for m, p in library_modules().items() if not m.startswith("wearbench.cli")
-                 and ("wearbench.cli" in p.read_text(encoding="utf-8")
-                      or '"wearbench", "emulate"' in p.read_text(encoding="utf-8"))]
+    offenders = [m for m, p in {**library_modules(), **benchmark_scripts()}.items()
+                 if not m.startswith("wearbench.cli") and launches_program(p.read_text(encoding="utf-8"))]
     assert offenders == []
+
+
+@pytest.mark.parametrize("source, launches", [
+    ("subprocess.run(['wearbench', 'record', 'b.toml'])\n", True),
+    ("subprocess.Popen((sys.executable, '-m', 'wearbench.cli', 'emulate'))\n", True),
+    ("cmd = [shutil.which('wearbench'), 'emulate']\n", True),
+    ("os.system('wearbench emulate b.toml --serial')\n", True),
+    ("name = 'wearbench'\nlibrary = ('wearbench', 2)\n", False),
+    ("writer.start(profile='x', library='wearbench')\n", False),
+])
+def test_the_check_catches_a_program_launch(source, launches):
+    assert launches_program(source) is launches
 
 
 @pytest.mark.parametrize("module, source, expected", [
@@ -163,16 +254,34 @@ def test_no_library_module_starts_the_command_line_program():
      ["wearbench.acquisition.recorder -> wearbench.hardware.emulators.device"]),
     ("wearbench.acquisition.backends.sim", "from wearbench.hardware.emulators import device\n", []),
     ("wearbench.validation.compare", "from wearbench.model.simulation import simulate\n", []),
+    ("wearbench.model.scene", "importlib.import_module('wearbench.validation.report')\n",
+     ["wearbench.model.scene -> wearbench.validation.report"]),
+    ("wearbench.bench.load", "def f(n):\n    return importlib.import_module(f'wearbench.acquisition.{n}')\n",
+     ["wearbench.bench.load -> wearbench.acquisition"]),
+    ("benchmarks.identify", "from wearbench.cli.demo import record_state\n",
+     ["benchmarks.identify -> wearbench.cli.demo"]),
+    ("benchmarks.identify", "from wearbench.validation.identify import fit_states\n", []),
 ])
 def test_the_check_catches_an_upward_import(module, source, expected):
     """The checker itself: an upward import written into a module is reported, an allowed one not."""
-    modules = library_modules()
-    known = set(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
-    edges = {module: {_resolve(n, modules) for n in imports(source, module, known)}}
-    assert upward_edges(edges) == expected
+    edges = graph({module: source})
+    assert upward_edges({module: edges[module]}) == expected
 
 
 def test_the_check_catches_a_circle():
     edges = {"wearbench.validation.a": {"wearbench.validation.b"}, "wearbench.validation.b": {"wearbench.validation.c"},
              "wearbench.validation.c": {"wearbench.validation.a"}, "wearbench.validation.d": {"wearbench.validation.a"}}
     assert cycles(edges) == [["wearbench.validation.a", "wearbench.validation.b", "wearbench.validation.c"]]
+
+
+@pytest.mark.parametrize("init_source, circle", [
+    ("from wearbench.validation.compare import compare_session\n", True),   # eager: compare needs it back
+    ("def __getattr__(name):\n    from wearbench.validation import compare\n", False),  # a lazy face
+])
+def test_the_check_catches_a_circle_through_a_package_init(init_source, circle):
+    """A submodule importing a name its package's ``__init__`` defines, while that ``__init__``
+    imports the submodule at import time, crashes on import: that circle is found; a lazy face is not one."""
+    edges = graph({"wearbench.validation": init_source,
+                   "wearbench.validation.compare": "from wearbench.validation import CompareOptions\n"})
+    found = [c for c in cycles(edges) if "wearbench.validation" in c]
+    assert bool(found) is circle

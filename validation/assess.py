@@ -42,7 +42,7 @@ from wearbench.validation.windows import (
     window_theory,
 )
 
-__all__ = ["Assessment", "assess_sessions", "calibration", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "judging_models", "session_features"]
 
 
 @dataclass

@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 from scipy import linalg, optimize, special, stats
 from wearbench.bench.schema import Bench, WearState
+from wearbench.bench.units import parse_quantity
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
 from wearbench.validation.features import CycleFeatures, FeatureSpec
 from wearbench.validation.identify import IdentifyOptions, _floor, _models, default_sensor
@@ -75,6 +76,17 @@ class EstimatorDesign:
                              "spaced from 0 (one wear stage apart)")
         object.__setattr__(self, "clearances", tuple(float(v) for v in c))
         object.__setattr__(self, "cycles", tuple(float(v) for v in n))
+
+    @classmethod
+    def parse(cls, clearances: str, cycles: str, *, realisations: int = 16,
+              ensemble_cycles: int = 8) -> EstimatorDesign:
+        """A design from text as a user types it: ``"0.25mm,0.45mm,0.65mm"``, ``"0,200000,400000"``."""
+        try:
+            c = tuple(parse_quantity(v, "length", bare_unit="mm") for v in clearances.split(","))
+            n = tuple(float(v) for v in cycles.split(","))
+        except ValueError as exc:
+            raise ValueError(f"design clearances {clearances!r} / cycles {cycles!r}: {exc}") from None
+        return cls(c, n, EnsembleSettings(realisations=realisations, cycles=ensemble_cycles))
 
     def state(self, i: int, j: int, surfaces: Mapping[str, Path], joints: Sequence[str]) -> WearState:
         c, n = self.clearances[i], self.cycles[j]

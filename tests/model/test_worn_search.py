@@ -17,7 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from wearbench.model.contact import depth_eval, node_slopes, table_depth_eval
-from wearbench.model.midpoints import fill_midpoints, midpoint_window, surface_curvature, surface_tables
+from wearbench.model.midpoints import (
+    fill_midpoints,
+    midpoint_window,
+    surface_curvature,
+    surface_tables,
+)
 from wearbench.model.surfaces import depth_at
 from wearbench.model.worn_contact import SECOND_ZONE_RATIO, overlap_at, second_zone, worn_contact
 

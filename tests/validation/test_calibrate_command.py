@@ -12,7 +12,7 @@ import json
 import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
-from wearbench.cli.demo import record_state, slug
+from wearbench.testing.truths import record_state, slug
 from wearbench.validation.ensemble import (
     EnsembleSettings,
     build_ensembles,
