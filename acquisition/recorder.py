@@ -491,8 +491,8 @@ class Recorder:
         except OSError:
             pass  # accepted, as above
         for attempt in range(_FINISH_TRIES):  # space may come back (the ballast, another process)
-            try:  # a session that recorded nothing (a failed start) never replaces an existing file
-                w.finish(replace=r.samples.get(ACCELERATION, 0) > 0)
+            try:  # a forced session replaces the old file only when it recorded its whole target
+                w.finish(replace=r.completed)
                 r.path = w.path
                 return r
             except OSError as exc:

@@ -44,6 +44,7 @@ from wearbench.acquisition.layout import (
 )
 from wearbench.acquisition.sequence import SequenceCheck
 from wearbench.bench.load import parse_bench
+from wearbench.bench.output_file import MCAP_MAGIC
 from wearbench.bench.schema import Bench, BenchError
 
 __all__ = [
@@ -57,7 +58,6 @@ __all__ = [
     "states",
 ]
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"  # the first bytes of every MCAP file
 
 
 @dataclass

@@ -13,9 +13,11 @@
 - Writes go through :class:`DurableFile`, which never leaves half a record behind: a failed
   write (a full disk) is cut back to the last whole record and kept in memory until it can be
   written, so the file can still be finished once space is back.
-- A session never silently replaces a file: a path that exists is refused (``FileExistsError``)
-  unless ``replace=True``, and then the new session is written beside it (``NAME.new``) and renamed
-  over the old file only when finished, so the old file stays whole until then. One writer per
+- A session never silently replaces a file (the output-file policy, ``bench.output_file``): a path
+  that exists is refused (``FileExistsError``) unless ``replace=True``, and then the new session is
+  written beside it (``NAME.new``) and renamed over the old file only when finished with
+  ``finish(replace=True)`` (the recorder: when the session completed its target), so the old file
+  stays whole until then. One writer per
   path: an exclusive ``flock`` on ``.NAME.lock`` beside it (released by the OS if the process dies).
 - A live view (``live``, see ``acquisition.live``) is offered every message after it went to the
   file; it never blocks and never fails the writer.
@@ -51,6 +53,7 @@ from wearbench.acquisition.layout import (
     ns,
     publish_time,
 )
+from wearbench.bench.output_file import check_output
 
 __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
            "SessionWriter", "ballast_bytes", "check_free_space", "leftover_message", "lock_session_path",
@@ -237,8 +240,8 @@ class SessionWriter:
                     raw = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed by finish()
             except FileExistsError:
                 self._unlock()
-                raise FileExistsError(errno.EEXIST, "a file already exists there; it is never replaced "
-                                      "silently (replace it explicitly, e.g. record --force)", str(self.path)) from None
+                check_output(self.path, option="session file")  # raises the policy's one line
+                raise
             except BaseException:
                 self._unlock()
                 raise

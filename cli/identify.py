@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.options import add_force_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,20 +28,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
     p.add_argument("--ensemble-cycles", type=int, default=8, help="settled cycles per realisation (8)")
     add_compute_arguments(p)
-    p.add_argument("--json", metavar="FILE", help="write every result as JSON")
+    p.add_argument("--json", metavar="FILE", help="write every result as JSON (never over an existing file "
+                   "unless --force, never over a session)")
     p.add_argument("--out", metavar="DIR", help="also write the report (report.html, scores.json, figures) here")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     import json
+    from pathlib import Path
 
     from rich.console import Console
     from rich.table import Table
+    from wearbench.bench.output_file import check_output, output_file, output_folder
     from wearbench.validation.assess import assess_sessions, write_assessment_report
     from wearbench.validation.ensemble import EnsembleSettings, load_ensembles
     from wearbench.validation.identify import IdentifyOptions
 
+    for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
+        if path:  # refused before the ensembles are built
+            check_output(path, force=args.force, option=option, folder=folder)
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
     ensembles = load_ensembles(args.ensembles) if args.ensembles else None
     assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=ensembles,
@@ -64,10 +72,11 @@ def run(args: argparse.Namespace) -> int:
         for note in r.notes:
             console.print(f"{r.session}: {note}")
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as f:
+        with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
             json.dump([r.as_dict() for r in results], f, indent=1)
         console.print(f"results: {args.json}")
     if args.out:
-        report = write_assessment_report(assessed, args.out, threshold=args.threshold)
-        console.print(f"report: {report.html}")
+        with output_folder(args.out, force=args.force) as tmp:
+            report = write_assessment_report(assessed, tmp, threshold=args.threshold)
+        console.print(f"report: {Path(args.out) / report.html.relative_to(tmp)}")
     return 0

@@ -14,6 +14,7 @@ from wearbench.bench.schema import Bench
 from wearbench.bench.units import QuantityError, parse_quantity
 
 __all__ = [
+    "add_force_argument",
     "check_motor_speed",
     "joint_values",
     "motor_speed",
@@ -24,6 +25,13 @@ __all__ = [
     "positive_number",
     "positive_quantity",
 ]
+
+
+def add_force_argument(p: argparse.ArgumentParser) -> None:
+    """``--force``: the one switch of the output-file policy (``wearbench.bench.output_file``)."""
+    p.add_argument("--force", action="store_true",
+                   help="replace existing output files (never a recorded session); the old ones stay as they "
+                   "were until the new ones are complete")
 
 
 def _number(text: str) -> float:

@@ -7,8 +7,10 @@ import json
 import sys
 
 from wearbench.bench.load import load_bench, resolve_bench
+from wearbench.bench.output_file import check_output, output_folder
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import (
+    add_force_argument,
     check_motor_speed,
     nonnegative_int,
     nonnegative_number,
@@ -46,6 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_compute_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    add_force_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -74,8 +77,10 @@ def run(args: argparse.Namespace) -> int:
                      plan=plan_from_args(args, bench, max(1, args.wear_stages)), revolutions=args.dyn_revolutions,
                      settle=args.dyn_settle, output_rate=args.output_rate)
     n = len(spec.points()) * spec.realisations
+    check_output(args.out, force=args.force, folder=True)  # refused before the runs
     result = run_sweep(bench, spec, progress=f"sweep {bench.name} ({n} runs)", **compute_options(args, bench))
-    summary = write_sweep(result, spec, args.out, plots=not args.no_plots)
+    with output_folder(args.out, force=args.force) as tmp:
+        summary = write_sweep(result, spec, tmp, plots=not args.no_plots)
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=float)
         print()
