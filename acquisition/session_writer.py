@@ -240,7 +240,7 @@ class SessionWriter:
                     raw = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed by finish()
             except FileExistsError:
                 self._unlock()
-                check_output(self.path, option="session file")  # raises the policy's one line
+                check_output(self.path, option="session file", session=True)  # raises the policy's one line
                 raise
             except BaseException:
                 self._unlock()
