@@ -223,8 +223,11 @@ class Recorder:
         what = "disk full" if exc.errno == errno.ENOSPC else "writing the session failed"
         self.stop(f"{what}: {exc}", "error")
         freed = self.writer.release_ballast()
-        self._post(Event("error", f"{what}; {'released the ballast file and ' if freed else ''}"
-                         "finishing the file with what was recorded", device_time=self._device_now))
+        room = getattr(self.writer, "room", 0)
+        how = ("released the ballast file and " if freed else
+               f"in the {room / 1024:.0f} KiB reserved inside the file: " if room else "")
+        self._post(Event("error", f"{what}; {how}finishing the file with what was recorded",
+                         device_time=self._device_now))
 
     def _writer_loop(self) -> None:
         try:

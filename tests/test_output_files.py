@@ -48,7 +48,7 @@ def test_the_policy(tmp_path, capsys):
         raise RuntimeError("disk gone")
     assert old.read_bytes() == OLD and sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
     with output_file(old, force=True) as tmp:
-        assert not old.read_bytes() != OLD  # untouched while the new one is written
+        assert old.read_bytes() == OLD  # untouched while the new one is written
         tmp.write_text("new")
     assert old.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
     session = tmp_path / "s.mcap"
@@ -148,7 +148,7 @@ def test_ctrl_c_during_a_forced_recording_keeps_the_good_session(tmp_path):
         time.sleep(0.2)
     time.sleep(1.0)
     proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=60)
+    _stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
     assert out.read_bytes() == before  # the good session, byte for byte
     assert f"{out} kept as it was: the new session did not complete" in stderr and "Traceback" not in stderr
