@@ -151,13 +151,12 @@ class SweepSpec:
 
 
 def _apply(bench, values: Mapping[str, float], plan: StagePlan):
-    """(clearances {joint: m} or None, speed rad/s, plan) of one grid point."""
+    """(clearances {joint: m} or None, speed rad/s, plan) of one grid point. Overlapping axes follow
+    one rule, whatever their order: ``clearance.J`` sets joint J over ``clearance`` (every joint)."""
     names = [j.name for j in bench.clearance_joints]
-    clear: dict[str, float] = {}
+    clear: dict[str, float] = dict.fromkeys(names, values["clearance"]) if "clearance" in values else {}
     for name, v in values.items():
-        if name == "clearance":
-            clear.update(dict.fromkeys(names, v))
-        elif m := _JOINT_CLEARANCE.match(name):
+        if m := _JOINT_CLEARANCE.match(name):
             if m["joint"] not in names:
                 raise ValueError(f"clearance.{m['joint']}: {bench.name} has no clearance joint {m['joint']!r}; "
                                  f"it has {names}")
@@ -224,7 +223,9 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
     """
     t0 = time.perf_counter()
     part = bench_key(bench)  # what the bench is, not where its file lies
-    how = {f.name: getattr(spec, f.name) for f in fields(spec) if f.name not in ("axes", "realisations", "seed")}
+    # the key is the computation: the point's applied clearances, speed and plan, not its axis names
+    how = {f.name: getattr(spec, f.name) for f in fields(spec)
+           if f.name not in ("axes", "realisations", "seed", "plan")}
     runs, tasks = [], []
     for point in spec.points():
         for r, seed in enumerate(spec.seeds):
@@ -234,7 +235,7 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
             label = " ".join(f"{n}={_format(n, v)}" for n, v in point.items()) + (f" seed={seed}" if seed is not None
                                                                                   else "")
             tasks.append(Task(run_point, {"bench": bench, "values": point, "seed": seed, "spec": spec},
-                              task_key("sweep-point", part, point, seed, how), label))
+                              task_key("sweep-point", part, _apply(bench, point, spec.plan), seed, how), label))
     results = run_tasks(tasks, workers=workers, scheduler=scheduler, progress=progress, cache=cache)
     rows, failures = [], []
     for run, res in zip(runs, results, strict=True):

@@ -130,3 +130,25 @@ def test_commands_on_a_bench_use_its_compute_scheduler_unless_told_otherwise(tmp
     assert main(["wear", str(bench), "--convergence", "1,2", "--scheduler", "10.0.0.5", "--workers", "2",
                  "--out", str(tmp_path / "wear")]) == 2
     assert "scheduler = '10.0.0.5': expected 'local' or a Dask scheduler address" in capsys.readouterr().err
+
+
+def test_overlapping_axes_follow_one_rule_and_the_cache_keys_the_computation(bench):
+    """Issue 25, item 5: `--vary clearance.A=0.2mm,0.5mm --vary clearance=0.3mm` gave two identical
+    rows computed at 0.3 mm, and in the other order an answer that depended on what ran before (the
+    cache keyed the request, sorted, while applying it depended on the order). The joint's own axis
+    sets that joint in either order, and the cache key is the applied parameters."""
+    joint = Axis("clearance.S", (0.2e-3, 0.5e-3))
+    every = Axis("clearance", (0.3e-3,))
+
+    def values(*axes):
+        df = run_sweep(bench, _spec(*axes), workers=0).table
+        peaks = df[df["statistic"] == "rms_slider_acc"]
+        return {c: peaks[peaks["clearance_S_m"] == c]["value"].item() for c in joint.values}
+
+    first = values(joint, every)  # cold cache
+    second = values(every, joint)  # the other order: served from the cache only where the computation is equal
+    alone = values(joint)  # the same clearances without the overlapping axis: the same computation
+    assert first == second == alone
+    assert first[0.2e-3] != first[0.5e-3]
+    direct = pd.DataFrame(run_point(bench, {"clearance.S": 0.5e-3}, None, _spec(joint)))
+    assert direct[direct["statistic"] == "rms_slider_acc"]["value"].item() == first[0.5e-3]
