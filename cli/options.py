@@ -15,7 +15,10 @@ from wearbench.bench.units import QuantityError, parse_quantity
 
 __all__ = [
     "add_force_argument",
+    "check_clearances",
     "check_motor_speed",
+    "check_wear_coefficient",
+    "cycle_count",
     "joint_values",
     "motor_speed",
     "nonnegative_int",
@@ -64,6 +67,14 @@ def nonnegative_number(text: str) -> float:
     value = _number(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: expected a number >= 0")
+    return value
+
+
+def cycle_count(text: str) -> float:
+    """A number of crank cycles: finite and >= 1 (a fraction of a cycle holds no complete cycle)."""
+    value = _number(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected at least 1 crank cycle")
     return value
 
 
@@ -153,4 +164,21 @@ def parse_clearances(text: str | None, bench: Bench, option: str = "--clearance"
             out[joint] = parse_quantity(value, "length", bare_unit="m")
         except QuantityError as exc:
             raise ValueError(f"{option} {text!r}: {exc}") from None
+    check_clearances({j: c for j, c in out.items() if c is not None}, bench, option, text)
     return out
+
+
+def check_clearances(clearances: dict[str, float], bench: Bench, option: str, text: str) -> None:
+    """Radial clearances (m) that fit ``bench``'s bearings (the bench's own rule, 0 < c < bearing
+    radius); ValueError naming ``option`` and ``text`` otherwise."""
+    try:
+        bench.with_clearances(clearances)
+    except (ValueError, KeyError) as exc:
+        raise ValueError(f"{option} {text!r}: {exc.args[0] if exc.args else exc}") from None
+
+
+def check_wear_coefficient(value: float, option: str, text: str) -> float:
+    """An Archard wear coefficient (1/Pa): finite and >= 0 (0: no wear)."""
+    if not (math.isfinite(value) and value >= 0):
+        raise ValueError(f"{option} {text!r}: {value:.4g} 1/Pa; expected a wear coefficient >= 0, e.g. 6.6e-14/Pa")
+    return value

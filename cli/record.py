@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from wearbench.bench.schema import BACKENDS
 from wearbench.cli.options import (
+    cycle_count,
     joint_values,
     motor_speed,
     parse_clearances,
-    positive_number,
     positive_quantity,
 )
 
@@ -32,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "as it was when the new one stops early (Ctrl-C, a fault, a full disk)")
     p.add_argument("--speed", help="motor speed, e.g. 2pi (rad/s), 60rpm, 1Hz (default: the bench's)")
     what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--cycles", type=positive_number,
+    what.add_argument("--cycles", type=cycle_count,
                       help="complete crank cycles (index to index) to record")
     what.add_argument("--duration", help="time to record, e.g. 30s, 2min")
     p.add_argument("--backend", choices=BACKENDS,
@@ -91,15 +90,14 @@ def run(args: argparse.Namespace) -> int:
              if args.speed else bench.speed)
     clearances = parse_clearances(args.clearance, bench)
     wear = joint_values(args.wear, "--wear", [j.name for j in bench.clearance_joints])
-    for joint, state in wear.items():  # a file it names travels in the session
-        if Path(state).suffix == ".npz" or "/" in state:
-            from wearbench.model.surfaces import JointSurfaces
+    for joint, state in wear.items():  # read as the analysis reads it back; a file it names travels in the session
+        from wearbench.validation.theory import resolve_surfaces
 
-            try:
-                JointSurfaces.load(state)
-            except (OSError, ValueError) as exc:
-                raise ValueError(f"--wear {joint}={state}: {exc}; expected a worn-surface .npz file "
-                                 "(written by 'wearbench wear') or a label such as new") from None
+        try:
+            resolve_surfaces({joint: state})
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"--wear {joint}={state}: {exc}; expected 'new' or a worn-surface .npz file "
+                             "(written by 'wearbench wear')") from None
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,

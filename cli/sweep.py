@@ -11,7 +11,9 @@ from wearbench.bench.output_file import check_output, output_folder
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import (
     add_force_argument,
+    check_clearances,
     check_motor_speed,
+    check_wear_coefficient,
     nonnegative_int,
     nonnegative_number,
     positive_int,
@@ -32,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("bench", metavar="BENCH.toml")
     p.add_argument("--vary", action="append", required=True, metavar="NAME=FROM..TO:N",
                    help="a varied parameter: clearance (every clearance joint), clearance.JOINT, speed or "
-                   "wear_coefficient, as FROM..TO:COUNT (ends included) or V1,V2,...; repeat for a grid")
+                   "wear_coefficient, as FROM..TO:COUNT (ends included) or V1,V2,...; repeat for a grid. "
+                   "clearance.JOINT sets that joint over clearance (every joint), in either order")
     p.add_argument("--wear-stages", type=nonnegative_int, default=0, help="wear stages per run before the dynamics "
                    "(default 0: unworn)")
     p.add_argument("--realisations", type=positive_int, default=1,
@@ -55,17 +58,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import note_compiling
-    from wearbench.model.sweep import SweepSpec, axes_from, run_sweep, write_sweep
+    from wearbench.model.sweep import SweepSpec, axes_from, format_value, run_sweep, write_sweep
 
     bench = load_bench(resolve_bench(args.bench))
     note_compiling()
     axes = axes_from(args.vary)
-    for a in axes:
-        if a.name == "speed":
-            for value in a.values:
-                check_motor_speed(value, "--vary speed", f"{value:.6g} rad/s")
     clearance_names = [j.name for j in bench.clearance_joints]
-    for a in axes:
+    for a in axes:  # every value checked as the other commands check it, before any run
         if a.name.startswith("clearance") and not clearance_names:
             raise ValueError(f"--vary {a.name}: {args.bench} has no clearance joints")
         if a.name.startswith("clearance."):
@@ -73,6 +72,16 @@ def run(args: argparse.Namespace) -> int:
             if joint not in clearance_names:
                 raise ValueError(f"--vary {a.name}: {args.bench} has no clearance joint {joint!r}; "
                                  f"it has {clearance_names}")
+        for value in a.values:
+            text = f"{a.name}={format_value(a.name, value)}"
+            if a.name == "speed":
+                check_motor_speed(value, "--vary", text, max_speed=bench.motor.max_speed,
+                                  source=str(bench.path or bench.name))
+            elif a.name == "wear_coefficient":
+                check_wear_coefficient(value, "--vary", text)
+            else:
+                joints = clearance_names if a.name == "clearance" else [a.name.partition(".")[2]]
+                check_clearances(dict.fromkeys(joints, value), bench, "--vary", text)
     spec = SweepSpec(axes=axes, stages=args.wear_stages, realisations=args.realisations, seed=args.seed,
                      plan=plan_from_args(args, bench, max(1, args.wear_stages)), revolutions=args.dyn_revolutions,
                      settle=args.dyn_settle, output_rate=args.output_rate)

@@ -14,6 +14,7 @@ from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import (
     add_force_argument,
+    check_wear_coefficient,
     motor_speed,
     nonnegative_int,
     parse_clearances,
@@ -94,9 +95,10 @@ def _coefficient(text: str | None) -> float | None:
     if text is None:
         return None
     try:
-        return parse_quantity(text, "wear_coefficient", bare_unit="1/Pa")
+        value = parse_quantity(text, "wear_coefficient", bare_unit="1/Pa")
     except (QuantityError, KeyError) as exc:
         raise ValueError(f"--wear-coefficient {text!r}: {exc}") from None
+    return check_wear_coefficient(value, "--wear-coefficient", text)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -28,8 +28,8 @@ from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan
 
-__all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "SweepSpec", "parse_axis",
-           "plot_sweep", "run_point", "run_sweep"]
+__all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "SweepSpec", "format_value",
+           "parse_axis", "plot_sweep", "run_point", "run_sweep"]
 
 
 @dataclass(frozen=True)
@@ -232,7 +232,7 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
             run = {"run": len(runs), **{parameter(n).column: v for n, v in point.items()},
                    "realisation": r, "seed": -1 if seed is None else seed}
             runs.append(run)
-            label = " ".join(f"{n}={_format(n, v)}" for n, v in point.items()) + (f" seed={seed}" if seed is not None
+            label = " ".join(f"{n}={format_value(n, v)}" for n, v in point.items()) + (f" seed={seed}" if seed is not None
                                                                                   else "")
             tasks.append(Task(run_point, {"bench": bench, "values": point, "seed": seed, "spec": spec},
                               task_key("sweep-point", part, _apply(bench, point, spec.plan), seed, how), label))
@@ -248,7 +248,8 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
     return SweepResult(pd.DataFrame(rows, columns=columns), failures, time.perf_counter() - t0)
 
 
-def _format(name: str, si: float) -> str:
+def format_value(name: str, si: float) -> str:
+    """A parameter's SI value in its printed unit, e.g. ``0.3mm``."""
     p = parameter(name)
     from wearbench.bench.units import UNITS
 
@@ -283,7 +284,7 @@ def plot_sweep(result: SweepResult, spec: SweepSpec, out: str | Path) -> list[Pa
             for g, gd in groups:
                 agg = gd.groupby(xp.column)["value"].agg(["mean", "min", "max"]).sort_index()
                 x = agg.index.to_numpy() / x_scale
-                label = None if g is None else _format(group_axis.name, g)
+                label = None if g is None else format_value(group_axis.name, g)
                 line, = ax.plot(x, agg["mean"], marker="o", ms=3, label=label)
                 if spec.realisations > 1:
                     ax.fill_between(x, agg["min"], agg["max"], color=line.get_color(), alpha=0.2, lw=0)
