@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import add_force_argument
+from wearbench.cli.options import add_force_argument, check_realisations, positive_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,10 +23,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--candidates", metavar="STATES.toml",
                    help="file of [[state]] tables (name, clearances, wear); default: the [[state]] tables of the "
                         "bench file recorded in the session")
-    p.add_argument("--ensembles", metavar="FILE.npz", help="ensembles saved by 'wearbench ensemble' (no simulation)")
+    p.add_argument("--ensembles", metavar="FILE.npz",
+                   help="ensembles saved by 'wearbench ensemble' (no simulation); refused, with the reason, where "
+                   "their bench, speed or candidates (--candidates, else the session's bench's) do not fit")
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
-    p.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
-    p.add_argument("--ensemble-cycles", type=int, default=8, help="settled cycles per realisation (8)")
+    p.add_argument("--realisations", type=positive_int, default=32, help="ensemble realisations per state (32)")
+    p.add_argument("--ensemble-cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
     add_compute_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write every result as JSON (never over an existing file "
                    "unless --force, never over a session)")
@@ -43,15 +45,15 @@ def run(args: argparse.Namespace) -> int:
     from rich.table import Table
     from wearbench.bench.output_file import check_output, output_file, output_folder
     from wearbench.validation.assess import assess_sessions, write_assessment_report
-    from wearbench.validation.ensemble import EnsembleSettings, load_ensembles
+    from wearbench.validation.ensemble import EnsembleSettings
     from wearbench.validation.identify import IdentifyOptions
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the ensembles are built
             check_output(path, force=args.force, option=option, folder=folder)
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
-    ensembles = load_ensembles(args.ensembles) if args.ensembles else None
-    assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=ensembles,
+    check_realisations(args.realisations)
+    assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
                                options=IdentifyOptions(threshold=args.threshold), **compute_options(args))
     results = [a.identification for a in assessed]
     states = list(results[0].posterior)

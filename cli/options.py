@@ -17,6 +17,7 @@ __all__ = [
     "add_force_argument",
     "check_clearances",
     "check_motor_speed",
+    "check_realisations",
     "check_wear_coefficient",
     "cycle_count",
     "joint_values",
@@ -68,6 +69,16 @@ def nonnegative_number(text: str) -> float:
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: expected a number >= 0")
     return value
+
+
+def check_realisations(count: int, option: str = "--realisations") -> int:
+    """Realisations per state that identification can use (``validation.ensemble.MIN_REALISATIONS``)."""
+    from wearbench.validation.ensemble import MIN_REALISATIONS
+
+    if count < MIN_REALISATIONS:
+        raise ValueError(f"{option} {count}: expected at least {MIN_REALISATIONS} realisations per state "
+                         "(identification fits each state without one realisation at a time)")
+    return count
 
 
 def cycle_count(text: str) -> float:

@@ -24,7 +24,13 @@ from wearbench.validation.compare import (
     compare_session,
     motor_speed,
 )
-from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
+from wearbench.validation.ensemble import (
+    Ensemble,
+    EnsembleSettings,
+    build_ensembles,
+    check_ensembles_fit,
+    load_ensembles,
+)
 from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
 from wearbench.validation.identify import (
@@ -93,16 +99,20 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                     candidates: str | Path | Sequence[WearState] | None = None,
                     settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
                     compare_options: CompareOptions | None = None,
-                    ensembles: Mapping[str, Ensemble] | None = None, scheduler: str | None = None,
+                    ensembles: Mapping[str, Ensemble] | str | Path | None = None, scheduler: str | None = None,
                     workers: int | None = None, progress: str | None = "theory ensembles") -> list[Assessment]:
     """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
 
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
     recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
-    layer and cached; ``ensembles`` ({state: Ensemble}) uses those instead. Defaults: the default
-    ensemble settings, identification options and comparison options.
+    layer and cached; ``ensembles`` ({state: Ensemble}, or a file saved by ``wearbench ensemble``,
+    refused where its bench, speed or candidates do not fit a session) uses those instead. Defaults:
+    the default ensemble settings, identification options and comparison options.
     """
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
+    ensembles_file = None
+    if isinstance(ensembles, (str, Path)):
+        ensembles_file, ensembles = Path(ensembles), load_ensembles(ensembles)
     compare_options = compare_options or CompareOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
     groups: dict[tuple, list[int]] = {}
@@ -113,6 +123,10 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
     out: list[Assessment | None] = [None] * len(loaded)
     for idx in groups.values():
         first = loaded[idx[0]]
+        if ensembles_file is not None:
+            states = _states(first.bench, candidates) if first.bench and (candidates or first.bench.states) else None
+            check_ensembles_fit(ensembles_file, ensembles, bench=first.bench, states=states,
+                                speed=commanded_speed(first), session=first.label)
         ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
                                            speed=commanded_speed(first), settings=settings, scheduler=scheduler,
                                            workers=workers, progress=progress)
