@@ -72,16 +72,17 @@ def run(args: argparse.Namespace) -> int:
             if joint not in clearance_names:
                 raise ValueError(f"--vary {a.name}: {args.bench} has no clearance joint {joint!r}; "
                                  f"it has {clearance_names}")
+        option = f"--vary {a.name}"
         for value in a.values:
-            text = f"{a.name}={format_value(a.name, value)}"
+            text = format_value(a.name, value)
             if a.name == "speed":
-                check_motor_speed(value, "--vary", text, max_speed=bench.motor.max_speed,
+                check_motor_speed(value, option, text, max_speed=bench.motor.max_speed,
                                   source=str(bench.path or bench.name))
             elif a.name == "wear_coefficient":
-                check_wear_coefficient(value, "--vary", text)
+                check_wear_coefficient(value, option, text)
             else:
                 joints = clearance_names if a.name == "clearance" else [a.name.partition(".")[2]]
-                check_clearances(dict.fromkeys(joints, value), bench, "--vary", text)
+                check_clearances(dict.fromkeys(joints, value), bench, option, text)
     spec = SweepSpec(axes=axes, stages=args.wear_stages, realisations=args.realisations, seed=args.seed,
                      plan=plan_from_args(args, bench, max(1, args.wear_stages)), revolutions=args.dyn_revolutions,
                      settle=args.dyn_settle, output_rate=args.output_rate)
