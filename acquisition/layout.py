@@ -265,9 +265,15 @@ def clip_level(full_scale: float, lsb: float | None = None) -> float:
     return float(np.float32(full_scale - lsb)) * (1 - 1e-6)
 
 
+def clipped(samples: np.ndarray, level: float) -> np.ndarray:
+    """Which samples are at or beyond ``level`` (:func:`clip_level`): the one clip rule, used by the
+    recorder, ``recover`` and the identification alike."""
+    return np.abs(np.asarray(samples)) >= level
+
+
 def count_clipped(samples: np.ndarray, level: float) -> int:
     """Samples of a block at or beyond ``level`` (:func:`clip_level`)."""
-    return int(np.count_nonzero(np.abs(samples) >= level)) if len(samples) else 0
+    return int(np.count_nonzero(clipped(samples, level))) if len(samples) else 0
 
 
 @dataclass

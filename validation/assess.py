@@ -10,11 +10,13 @@ the ensembles.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from wearbench.acquisition.layout import clip_level, recorded_clip_level
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands, ensemble_theory
@@ -41,7 +43,7 @@ from wearbench.validation.identify import (
 )
 from wearbench.validation.measured import MeasuredSession, load_session
 
-__all__ = ["Assessment", "assess_sessions", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "session_clip_level", "session_features"]
 
 
 @dataclass
@@ -65,15 +67,22 @@ def _arrays(session: MeasuredSession) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 def session_features(session: MeasuredSession, spec: FeatureSpec | None = None,
                      arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> CycleFeatures:
-    """Cycle features of a measured session; clipped samples counted at the accelerometer's range.
+    """Cycle features of a measured session; clipped samples counted by the recorder's rule at the
+    range the session recorded in its calibration (a session without one: its bench file's range).
     ``arrays``: the session's ``_arrays`` when the caller has them already."""
-    range_ = None
-    if session.bench is not None:
-        try:
-            range_ = session.bench.sensor("accelerometer").range
-        except KeyError:
-            range_ = None
-    return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), range_=range_)
+    return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), clip_level=session_clip_level(session))
+
+
+def session_clip_level(session: MeasuredSession) -> float | None:
+    """|a| from which a sample of ``session`` is clipped (``acquisition.layout.clip_level``) from its
+    recorded calibration (range, LSB), else its bench file's accelerometer range; None if neither."""
+    level = recorded_clip_level(session.metadata.get("calibration", {}))
+    if math.isfinite(level):
+        return level
+    try:
+        return clip_level(session.bench.sensor("accelerometer").range) if session.bench is not None else None
+    except KeyError:
+        return None
 
 
 def commanded_speed(session: MeasuredSession) -> float:

@@ -118,7 +118,6 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
     """
     from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
-
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
