@@ -33,7 +33,9 @@ from wearbench.acquisition.drivers import (
 )
 from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
+    BENCH_FILES,
     Command,
+    bench_files,
     clip_level,
     count_clipped,
     record_crank,
@@ -321,11 +323,14 @@ class Recorder:
             clock.sleep(self.plan.state_interval)
 
     def _surface_attachments(self) -> dict[str, tuple[str, bytes]]:
-        """The worn-surface files the wear state names, embedded so the session is self-contained."""
+        """The worn-surface files the wear state and the bench file name, embedded so the session is
+        self-contained (its bench loads wherever the session is moved)."""
         out = {}
         for joint, state in self.plan.wear.items():
             if Path(state).suffix == ".npz" and Path(state).is_file():
                 out[surface_attachment(joint)] = ("application/x-npz", Path(state).read_bytes())
+        for relative, path in bench_files(self.bench).items():
+            out[BENCH_FILES + relative] = ("application/x-npz", path.read_bytes())
         return out
 
     def _crank_ratio(self) -> float:

@@ -12,7 +12,9 @@ Imports mcap, pandas and the layout; no backend library.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,8 +38,10 @@ from wearbench.acquisition import layout, layout1
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
 from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
+    BENCH_FILES,
     SCHEMAS,
     TOPICS,
+    clipped,
     recorded_clip_level,
     recorded_crank,
     surface_joint,
@@ -255,17 +259,43 @@ def _bench_counts_per_rev(bench: Bench | None) -> float:
         return 0.0
 
 
-def _bench(text: str, meta: dict, path: Path) -> tuple[Bench | None, str | None]:
+def _bench(text: str, meta: dict, path: Path, files: dict[str, bytes]) -> tuple[Bench | None, str | None]:
     """The recorded bench, its relative file names (worn surfaces) taken from where the bench file
-    was when recorded, else from beside the session file; (None, why) if neither works."""
+    was when recorded, else from beside the session file, else from the copies the session carries
+    (``files``, {relative path: bytes}: unpacked once into a folder named by their digest under
+    ``$WEARBENCH_CACHE/sessions``); (None, why) if none works."""
     error = None
-    for where in (meta.get("session", {}).get("bench_path"), f"{path.parent / BENCH_ATTACHMENT}"):
+    for where in (meta.get("session", {}).get("bench_path"), f"{path.parent / BENCH_ATTACHMENT}",
+                  _unpacked(text, files) if files else None):
         if where:
             try:
                 return parse_bench(text, where), None
             except BenchError as exc:
                 error = exc
     return None, f"the recorded bench does not load here: {error}"
+
+
+def _unpacked(text: str, files: dict[str, bytes]) -> str | None:
+    """A folder holding the bench file ``text`` and ``files`` at their relative paths; its bench file's
+    path (None where it cannot be written)."""
+    digest = hashlib.sha256(text.encode())
+    for name in sorted(files):
+        digest.update(name.encode() + b"\0" + hashlib.sha256(files[name]).digest())
+    folder = Path(os.environ.get("WEARBENCH_CACHE", Path.home() / ".cache" / "wearbench"), "sessions",
+                  digest.hexdigest()[:32])
+    try:
+        for name, data in [(BENCH_ATTACHMENT, text.encode()), *files.items()]:
+            target = folder / name
+            if ".." in Path(name).parts or Path(name).is_absolute():
+                continue
+            if not target.exists():
+                target.parent.mkdir(parents=True, exist_ok=True)
+                tmp = target.with_name(f".{target.name}.{os.getpid()}")
+                tmp.write_bytes(data)
+                os.replace(tmp, target)
+    except OSError:
+        return None
+    return str(folder / BENCH_ATTACHMENT)
 
 
 def read_session(path: str | Path) -> Session:
@@ -279,9 +309,10 @@ def read_session(path: str | Path) -> Session:
         raise ValueError(f"{path}: no wearbench session in this file ({scan.problem or 'empty'})")
     meta = scan.metadata
     bench, problem = None, scan.problem
+    files = {a.name[len(BENCH_FILES):]: a.data for a in scan.attachments if a.name.startswith(BENCH_FILES)}
     for a in scan.attachments:
         if a.name == BENCH_ATTACHMENT:
-            bench, bench_problem = _bench(a.data.decode(), meta, path)
+            bench, bench_problem = _bench(a.data.decode(), meta, path, files)
             problem = "; ".join(filter(None, (problem, bench_problem))) or None
     clearances = {k: float(v) for k, v in meta.get("clearance", {}).items()}
     wear_state = dict(meta.get("wear", {}))
@@ -298,7 +329,7 @@ def read_session(path: str | Path) -> Session:
     values = np.concatenate([b.samples for b in acc_blocks]).astype(np.float64) if acc_blocks else np.zeros(0)
     level = recorded_clip_level(calib)
     acceleration = pd.DataFrame({"time": t, "host_time": h, "acc": values, "sequence": seq,
-                                 "clipped": np.abs(values) >= level})
+                                 "clipped": clipped(values, level)})
 
     t, h, seq = _sample_frame(enc_blocks, origin, host_origin)
     crank = recorded_crank(calib, _bench_counts_per_rev(bench))

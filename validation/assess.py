@@ -127,7 +127,8 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
     groups: dict[tuple, list[int]] = {}
     for i, s in enumerate(loaded):
         if s.bench is None and ensembles is None:
-            raise ValueError(f"session {s.label}: no bench file recorded in it; candidate states need one")
+            why = next((p for p in (s.problem or "").split("; ") if "bench" in p), "no bench file recorded in it")
+            raise ValueError(f"session {s.label}: {why}; candidate states need its bench")
         groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
     out: list[Assessment | None] = [None] * len(loaded)
     for idx in groups.values():
