@@ -39,6 +39,7 @@ from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame
 from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
     BENCH_FILES,
+    ENCODING,
     SCHEMAS,
     TOPICS,
     clipped,
@@ -76,6 +77,7 @@ class Scan:
     chunks: int = 0  # complete chunks read
     finished: bool = False  # the footer was reached
     problem: str | None = None  # why the walk ended early, if it did
+    path: Path | None = None  # the file scanned
 
     def topic(self, channel_id: int) -> str:
         return self.channels[channel_id].topic if channel_id in self.channels else f"#{channel_id}"
@@ -100,7 +102,7 @@ def _chunk_records(chunk: Chunk) -> list:
 
 def scan_mcap(path: str | Path) -> Scan:
     """Read every complete record of ``path``; never raises for a truncated or damaged tail."""
-    scan = Scan()
+    scan = Scan(path=Path(path))
     with open(path, "rb") as fh:
         head = fh.read(len(MCAP_MAGIC))
         if head != MCAP_MAGIC:
@@ -163,9 +165,22 @@ class Session:
 
 
 def _messages(scan: Scan, key: str):
-    """(message, codec module) of every message on the topic of ``key``, in file order."""
-    codecs = {cid: layout1 if c.message_encoding == layout1.ENCODING else layout
-              for cid, c in scan.channels.items() if c.topic == TOPICS[key]}
+    """(message, codec module) of every message on the topic of ``key``, in file order. A channel on
+    that topic with another schema (a foreign file reusing the topic) raises one ValueError naming
+    the file, topic and schema."""
+    codecs = {}
+    for cid, c in scan.channels.items():
+        if c.topic != TOPICS[key]:
+            continue
+        schema = scan.schemas.get(c.schema_id)
+        if c.message_encoding == layout1.ENCODING:
+            codecs[cid] = layout1
+        elif c.message_encoding == ENCODING and schema is not None and schema.name == SCHEMAS[key][0]:
+            codecs[cid] = layout
+        else:
+            raise ValueError(f"{scan.path}: {c.topic} is not a wearbench {key} channel (schema "
+                             f"{schema.name if schema else 'none'!r}, encoding {c.message_encoding!r}; expected "
+                             f"{SCHEMAS[key][0]!r}): expected a session recorded by 'wearbench record'")
     return [(m, codecs[m.channel_id]) for m in scan.messages if m.channel_id in codecs]
 
 
@@ -179,7 +194,7 @@ def _decode(scan: Scan, key: str, decode) -> list:
         except Exception as exc:  # noqa: BLE001 - any decoding failure means the same to the user
             channel = scan.channels[m.channel_id]
             schema = scan.schemas.get(channel.schema_id)
-            raise ValueError(f"{channel.topic}: not a wearbench {key} message (schema "
+            raise ValueError(f"{scan.path}: {channel.topic}: not a wearbench {key} message (schema "
                              f"{schema.name if schema else 'none'!r}, encoding {channel.message_encoding!r}; "
                              f"expected {SCHEMAS[key][0]!r}): {type(exc).__name__}: {exc}") from None
     return out

@@ -133,6 +133,9 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 print(f"{command}: interrupted", file=sys.stderr)
             return 130
+        if isinstance(exc, BrokenPipeError):  # the reader left (`wearbench inspect s.mcap | head`): end quietly
+            _silence_stdout()
+            return 0
         if isinstance(exc, (ValueError, OSError, RuntimeError)):  # errors meant for the user: one clear line
             print(f"{command}: error: {exc}", file=sys.stderr)
             return 2
@@ -140,6 +143,16 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if as_program:  # the command is done: a Ctrl-C while the interpreter shuts down changes nothing
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so nothing flushed at exit meets the closed pipe again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
 
 
 def _interrupted(exc: BaseException) -> bool:
