@@ -7,6 +7,7 @@ Each subcommand module defines ``register(subparsers)`` which adds its parser an
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import re
@@ -104,6 +105,7 @@ class _Interrupt:
     @classmethod
     def force_exit(cls) -> None:
         cls.report()
+        _release_process_resources()
         for stream in (sys.stdout, sys.stderr):
             try:
                 stream.flush()
@@ -143,6 +145,16 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if as_program:  # the command is done: a Ctrl-C while the interpreter shuts down changes nothing
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _release_process_resources() -> None:
+    """Before ``os._exit``: run multiprocessing's exit finalizers (priority >= 0: they unlink the named
+    semaphores of a local cluster's process handles), which ``os._exit`` skips, so its resource
+    tracker has nothing left to warn about ("leaked semaphore objects")."""
+    util = sys.modules.get("multiprocessing.util")
+    if util is not None:
+        with contextlib.suppress(Exception):  # best effort on the way out
+            util._run_finalizers(0)
 
 
 def _silence_stdout() -> None:
