@@ -30,7 +30,7 @@ from wearbench.acquisition.layout import (
     recorded_clip_level,
     recorded_crank,
 )
-from wearbench.acquisition.session_file import scan_mcap
+from wearbench.acquisition.session_file import check_session, scan_mcap
 from wearbench.acquisition.session_writer import CHUNK_SIZE, COMPRESSION, PROFILE
 from wearbench.bench.output_file import check_output, output_file
 
@@ -76,6 +76,7 @@ def recover(broken: str | Path, out: str | Path, *, force: bool = False) -> Reco
     scan = scan_mcap(broken)
     if not scan.channels and not scan.messages:
         raise ValueError(f"{broken}: nothing to recover ({scan.problem or 'no channels'})")
+    check_session(scan)
     with output_file(out, force=force, session=True) as tmp, open(tmp, "wb") as fh:
         w = Writer(fh, chunk_size=CHUNK_SIZE, compression=COMPRESSION, index_types=IndexType.ALL,
                    enable_crcs=True, enable_data_crcs=True)

@@ -56,6 +56,7 @@ __all__ = [
     "Scan",
     "Session",
     "blocks",
+    "check_session",
     "events",
     "frames",
     "read_session",
@@ -182,6 +183,16 @@ def _messages(scan: Scan, key: str):
                              f"{schema.name if schema else 'none'!r}, encoding {c.message_encoding!r}; expected "
                              f"{SCHEMAS[key][0]!r}): expected a session recorded by 'wearbench record'")
     return [(m, codecs[m.channel_id]) for m in scan.messages if m.channel_id in codecs]
+
+
+def check_session(scan: Scan) -> None:
+    """Raise one ValueError naming the file unless ``scan`` is of a wearbench session: every channel
+    on a session topic has the session's schema, and it holds the session record or such a channel."""
+    ours = [cid for key in TOPICS for cid in {m.channel_id for m, _ in _messages(scan, key)}]
+    if "session" not in scan.metadata and not ours:
+        raise ValueError(f"{scan.path}: no wearbench session in this file (no session record and no session "
+                         f"channel: topics {sorted({c.topic for c in scan.channels.values()})}); expected a "
+                         "session recorded by 'wearbench record'")
 
 
 def _decode(scan: Scan, key: str, decode) -> list:
