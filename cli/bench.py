@@ -8,12 +8,12 @@ import math
 import shutil
 from pathlib import Path
 
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 from wearbench.bench.load import BENCH_DIR, load_bench, resolve_bench
 from wearbench.bench.schema import Bench
 from wearbench.cli.options import add_force_argument
+from wearbench.cli.progress import console as table_console
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -80,7 +80,7 @@ def _copy(args: argparse.Namespace) -> int:
 
 def _show(args: argparse.Namespace) -> int:
     bench: Bench = load_bench(resolve_bench(args.file))
-    console = Console()
+    console = table_console()
     console.print(f"[bold]{bench.name}[/bold]: {bench.description}")
     console.print(f"motor speed {bench.speed:.4g} rad/s ({bench.speed * 30 / math.pi:.4g} rpm), "
                   f"backend {bench.hardware.backend}")

@@ -41,9 +41,9 @@ def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from rich.console import Console
     from rich.table import Table
     from wearbench.bench.output_file import check_output, output_file, output_folder
+    from wearbench.cli.progress import console as progress_console
     from wearbench.validation.assess import assess_sessions, write_assessment_report
     from wearbench.validation.ensemble import EnsembleSettings
     from wearbench.validation.identify import IdentifyOptions
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         needed = f" (about {r.cycles_needed} cycles would decide)" if r.verdict == "undecided" and r.cycles_needed else ""
         table.add_row(r.session, str(r.cycles), *(f"{r.posterior[s]:.3f}" for s in states), r.verdict + needed,
                       ", ".join(s for s in states if r.explains[s]) or "none")
-    console = Console()
+    console = progress_console()
     console.print(table)
     for r in results:
         for note in r.notes:

@@ -17,15 +17,15 @@ from wearbench.validation.ensemble import Ensemble, EnsembleSettings, ensembles_
 
 from ..acquisition.conftest import FAST, HARMONIC
 
-SETTINGS = EnsembleSettings(realisations=4, cycles=2)
+SETTINGS = EnsembleSettings(realisations=4, cycles=5)
 
 
 def _ensembles(bench, speed, realisations=4):
     """Stand-in ensembles (the refusals come before any use of their numbers)."""
     rng = np.random.default_rng(0)
-    p = SETTINGS.features.size
-    return {s.name: Ensemble(s.name, SETTINGS, rng.normal(size=(realisations, 2, p)),
-                             rng.normal(size=(realisations, 2, 720)), rng.normal(size=(realisations, 2)), speed)
+    p, c = SETTINGS.features.size, SETTINGS.cycles
+    return {s.name: Ensemble(s.name, SETTINGS, rng.normal(size=(realisations, c, p)),
+                             rng.normal(size=(realisations, c, 720)), rng.normal(size=(realisations, c)), speed)
             for s in bench.states}
 
 
@@ -103,3 +103,27 @@ def test_a_candidate_surface_that_is_no_npz_fails_before_any_realisation(tmp_pat
     assert main(["ensemble", "ninebar-testbed", "--candidates", str(states), "--out", str(tmp_path / "e.npz")]) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert "candidate state 'worn', joint A" in err and "not an .npz archive" in err and "pickle" not in err
+
+
+def test_off_a_terminal_progress_is_lines_and_the_table_is_whole(session, tmp_path):
+    """Issue 25, item 12: off a terminal identify was silent for minutes while it built ensembles
+    and cut its verdict table to 80 columns ("undeci...")."""
+    import subprocess
+    import sys
+
+    testbed = load_bench(shipped_bench("ninebar-testbed"))
+    fits = _save(testbed, FAST, tmp_path / "fits.npz")
+    r = subprocess.run([sys.executable, "-m", "wearbench.cli", "identify", str(session), "--ensembles", str(fits)],
+                       capture_output=True, text=True, timeout=300, check=False)
+    assert r.returncode == 0, r.stderr
+    rows = [line for line in r.stdout.splitlines() if line.lstrip("│ ").startswith("s ")]
+    assert rows and all("…" not in line for line in r.stdout.splitlines()), r.stdout
+    assert any(v in rows[0] for v in ("undecided", "none of the candidates", *(s.name for s in testbed.states)))
+    assert max(len(line) for line in r.stdout.splitlines()) > 80  # laid out in full, not cut
+    r = subprocess.run([sys.executable, "-m", "wearbench.cli", "ensemble", "ninebar-testbed", "--realisations", "4",
+                        "--cycles", "2", "--workers", "0", "--out", str(tmp_path / "e.npz")],
+                       capture_output=True, text=True, timeout=900, check=False)
+    assert r.returncode == 0, r.stderr
+    lines = [x for x in r.stderr.splitlines() if x.startswith("theory ensembles")]
+    assert lines[0].startswith("theory ensembles: started") and lines[-1].startswith("theory ensembles: 16/16")
+    assert 3 <= len(lines) <= 12, lines  # a line per tenth, not one per redraw
