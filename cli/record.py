@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from wearbench.bench.schema import BACKENDS
 from wearbench.cli.options import (
@@ -90,14 +91,19 @@ def run(args: argparse.Namespace) -> int:
              if args.speed else bench.speed)
     clearances = parse_clearances(args.clearance, bench)
     wear = joint_values(args.wear, "--wear", [j.name for j in bench.clearance_joints])
-    for joint, state in wear.items():  # read as the analysis reads it back; a file it names travels in the session
-        from wearbench.validation.theory import resolve_surfaces
+    for joint, state in wear.items():  # what the analysis reads back: 'new' or a file (it travels in the session)
+        from wearbench.model.surfaces import JointSurfaces
+        from wearbench.validation.theory import UNWORN
 
+        expected = "expected 'new' or a worn-surface .npz file (written by 'wearbench wear')"
+        if state.lower() in UNWORN:
+            continue
+        if Path(state).suffix != ".npz":
+            raise ValueError(f"--wear {joint}={state}: neither 'new' nor a worn-surface file; {expected}")
         try:
-            resolve_surfaces({joint: state})
+            JointSurfaces.load(state)
         except (OSError, ValueError) as exc:
-            raise ValueError(f"--wear {joint}={state}: {exc}; expected 'new' or a worn-surface .npz file "
-                             "(written by 'wearbench wear')") from None
+            raise ValueError(f"--wear {joint}={state}: {exc}; {expected}") from None
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,

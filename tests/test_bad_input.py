@@ -132,7 +132,7 @@ def test_a_swept_speed_goes_through_the_same_check(tmp_path, capsys):
     (["simulate", "ninebar", "--clearance", "-0.1mm"], ["--clearance '-0.1mm'", "bearing radius"]),
     (["wear", "ninebar", "--clearance", "A=90mm", "--out", "w"], ["--clearance 'A=90mm'", "bearing radius"]),
     (["wear", "ninebar", "--wear-coefficient", "-5e-14", "--out", "w"], ["--wear-coefficient '-5e-14'", ">= 0"]),
-    ([*RECORD, "s.mcap", "--cycles", "2", "--wear", "A=worn"], ["--wear A=worn", "neither 'new' nor"]),
+    ([*RECORD, "s.mcap", "--cycles", "2", "--wear", "A=worn"], ["--wear A=worn", "neither 'new' nor a worn-surface file"]),
     ([*RECORD, "s.mcap", "--cycles", "2", "--clearance", "A=0mm"], ["--clearance 'A=0mm'", "bearing radius"]),
     (["ensemble", "ninebar-testbed", "--realisations", "3", "--out", "e.npz"], ["--realisations 3", "at least 4"]),
 ])
