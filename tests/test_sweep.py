@@ -82,19 +82,33 @@ def test_a_failed_run_is_named_with_its_parameters_and_hides_nothing(bench):
     assert res.failures_table()["clearance_m"].tolist() == [2 * bearing]
 
 
-def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys):
+def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys, monkeypatch):
+    from wearbench.model import sweep
+
     out = tmp_path / "sweep"
-    rc = main(["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance=0.2mm,20mm",
-               "--vary", "speed=-4000rpm", "--dyn-revolutions", "0.5", "--dyn-settle", "0.25",
-               "--output-rate", "2000", "--workers", "0", "--out", str(out)])
+    args = ["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance=0.2mm,20mm", "--vary", "speed=-4000rpm",
+            "--dyn-revolutions", "0.5", "--dyn-settle", "0.25", "--output-rate", "2000", "--workers", "0",
+            "--out", str(out)]
+    assert main(args) == 2  # a clearance beyond the bearing is refused before any run
+    assert "--vary clearance '20mm'" in capsys.readouterr().err and not out.exists()
+    real = sweep.run_point
+
+    def fails_at_half_a_millimetre(bench, values, seed, spec):
+        if values["clearance"] > 0.4e-3:
+            raise ValueError("contact at S: penetration beyond the bearing radius")
+        return real(bench, values, seed, spec)
+
+    monkeypatch.setattr(sweep, "run_point", fails_at_half_a_millimetre)
+    args[3] = "clearance=0.2mm,0.5mm"
+    rc = main(args)
     assert rc == 1  # one run failed; the rest is written
     err = capsys.readouterr().err
-    assert "failed: clearance=20mm speed=-418.9rad/s" in err and "bearing radius" in err
+    assert "failed: clearance=0.5mm speed=-418.9rad/s" in err and "bearing radius" in err
     df = pd.read_parquet(out / "sweep.parquet")
     assert list(df.columns) == ["run", "clearance_m", "speed_rad_s", "realisation", "seed", "state", "statistic",
                                 "value", "unit"]
     assert set(df["run"]) == {0}
-    assert pd.read_csv(out / "failures.csv")["clearance_m"].tolist() == [0.02]
+    assert pd.read_csv(out / "failures.csv")["clearance_m"].tolist() == [0.0005]
     summary = json.loads((out / "sweep.json").read_text())
     assert summary["runs"] == 2 and summary["failed"] == 1
     assert {p.name for p in (out / "plots").glob("*.png")} == {"peak_slider_acc.png", "rms_slider_acc.png",
