@@ -170,6 +170,9 @@ class ProgressLines:
         if (step and t["completed"] >= t["said"] + step) or now - t["said_at"] >= self.every:
             self._say(t)
 
+    def advance(self, task: int, advance: float = 1) -> None:
+        self.update(task, advance=advance)
+
     def _say(self, t: dict, state: str = "") -> None:
         t["said"], t["said_at"] = t["completed"], time.monotonic()
         total = f"/{t['total']:g}" if t["total"] else ""
