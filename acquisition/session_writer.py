@@ -22,8 +22,8 @@
   that exists is refused (``FileExistsError``) unless ``replace=True``, and then the new session is
   written beside it (``NAME.new``) and renamed over the old file only when finished with
   ``finish(replace=True)`` (the recorder: when the session completed its target), so the old file
-  stays whole until then. One writer per
-  path: an exclusive ``flock`` on ``.NAME.lock`` beside it (released by the OS if the process dies).
+  stays whole until then. One writer per path: an exclusive ``flock`` on ``.NAME.lock`` beside it
+  (released by the OS if the process dies).
 - A live view (``live``, see ``acquisition.live``) is offered every message after it went to the
   file; it never blocks and never fails the writer.
 
@@ -62,8 +62,7 @@ from wearbench.acquisition.layout import (
 from wearbench.bench.output_file import check_output
 
 __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "SUMMARY_PER_WRITE", "DurableFile",
-           "NotEnoughSpace",
-           "SessionWriter", "ballast_bytes", "check_free_space", "leftover_message", "lock_session_path",
+           "NotEnoughSpace", "SessionWriter", "ballast_bytes", "check_free_space", "leftover_message", "lock_session_path",
            "unlock_session_path"]
 
 PROFILE = "wearbench-session"
