@@ -51,8 +51,7 @@ def run(args: argparse.Namespace) -> int:
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the ensembles are built
             check_output(path, force=args.force, option=option, folder=folder)
-    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
-    check_realisations(args.realisations)
+    settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.ensemble_cycles)
     assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
                                options=IdentifyOptions(threshold=args.threshold), **compute_options(args))
     results = [a.identification for a in assessed]
