@@ -58,14 +58,17 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BENCH_ATTACHMENT",
+    "BENCH_FILES",
     "ENCODING",
     "METADATA",
     "SCHEMAS",
     "TOPICS",
     "Command",
     "CrankAngle",
+    "bench_files",
     "calibration_number",
     "clip_level",
+    "clipped",
     "count_clipped",
     "decode_block",
     "decode_command",
@@ -112,6 +115,27 @@ def surface_attachment(joint: str) -> str:
 def surface_joint(name: str) -> str | None:
     """The joint of a worn-surface attachment ``name`` (None for another attachment)."""
     return name[5:-4] if name.startswith("wear/") and name.endswith(".npz") else None
+
+
+BENCH_FILES = "bench/"  # attachment prefix of the files the bench file names by a relative path
+
+
+def bench_files(bench: Bench) -> dict[str, Path]:
+    """The files ``bench`` names by a path relative to its bench file (worn surfaces of its clearance
+    joints and of its [[state]]s), {relative posix path: file}; a session carries them as attachments
+    ``BENCH_FILES + relative path`` so its bench loads wherever the session is."""
+    if bench.path is None:
+        return {}
+    folder = Path(bench.path).resolve().parent
+    named = [j.clearance.surfaces for j in bench.joints if j.clearance is not None and j.clearance.surfaces]
+    named += [p for s in bench.states for p in s.surfaces.values()]
+    out = {}
+    for p in named:
+        try:
+            out[Path(p).resolve().relative_to(folder).as_posix()] = Path(p)
+        except ValueError:  # outside the bench file's folder: named by an absolute path
+            pass
+    return out
 
 
 def session_records(bench: Bench, plan: SessionPlan, backend: str, info: Mapping[str, str],
@@ -270,9 +294,15 @@ def clip_level(full_scale: float, lsb: float | None = None) -> float:
     return float(np.float32(full_scale - lsb)) * (1 - 1e-6)
 
 
+def clipped(samples: np.ndarray, level: float) -> np.ndarray:
+    """Which samples are at or beyond ``level`` (:func:`clip_level`): the one clip rule, used by the
+    recorder, ``recover`` and the identification alike."""
+    return np.abs(np.asarray(samples)) >= level
+
+
 def count_clipped(samples: np.ndarray, level: float) -> int:
     """Samples of a block at or beyond ``level`` (:func:`clip_level`)."""
-    return int(np.count_nonzero(np.abs(samples) >= level)) if len(samples) else 0
+    return int(np.count_nonzero(clipped(samples, level))) if len(samples) else 0
 
 
 @dataclass

@@ -35,7 +35,9 @@ from wearbench.acquisition.drivers import (
 )
 from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
+    BENCH_FILES,
     Command,
+    bench_files,
     clip_level,
     count_clipped,
     record_crank,
@@ -232,8 +234,11 @@ class Recorder:
         what = "disk full" if exc.errno == errno.ENOSPC else "writing the session failed"
         self.stop(f"{what}: {exc}", "error")
         freed = self.writer.release_ballast()
-        self._post(Event("error", f"{what}; {'released the ballast file and ' if freed else ''}"
-                         "finishing the file with what was recorded", device_time=self._device_now))
+        room = getattr(self.writer, "room", 0)
+        how = ("released the ballast file and " if freed else
+               f"in the {room / 1024:.0f} KiB reserved inside the file: " if room else "")
+        self._post(Event("error", f"{what}; {how}finishing the file with what was recorded",
+                         device_time=self._device_now))
 
     def _writer_loop(self) -> None:
         try:
@@ -327,11 +332,14 @@ class Recorder:
             clock.sleep(self.plan.state_interval)
 
     def _surface_attachments(self) -> dict[str, tuple[str, bytes]]:
-        """The worn-surface files the wear state names, embedded so the session is self-contained."""
+        """The worn-surface files the wear state and the bench file name, embedded so the session is
+        self-contained (its bench loads wherever the session is moved)."""
         out = {}
         for joint, state in self.plan.wear.items():
             if Path(state).suffix == ".npz" and Path(state).is_file():
                 out[surface_attachment(joint)] = ("application/x-npz", Path(state).read_bytes())
+        for relative, path in bench_files(self.bench).items():
+            out[BENCH_FILES + relative] = ("application/x-npz", path.read_bytes())
         return out
 
     def _crank_ratio(self) -> float:
@@ -505,8 +513,8 @@ class Recorder:
         except OSError:
             pass  # accepted, as above
         for attempt in range(_FINISH_TRIES):  # space may come back (the ballast, another process)
-            try:  # a session that recorded nothing (a failed start) never replaces an existing file
-                w.finish(replace=r.samples.get(ACCELERATION, 0) > 0)
+            try:  # a forced session replaces the old file only when it recorded its whole target
+                w.finish(replace=r.completed)
                 r.path = w.path
                 return r
             except OSError as exc:

@@ -30,8 +30,9 @@ from wearbench.acquisition.layout import (
     recorded_clip_level,
     recorded_crank,
 )
-from wearbench.acquisition.session_file import scan_mcap
+from wearbench.acquisition.session_file import check_session, scan_mcap
 from wearbench.acquisition.session_writer import CHUNK_SIZE, COMPRESSION, PROFILE
+from wearbench.bench.output_file import check_output, output_file
 
 __all__ = ["RecoveryReport", "recover"]
 
@@ -65,15 +66,18 @@ def _upgraders(calibration: dict[str, str]) -> dict[str, Callable[[bytes], bytes
             "events": lambda data: layout.encode_event(layout1.decode_event(data))}
 
 
-def recover(broken: str | Path, out: str | Path) -> RecoveryReport:
-    """Write every complete record of ``broken`` into a finished MCAP at ``out``."""
+def recover(broken: str | Path, out: str | Path, *, force: bool = False) -> RecoveryReport:
+    """Write every complete record of ``broken`` into a finished MCAP at ``out`` (an existing ``out``
+    only with ``force``, by the output-file policy: written beside it, renamed when complete)."""
     broken, out = Path(broken), Path(out)
     if broken.resolve() == out.resolve():
         raise ValueError(f"{out}: recover writes a new file; give an --out other than the input")
+    check_output(out, force=force, session=True)
     scan = scan_mcap(broken)
     if not scan.channels and not scan.messages:
         raise ValueError(f"{broken}: nothing to recover ({scan.problem or 'no channels'})")
-    with open(out, "wb") as fh:
+    check_session(scan)
+    with output_file(out, force=force, session=True) as tmp, open(tmp, "wb") as fh:
         w = Writer(fh, chunk_size=CHUNK_SIZE, compression=COMPRESSION, index_types=IndexType.ALL,
                    enable_crcs=True, enable_data_crcs=True)
         w.start(profile=PROFILE, library="wearbench recover")
@@ -103,7 +107,12 @@ def recover(broken: str | Path, out: str | Path) -> RecoveryReport:
             if m.channel_id in channel_ids:
                 data, publish = m.data, m.publish_time
                 if m.channel_id in convert:
-                    data = convert[m.channel_id](m.data)
+                    try:
+                        data = convert[m.channel_id](m.data)
+                    except Exception as exc:  # noqa: BLE001 - another tool's JSON on a session topic
+                        raise ValueError(f"{broken}: a message on {scan.channels[m.channel_id].topic} is not a "
+                                         f"wearbench session message ({type(exc).__name__}: {exc}); expected a "
+                                         "session recorded by 'wearbench record'") from None
                     if scan.channels[m.channel_id].topic == TOPICS["events"]:  # layout 1: 0 for none
                         publish = publish_time(layout1.decode_event(m.data).device_time, m.log_time)
                 w.add_message(channel_ids[m.channel_id], m.log_time, data, publish, m.sequence)

@@ -12,7 +12,9 @@ Imports mcap, pandas and the layout; no backend library.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,20 +38,25 @@ from wearbench.acquisition import layout, layout1
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
 from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
+    BENCH_FILES,
+    ENCODING,
     SCHEMAS,
     TOPICS,
+    clipped,
     recorded_clip_level,
     recorded_crank,
     surface_joint,
 )
 from wearbench.acquisition.sequence import SequenceCheck
 from wearbench.bench.load import parse_bench
+from wearbench.bench.output_file import MCAP_MAGIC
 from wearbench.bench.schema import Bench, BenchError
 
 __all__ = [
     "Scan",
     "Session",
     "blocks",
+    "check_session",
     "events",
     "frames",
     "read_session",
@@ -57,7 +64,6 @@ __all__ = [
     "states",
 ]
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"  # the first bytes of every MCAP file
 
 
 @dataclass
@@ -72,6 +78,7 @@ class Scan:
     chunks: int = 0  # complete chunks read
     finished: bool = False  # the footer was reached
     problem: str | None = None  # why the walk ended early, if it did
+    path: Path | None = None  # the file scanned
 
     def topic(self, channel_id: int) -> str:
         return self.channels[channel_id].topic if channel_id in self.channels else f"#{channel_id}"
@@ -96,7 +103,7 @@ def _chunk_records(chunk: Chunk) -> list:
 
 def scan_mcap(path: str | Path) -> Scan:
     """Read every complete record of ``path``; never raises for a truncated or damaged tail."""
-    scan = Scan()
+    scan = Scan(path=Path(path))
     with open(path, "rb") as fh:
         head = fh.read(len(MCAP_MAGIC))
         if head != MCAP_MAGIC:
@@ -159,10 +166,33 @@ class Session:
 
 
 def _messages(scan: Scan, key: str):
-    """(message, codec module) of every message on the topic of ``key``, in file order."""
-    codecs = {cid: layout1 if c.message_encoding == layout1.ENCODING else layout
-              for cid, c in scan.channels.items() if c.topic == TOPICS[key]}
+    """(message, codec module) of every message on the topic of ``key``, in file order. A channel on
+    that topic with another schema (a foreign file reusing the topic) raises one ValueError naming
+    the file, topic and schema."""
+    codecs = {}
+    for cid, c in scan.channels.items():
+        if c.topic != TOPICS[key]:
+            continue
+        schema = scan.schemas.get(c.schema_id)
+        if c.message_encoding == layout1.ENCODING:
+            codecs[cid] = layout1
+        elif c.message_encoding == ENCODING and schema is not None and schema.name == SCHEMAS[key][0]:
+            codecs[cid] = layout
+        else:
+            raise ValueError(f"{scan.path}: {c.topic} is not a wearbench {key} channel (schema "
+                             f"{schema.name if schema else 'none'!r}, encoding {c.message_encoding!r}; expected "
+                             f"{SCHEMAS[key][0]!r}): expected a session recorded by 'wearbench record'")
     return [(m, codecs[m.channel_id]) for m in scan.messages if m.channel_id in codecs]
+
+
+def check_session(scan: Scan) -> None:
+    """Raise one ValueError naming the file unless ``scan`` is of a wearbench session: every channel
+    on a session topic has the session's schema, and it holds the session record or such a channel."""
+    ours = [cid for key in TOPICS for cid in {m.channel_id for m, _ in _messages(scan, key)}]
+    if "session" not in scan.metadata and not ours:
+        raise ValueError(f"{scan.path}: no wearbench session in this file (no session record and no session "
+                         f"channel: topics {sorted({c.topic for c in scan.channels.values()})}); expected a "
+                         "session recorded by 'wearbench record'")
 
 
 def _decode(scan: Scan, key: str, decode) -> list:
@@ -175,7 +205,7 @@ def _decode(scan: Scan, key: str, decode) -> list:
         except Exception as exc:  # noqa: BLE001 - any decoding failure means the same to the user
             channel = scan.channels[m.channel_id]
             schema = scan.schemas.get(channel.schema_id)
-            raise ValueError(f"{channel.topic}: not a wearbench {key} message (schema "
+            raise ValueError(f"{scan.path}: {channel.topic}: not a wearbench {key} message (schema "
                              f"{schema.name if schema else 'none'!r}, encoding {channel.message_encoding!r}; "
                              f"expected {SCHEMAS[key][0]!r}): {type(exc).__name__}: {exc}") from None
     return out
@@ -255,17 +285,43 @@ def _bench_counts_per_rev(bench: Bench | None) -> float:
         return 0.0
 
 
-def _bench(text: str, meta: dict, path: Path) -> tuple[Bench | None, str | None]:
+def _bench(text: str, meta: dict, path: Path, files: dict[str, bytes]) -> tuple[Bench | None, str | None]:
     """The recorded bench, its relative file names (worn surfaces) taken from where the bench file
-    was when recorded, else from beside the session file; (None, why) if neither works."""
+    was when recorded, else from beside the session file, else from the copies the session carries
+    (``files``, {relative path: bytes}: unpacked once into a folder named by their digest under
+    ``$WEARBENCH_CACHE/sessions``); (None, why) if none works."""
     error = None
-    for where in (meta.get("session", {}).get("bench_path"), f"{path.parent / BENCH_ATTACHMENT}"):
+    for where in (meta.get("session", {}).get("bench_path"), f"{path.parent / BENCH_ATTACHMENT}",
+                  _unpacked(text, files) if files else None):
         if where:
             try:
                 return parse_bench(text, where), None
             except BenchError as exc:
                 error = exc
     return None, f"the recorded bench does not load here: {error}"
+
+
+def _unpacked(text: str, files: dict[str, bytes]) -> str | None:
+    """A folder holding the bench file ``text`` and ``files`` at their relative paths; its bench file's
+    path (None where it cannot be written)."""
+    digest = hashlib.sha256(text.encode())
+    for name in sorted(files):
+        digest.update(name.encode() + b"\0" + hashlib.sha256(files[name]).digest())
+    folder = Path(os.environ.get("WEARBENCH_CACHE", Path.home() / ".cache" / "wearbench"), "sessions",
+                  digest.hexdigest()[:32])
+    try:
+        for name, data in [(BENCH_ATTACHMENT, text.encode()), *files.items()]:
+            target = folder / name
+            if ".." in Path(name).parts or Path(name).is_absolute():
+                continue
+            if not target.exists():
+                target.parent.mkdir(parents=True, exist_ok=True)
+                tmp = target.with_name(f".{target.name}.{os.getpid()}")
+                tmp.write_bytes(data)
+                os.replace(tmp, target)
+    except OSError:
+        return None
+    return str(folder / BENCH_ATTACHMENT)
 
 
 def read_session(path: str | Path) -> Session:
@@ -279,9 +335,10 @@ def read_session(path: str | Path) -> Session:
         raise ValueError(f"{path}: no wearbench session in this file ({scan.problem or 'empty'})")
     meta = scan.metadata
     bench, problem = None, scan.problem
+    files = {a.name[len(BENCH_FILES):]: a.data for a in scan.attachments if a.name.startswith(BENCH_FILES)}
     for a in scan.attachments:
         if a.name == BENCH_ATTACHMENT:
-            bench, bench_problem = _bench(a.data.decode(), meta, path)
+            bench, bench_problem = _bench(a.data.decode(), meta, path, files)
             problem = "; ".join(filter(None, (problem, bench_problem))) or None
     clearances = {k: float(v) for k, v in meta.get("clearance", {}).items()}
     wear_state = dict(meta.get("wear", {}))
@@ -298,7 +355,7 @@ def read_session(path: str | Path) -> Session:
     values = np.concatenate([b.samples for b in acc_blocks]).astype(np.float64) if acc_blocks else np.zeros(0)
     level = recorded_clip_level(calib)
     acceleration = pd.DataFrame({"time": t, "host_time": h, "acc": values, "sequence": seq,
-                                 "clipped": np.abs(values) >= level})
+                                 "clipped": clipped(values, level)})
 
     t, h, seq = _sample_frame(enc_blocks, origin, host_origin)
     crank = recorded_crank(calib, _bench_counts_per_rev(bench))

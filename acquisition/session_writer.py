@@ -5,18 +5,25 @@
   at least every ``flush_interval`` seconds and handed to the OS, so a process killed outright loses
   at most that much (``wearbench recover`` restores the rest). Chunk and data-section CRCs are on.
 - Metadata and the bench file go in first, so even a killed session says what it was.
-- Disk space: a session refuses to start with less than ``MIN_FREE_BYTES`` free; a ballast file of
-  an eighth of the free space (64 KiB to 4 MiB) is set aside at the start and given back when a
-  write fails. It leaves room for what waits when the disk fills: the chunk in progress (chunks are
-  capped at half the ballast), the recorder's queue (capped at a quarter, see ``Recorder``), and
-  the summary and footer.
+- Disk space: a session refuses to start with less than ``MIN_FREE_BYTES`` free, and keeps room for
+  its own end reserved *inside the session file*, beyond its end (``fallocate`` with
+  ``FALLOC_FL_KEEP_SIZE``: the blocks are the file's, so another program filling the disk cannot
+  take them): an eighth of the free space at the start (64 KiB to 4 MiB) plus ``SUMMARY_PER_WRITE``
+  bytes per write for the summary's chunk index. The room is renewed after every write; when it
+  cannot be (the disk is full), the write reports ``ENOSPC`` and the session stops, and what waits
+  (the chunk in progress, capped at half the room; the recorder's queue, capped at a quarter, see
+  ``Recorder``; the result record, summary and footer) is written into the room. Where the
+  filesystem cannot reserve that way, a ballast file of the same size is set aside beside the
+  session and deleted when a write fails.
 - Writes go through :class:`DurableFile`, which never leaves half a record behind: a failed
   write (a full disk) is cut back to the last whole record and kept in memory until it can be
   written, so the file can still be finished once space is back.
-- A session never silently replaces a file: a path that exists is refused (``FileExistsError``)
-  unless ``replace=True``, and then the new session is written beside it (``NAME.new``) and renamed
-  over the old file only when finished, so the old file stays whole until then. One writer per
-  path: an exclusive ``flock`` on ``.NAME.lock`` beside it (released by the OS if the process dies).
+- A session never silently replaces a file (the output-file policy, ``bench.output_file``): a path
+  that exists is refused (``FileExistsError``) unless ``replace=True``, and then the new session is
+  written beside it (``NAME.new``) and renamed over the old file only when finished with
+  ``finish(replace=True)`` (the recorder: when the session completed its target), so the old file
+  stays whole until then. One writer per path: an exclusive ``flock`` on ``.NAME.lock`` beside it
+  (released by the OS if the process dies).
 - A live view (``live``, see ``acquisition.live``) is offered every message after it went to the
   file; it never blocks and never fails the writer.
 
@@ -25,6 +32,7 @@ Imports mcap and the layout; no backend library.
 
 from __future__ import annotations
 
+import ctypes
 import errno
 import fcntl
 import io
@@ -51,9 +59,10 @@ from wearbench.acquisition.layout import (
     ns,
     publish_time,
 )
+from wearbench.bench.output_file import check_output
 
-__all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "DurableFile", "NotEnoughSpace",
-           "SessionWriter", "ballast_bytes", "check_free_space", "leftover_message", "lock_session_path",
+__all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "SUMMARY_PER_WRITE", "DurableFile",
+           "NotEnoughSpace", "SessionWriter", "ballast_bytes", "check_free_space", "leftover_message", "lock_session_path",
            "unlock_session_path"]
 
 PROFILE = "wearbench-session"
@@ -64,6 +73,28 @@ PROFILE = "wearbench-session"
 CHUNK_SIZE = 256 << 10
 COMPRESSION = CompressionType.ZSTD
 MIN_FREE_BYTES = 1 << 20
+SUMMARY_PER_WRITE = 256  # bytes of summary kept reserved per write (a chunk index is about 170 B)
+_FALLOC_FL_KEEP_SIZE = 1
+
+
+def _keep_size_fallocate():
+    """``fallocate(fd, FALLOC_FL_KEEP_SIZE, offset, length)`` from the C library (Linux), or None."""
+    try:
+        fallocate = ctypes.CDLL(None, use_errno=True).fallocate
+    except (OSError, AttributeError):
+        return None
+    fallocate.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int64, ctypes.c_int64]
+    fallocate.restype = ctypes.c_int
+
+    def reserve(fd: int, offset: int, length: int) -> None:
+        if fallocate(fd, _FALLOC_FL_KEEP_SIZE, offset, length) != 0:
+            code = ctypes.get_errno()
+            raise OSError(code, os.strerror(code))
+
+    return reserve
+
+
+_reserve_blocks = _keep_size_fallocate()
 
 
 def ballast_bytes(free: int) -> int:
@@ -148,6 +179,36 @@ class DurableFile:
         self._backlog = bytearray()
         self.error: OSError | None = None
         self.closed = False
+        self._room = 0  # bytes kept reserved beyond the end (see keep_room)
+        self._writes = 0
+        self._room_lost = False
+
+    def keep_room(self, size: int) -> bool:
+        """Keep ``size`` bytes (plus ``SUMMARY_PER_WRITE`` per write so far) reserved in the file beyond
+        its end, renewed after every write; False (nothing reserved) where the filesystem cannot."""
+        if _reserve_blocks is None:
+            return False
+        try:
+            _reserve_blocks(self.fileno(), self._good, size)
+        except (OSError, ValueError, io.UnsupportedOperation):
+            return False
+        self._room = size
+        return True
+
+    @property
+    def room(self) -> int:
+        """Bytes kept reserved beyond the end (0: none)."""
+        return self._room + SUMMARY_PER_WRITE * self._writes if self._room else 0
+
+    def _renew_room(self) -> None:
+        """Reserve the room again from the new end; a full disk is reported once (``error``)."""
+        try:
+            _reserve_blocks(self.fileno(), self._good, self.room)
+        except OSError as exc:
+            if not self._room_lost:
+                self._room_lost = True
+                self.error = OSError(exc.errno, f"{exc.strerror}: the room reserved for the end of the "
+                                     "session file cannot be renewed; the session stops and ends in that room")
 
     def _write_all(self, data) -> None:
         view = memoryview(data).cast("B")
@@ -161,11 +222,15 @@ class DurableFile:
         except OSError:
             try:
                 self._raw.seek(self._good)
-                self._raw.truncate(self._good)
+                if not self._room:  # cutting the file would give the reserved room away
+                    self._raw.truncate(self._good)
             except OSError:
                 pass
             raise
         self._good += done
+        self._writes += 1
+        if self._room:
+            self._renew_room()
 
     def write(self, data) -> int:
         with memoryview(data) as view:
@@ -200,6 +265,11 @@ class DurableFile:
     def close(self) -> None:
         if not self.closed:
             self.closed = True
+            if self._room:  # give the room (and any torn tail) back
+                try:
+                    self._raw.truncate(self._good)
+                except OSError:
+                    pass
             self._raw.close()
 
 
@@ -237,17 +307,20 @@ class SessionWriter:
                     raw = open(self.path, "xb", buffering=0)  # noqa: SIM115 - closed by finish()
             except FileExistsError:
                 self._unlock()
-                raise FileExistsError(errno.EEXIST, "a file already exists there; it is never replaced "
-                                      "silently (replace it explicitly, e.g. record --force)", str(self.path)) from None
+                check_output(self.path, option="session file", session=True)  # raises the policy's one line
+                raise
             except BaseException:
                 self._unlock()
                 raise
-            if ballast:
-                self._ballast = self.path.with_name(self.path.name + ".ballast")
-                self.reserve = self._set_aside(self._ballast, ballast_bytes(free))
         else:
             self.path, raw = None, out
         self._file = DurableFile(raw)
+        if ballast and self.path is not None:
+            if self._file.keep_room(ballast_bytes(free)):
+                self.reserve = ballast_bytes(free)
+            else:
+                self._ballast = self.path.with_name(self.path.name + ".ballast")
+                self.reserve = self._set_aside(self._ballast, ballast_bytes(free))
         if chunk_size is None:  # a chunk that fails to write must fit in the ballast
             chunk_size = min(CHUNK_SIZE, self.reserve // 2) if self.reserve else CHUNK_SIZE
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=compression,
@@ -344,6 +417,11 @@ class SessionWriter:
         self._writer.flush()
         self._last_flush = time.monotonic()
         self._raise()
+
+    @property
+    def room(self) -> int:
+        """Bytes reserved inside the session file for its end (0: none, or a ballast file instead)."""
+        return self._file.room
 
     def release_ballast(self) -> bool:
         """Delete the ballast file (after a full disk); True if there was one."""

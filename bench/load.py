@@ -504,6 +504,8 @@ def load_states(path: str | Path, bench: Bench) -> tuple[WearState, ...]:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise BenchError(path, "(file)", None, f"cannot read the states file: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise BenchError(path, "(file)", None, "not a text file; expected a TOML file of [[state]] tables") from None
     except tomllib.TOMLDecodeError as exc:
         raise r.fail("(syntax)", None, f"not valid TOML: {exc}") from None
     r.keys(data, "", {"state"})
@@ -517,6 +519,8 @@ def load_bench(path: str | Path) -> Bench:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise BenchError(path, "(file)", None, f"cannot read the bench file: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise BenchError(path, "(file)", None, "not a text file; expected a bench file (TOML)") from None
     return parse_bench(text, path)
 
 

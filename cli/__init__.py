@@ -7,6 +7,7 @@ Each subcommand module defines ``register(subparsers)`` which adds its parser an
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import re
@@ -108,6 +109,7 @@ class _Interrupt:
     @classmethod
     def force_exit(cls) -> None:
         cls.report()
+        _release_process_resources()
         for stream in (sys.stdout, sys.stderr):
             try:
                 stream.flush()
@@ -137,6 +139,9 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 print(f"{command}: interrupted", file=sys.stderr)
             return 130
+        if isinstance(exc, BrokenPipeError):  # the reader left (`wearbench inspect s.mcap | head`): end quietly
+            _silence_stdout()
+            return 0
         if isinstance(exc, (ValueError, OSError, RuntimeError)):  # errors meant for the user: one clear line
             print(f"{command}: error: {exc}", file=sys.stderr)
             return 2
@@ -144,6 +149,26 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if as_program:  # the command is done: a Ctrl-C while the interpreter shuts down changes nothing
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _release_process_resources() -> None:
+    """Before ``os._exit``: run multiprocessing's exit finalizers (priority >= 0: they unlink the named
+    semaphores of a local cluster's process handles), which ``os._exit`` skips, so its resource
+    tracker has nothing left to warn about ("leaked semaphore objects")."""
+    util = sys.modules.get("multiprocessing.util")
+    if util is not None:
+        with contextlib.suppress(Exception):  # best effort on the way out
+            util._run_finalizers(0)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so nothing flushed at exit meets the closed pipe again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
 
 
 def _interrupted(exc: BaseException) -> bool:

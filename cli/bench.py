@@ -1,15 +1,19 @@
-"""`wearbench bench`: list the shipped bench files, check a bench file, show what it describes."""
+"""`wearbench bench`: list the shipped bench files, check a bench file, show what it describes, copy one
+(with the files it names) to start your own."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import shutil
+from pathlib import Path
 
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 from wearbench.bench.load import BENCH_DIR, load_bench, resolve_bench
 from wearbench.bench.schema import Bench
+from wearbench.cli.options import add_force_argument
+from wearbench.cli.progress import console as table_console
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,6 +31,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     s = verbs.add_parser("show", help="print bodies, joints, clearances, drivers and sensors")
     s.add_argument("file", metavar="BENCH.toml")
     s.set_defaults(func=_show)
+    cp = verbs.add_parser("copy", help="copy a bench file and the files it names (worn surfaces) to start yours",
+                          description="Copy BENCH (a file or a shipped bench's name) to DEST.toml and every file "
+                          "it names by a relative path (worn surfaces) to the same place beside DEST, so the "
+                          "copy loads and records as the original does.")
+    cp.add_argument("file", metavar="BENCH")
+    cp.add_argument("dest", metavar="DEST.toml")
+    add_force_argument(cp)
+    cp.set_defaults(func=_copy)
 
 
 def _list(args: argparse.Namespace) -> int:
@@ -49,9 +61,26 @@ def _check(args: argparse.Namespace) -> int:
     return 0
 
 
+def _copy(args: argparse.Namespace) -> int:
+    from wearbench.acquisition.layout import bench_files
+    from wearbench.bench.output_file import check_output, output_file
+
+    bench = load_bench(resolve_bench(args.file))
+    dest = Path(args.dest)
+    files = {dest.parent / relative: source for relative, source in bench_files(bench).items()}
+    for target in (dest, *files):  # everything refused before anything is written
+        check_output(target, force=args.force, option="DEST")
+    for target, source in [(dest, Path(bench.path)), *files.items()]:
+        with output_file(target, force=args.force, option="DEST") as tmp:
+            shutil.copyfile(source, tmp)
+    load_bench(dest)
+    print(f"{dest}: a copy of {bench.name}" + (f" and {len(files)} files it names" if files else ""))
+    return 0
+
+
 def _show(args: argparse.Namespace) -> int:
     bench: Bench = load_bench(resolve_bench(args.file))
-    console = Console()
+    console = table_console()
     console.print(f"[bold]{bench.name}[/bold]: {bench.description}")
     console.print(f"motor speed {bench.speed:.4g} rad/s ({bench.speed * 30 / math.pi:.4g} rpm), "
                   f"backend {bench.hardware.backend}")

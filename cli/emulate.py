@@ -40,8 +40,8 @@ def run(args: argparse.Namespace) -> int:
     bench = load_bench(resolve_bench(args.bench))
     if args.config is not None:
         try:
-            table = json.loads(args.config.read_text())
-        except json.JSONDecodeError as exc:
+            table = json.loads(args.config.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise ValueError(f"{args.config}: not JSON ({exc})") from None
         config = EmulatorConfig.from_table(table, bench=bench, source=args.config)
     else:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import motor_speed, positive_int
+from wearbench.cli.options import add_force_argument, check_realisations, motor_speed, positive_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,6 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--realisations", type=positive_int, default=32, help="realisations per state (32)")
     p.add_argument("--cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
     p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-ensembles.npz)")
+    add_force_argument(p)
     p.add_argument("--ship", action="store_true",
                    help="save where wearbench looks for a shipped bench's precomputed ensembles (maintainers)")
     add_compute_arguments(p)
@@ -33,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wearbench.bench.load import load_bench, load_states, resolve_bench
+    from wearbench.bench.output_file import check_output, output_file
     from wearbench.validation.ensemble import (
         EnsembleSettings,
         build_ensembles,
@@ -47,12 +49,14 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{bench.name}: no [[state]] tables; give --candidates STATES.toml")
     speed = (motor_speed(args.speed, max_speed=bench.motor.max_speed, source=str(bench.path or bench.name))
              if args.speed else bench.speed)
-    settings = EnsembleSettings(realisations=args.realisations, cycles=args.cycles)
+    settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.cycles)
+    out = shipped_ensembles_path(bench) if args.ship else Path(args.out or f"{bench.name}-ensembles.npz")
+    check_output(out, force=args.force or args.ship)  # refused before the realisations run
     # built fresh (no shipped file is consulted), so --ship really refreshes it
     ensembles = build_ensembles(bench, states, speed=speed, settings=settings, shipped=False,
                                 **compute_options(args, bench))
-    out = shipped_ensembles_path(bench) if args.ship else Path(args.out or f"{bench.name}-ensembles.npz")
-    save_ensembles(ensembles, out, key=ensembles_key(bench, states, speed, settings))
+    with output_file(out, force=args.force or args.ship) as tmp:
+        save_ensembles(ensembles, tmp, key=ensembles_key(bench, states, speed, settings), bench=bench, states=states)
     for name, e in ensembles.items():
         failed = f", {len(e.failures)} failed" if e.failures else ""
         print(f"{name}: {e.realisations} realisations x {e.features.shape[1]} cycles{failed}")

@@ -9,6 +9,7 @@ import argparse
 
 from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.options import add_force_argument, check_realisations, positive_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,29 +24,37 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--candidates", metavar="STATES.toml",
                    help="file of [[state]] tables (name, clearances, wear); default: the [[state]] tables of the "
                         "bench file recorded in the session")
-    p.add_argument("--ensembles", metavar="FILE.npz", help="ensembles saved by 'wearbench ensemble' (no simulation)")
+    p.add_argument("--ensembles", metavar="FILE.npz",
+                   help="ensembles saved by 'wearbench ensemble' (no simulation); refused, with the reason, where "
+                   "their bench, speed or candidates (--candidates, else the session's bench's) do not fit")
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
-    p.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
-    p.add_argument("--ensemble-cycles", type=int, default=8, help="settled cycles per realisation (8)")
+    p.add_argument("--realisations", type=positive_int, default=32, help="ensemble realisations per state (32)")
+    p.add_argument("--ensemble-cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
     add_calibration_arguments(p)
     add_compute_arguments(p)
-    p.add_argument("--json", metavar="FILE", help="write every result as JSON")
+    p.add_argument("--json", metavar="FILE", help="write every result as JSON (never over an existing file "
+                   "unless --force, never over a session)")
     p.add_argument("--out", metavar="DIR", help="also write the report (report.html, scores.json, figures) here")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     import json
+    from pathlib import Path
 
-    from rich.console import Console
     from rich.table import Table
+    from wearbench.bench.output_file import check_output, output_file, output_folder
+    from wearbench.cli.progress import console as progress_console
     from wearbench.validation.assess import assess_sessions, write_assessment_report
-    from wearbench.validation.ensemble import EnsembleSettings, load_ensembles
+    from wearbench.validation.ensemble import EnsembleSettings
     from wearbench.validation.identify import IdentifyOptions
 
-    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles)
-    ensembles = load_ensembles(args.ensembles) if args.ensembles else None
-    assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=ensembles,
+    for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
+        if path:  # refused before the ensembles are built
+            check_output(path, force=args.force, option=option, folder=folder)
+    settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.ensemble_cycles)
+    assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
                                options=IdentifyOptions(threshold=args.threshold), **calibration_options(args),
                                **compute_options(args))
     results = [a.identification for a in assessed]
@@ -61,16 +70,17 @@ def run(args: argparse.Namespace) -> int:
         needed = f" (about {r.cycles_needed} cycles would decide)" if r.verdict == "undecided" and r.cycles_needed else ""
         table.add_row(r.session, str(r.cycles), *(f"{r.posterior[s]:.3f}" for s in states), r.verdict + needed,
                       ", ".join(s for s in states if r.explains[s]) or "none")
-    console = Console()
+    console = progress_console()
     console.print(table)
     for r in results:
         for note in r.notes:
             console.print(f"{r.session}: {note}")
     if args.json:
-        with open(args.json, "w", encoding="utf-8") as f:
+        with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
             json.dump([r.as_dict() for r in results], f, indent=1)
         console.print(f"results: {args.json}")
     if args.out:
-        report = write_assessment_report(assessed, args.out, threshold=args.threshold)
-        console.print(f"report: {report.html}")
+        with output_folder(args.out, force=args.force) as tmp:
+            report = write_assessment_report(assessed, tmp, threshold=args.threshold)
+        console.print(f"report: {Path(args.out) / report.html.relative_to(tmp)}")
     return 0

@@ -14,7 +14,12 @@ from wearbench.bench.schema import Bench
 from wearbench.bench.units import QuantityError, parse_quantity
 
 __all__ = [
+    "add_force_argument",
+    "check_clearances",
     "check_motor_speed",
+    "check_realisations",
+    "check_wear_coefficient",
+    "cycle_count",
     "joint_values",
     "motor_speed",
     "nonnegative_int",
@@ -24,6 +29,13 @@ __all__ = [
     "positive_number",
     "positive_quantity",
 ]
+
+
+def add_force_argument(p: argparse.ArgumentParser) -> None:
+    """``--force``: the one switch of the output-file policy (``wearbench.bench.output_file``)."""
+    p.add_argument("--force", action="store_true",
+                   help="replace existing output files (never a recorded session); the old ones stay as they "
+                   "were until the new ones are complete")
 
 
 def _number(text: str) -> float:
@@ -56,6 +68,24 @@ def nonnegative_number(text: str) -> float:
     value = _number(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: expected a number >= 0")
+    return value
+
+
+def check_realisations(count: int, option: str = "--realisations") -> int:
+    """Realisations per state that identification can use (``validation.ensemble.MIN_REALISATIONS``)."""
+    from wearbench.validation.ensemble import MIN_REALISATIONS
+
+    if count < MIN_REALISATIONS:
+        raise ValueError(f"{option} {count}: expected at least {MIN_REALISATIONS} realisations per state "
+                         "(identification fits each state without one realisation at a time)")
+    return count
+
+
+def cycle_count(text: str) -> float:
+    """A number of crank cycles: finite and >= 1 (a fraction of a cycle holds no complete cycle)."""
+    value = _number(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected at least 1 crank cycle")
     return value
 
 
@@ -145,4 +175,21 @@ def parse_clearances(text: str | None, bench: Bench, option: str = "--clearance"
             out[joint] = parse_quantity(value, "length", bare_unit="m")
         except QuantityError as exc:
             raise ValueError(f"{option} {text!r}: {exc}") from None
+    check_clearances({j: c for j, c in out.items() if c is not None}, bench, option, text)
     return out
+
+
+def check_clearances(clearances: dict[str, float], bench: Bench, option: str, text: str) -> None:
+    """Radial clearances (m) that fit ``bench``'s bearings (the bench's own rule, 0 < c < bearing
+    radius); ValueError naming ``option`` and ``text`` otherwise."""
+    try:
+        bench.with_clearances(clearances)
+    except (ValueError, KeyError) as exc:
+        raise ValueError(f"{option} {text!r}: {exc.args[0] if exc.args else exc}") from None
+
+
+def check_wear_coefficient(value: float, option: str, text: str) -> float:
+    """An Archard wear coefficient (1/Pa): finite and >= 0 (0: no wear)."""
+    if not (math.isfinite(value) and value >= 0):
+        raise ValueError(f"{option} {text!r}: {value:.4g} 1/Pa; expected a wear coefficient >= 0, e.g. 6.6e-14/Pa")
+    return value

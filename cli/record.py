@@ -8,10 +8,10 @@ from pathlib import Path
 
 from wearbench.bench.schema import BACKENDS
 from wearbench.cli.options import (
+    cycle_count,
     joint_values,
     motor_speed,
     parse_clearances,
-    positive_number,
     positive_quantity,
 )
 
@@ -27,11 +27,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("bench", help="bench file (TOML), or the name of a shipped bench")
     p.add_argument("--out", "-o", required=True, help="MCAP file to write (never replaced unless --force)")
     p.add_argument("--force", action="store_true",
-                   help="replace an existing --out file; the old file is kept until the new session is "
-                   "finished (written as OUT.new, renamed at the end), and kept if nothing was recorded")
+                   help="replace an existing --out session; the old file is kept until the new session has "
+                   "recorded its --cycles or --duration (written as OUT.new, renamed at the end) and kept "
+                   "as it was when the new one stops early (Ctrl-C, a fault, a full disk)")
     p.add_argument("--speed", help="motor speed, e.g. 2pi (rad/s), 60rpm, 1Hz (default: the bench's)")
     what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--cycles", type=positive_number,
+    what.add_argument("--cycles", type=cycle_count,
                       help="complete crank cycles (index to index) to record")
     what.add_argument("--duration", help="time to record, e.g. 30s, 2min")
     p.add_argument("--backend", choices=BACKENDS,
@@ -72,15 +73,11 @@ def run(args: argparse.Namespace) -> int:
         unlock_session_path,
     )
     from wearbench.bench.load import load_bench, resolve_bench
+    from wearbench.bench.output_file import check_output
     from wearbench.cli.progress import progress
 
     bench = load_bench(resolve_bench(args.bench))
-    out = Path(args.out)
-    if out.is_dir():
-        raise IsADirectoryError(f"--out {out}: is a folder; expected a session file name, e.g. {out}/s.mcap")
-    if out.exists() and not args.force:
-        raise FileExistsError(f"--out {out}: a file already exists there; choose another name, or pass --force "
-                              "to replace it (the old file is kept until the new session is finished)")
+    out = check_output(args.out, force=args.force, session=True)
     leftover = out.with_name(out.name + ".new")
     if args.force and out.exists() and leftover.exists():
         unlock_session_path(out, lock_session_path(out))  # EBUSY if a recorder is writing it now
@@ -94,15 +91,19 @@ def run(args: argparse.Namespace) -> int:
              if args.speed else bench.speed)
     clearances = parse_clearances(args.clearance, bench)
     wear = joint_values(args.wear, "--wear", [j.name for j in bench.clearance_joints])
-    for joint, state in wear.items():  # a file it names travels in the session
-        if Path(state).suffix == ".npz" or "/" in state:
-            from wearbench.model.surfaces import JointSurfaces
+    for joint, state in wear.items():  # what the analysis reads back: 'new' or a file (it travels in the session)
+        from wearbench.model.surfaces import JointSurfaces
+        from wearbench.validation.theory import UNWORN
 
-            try:
-                JointSurfaces.load(state)
-            except (OSError, ValueError) as exc:
-                raise ValueError(f"--wear {joint}={state}: {exc}; expected a worn-surface .npz file "
-                                 "(written by 'wearbench wear') or a label such as new") from None
+        expected = "expected 'new' or a worn-surface .npz file (written by 'wearbench wear')"
+        if state.lower() in UNWORN:
+            continue
+        if Path(state).suffix != ".npz":
+            raise ValueError(f"--wear {joint}={state}: neither 'new' nor a worn-surface file; {expected}")
+        try:
+            JointSurfaces.load(state)
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"--wear {joint}={state}: {exc}; {expected}") from None
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,
@@ -148,8 +149,8 @@ def run(args: argparse.Namespace) -> int:
     drops = sum(result.dropped_samples.values())
     repeats = sum(result.repeated_blocks.values())
     if result.path is not None and result.path != out:
-        print(f"wearbench record: {out} kept as it was: nothing was recorded; this attempt is in "
-              f"{result.path}", file=sys.stderr)
+        print(f"wearbench record: {out} kept as it was: the new session did not complete "
+              f"({result.reason}); it is in {result.path}", file=sys.stderr)
     print(f"{result.path or args.out}: {result.reason}; {result.cycles:.2f} cycles in {result.duration:.2f} s, "
           f"{result.samples.get('acceleration', 0)} acceleration samples, "
           f"{result.samples.get('encoder', 0)} encoder samples, dropped {drops} samples, "

@@ -11,7 +11,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Copy every complete record of a session file that was never "
                        "finished into a new, valid MCAP file, and say what was restored.")
     p.add_argument("broken", help="the unfinished MCAP file")
-    p.add_argument("--out", "-o", required=True, help="the MCAP file to write")
+    p.add_argument("--out", "-o", required=True, help="the MCAP file to write (never replaced unless --force)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing --out file (only once the recovered file is complete)")
     p.set_defaults(func=run)
 
 
@@ -20,7 +22,7 @@ def run(args: argparse.Namespace) -> int:
 
     if not Path(args.broken).is_file():
         raise OSError(f"{args.broken}: no such file")
-    r = recover(args.broken, args.out)
+    r = recover(args.broken, args.out, force=args.force)
     state = "was finished" if r.was_finished else f"was not finished ({r.problem})"
     print(f"{r.out}: restored {r.messages} messages from {r.chunks} complete chunks of {r.source} "
           f"(the original {state})")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
 
 from wearbench.cli.options import (
+    add_force_argument,
     joint_values,
     motor_speed,
     parse_clearances,
@@ -49,12 +49,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="FILE", help="write the table (.parquet or .csv)")
     p.add_argument("--contacts", metavar="DIR", help="record per-step contact data into DIR/<joint>.parquet")
     p.add_argument("--plots", metavar="DIR", help="write the paper-style figures (PNG and SVG) into DIR")
+    add_force_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from wearbench.bench.load import load_bench, resolve_bench
+    from wearbench.bench.output_file import check_output, output_file, output_folder
     from wearbench.model import build_scene, simulate
     from wearbench.model.surfaces import JointSurfaces
 
@@ -64,6 +66,10 @@ def run(args: argparse.Namespace) -> int:
     joints = [j.name for j in bench.clearance_joints]
     surfaces = {j: JointSurfaces.load(v) for j, v in joint_values(args.surfaces, "--surfaces", joints).items()} or None
     speed = motor_speed(args.speed, allow_zero=True) if args.speed else None  # 0 with --t-end: a still motor
+    outputs = (("--out", args.out, False), ("--contacts", args.contacts, True), ("--plots", args.plots, True))
+    for option, path, folder in outputs:
+        if path:  # refused before the simulation runs
+            check_output(path, force=args.force, option=option, folder=folder)
     try:
         scene = build_scene(bench, clearances=clearances or None, surfaces=surfaces)
     except KeyError as exc:  # an unknown joint name: a user error, one line
@@ -76,21 +82,20 @@ def run(args: argparse.Namespace) -> int:
         record_contacts=bool(args.contacts),
     )
     if args.out:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        if out.suffix == ".csv":
-            result.table.to_csv(out, index=False)
-        else:
-            result.table.to_parquet(out, index=False)
+        with output_file(args.out, force=args.force) as out:
+            if out.suffix == ".csv":
+                result.table.to_csv(out, index=False)
+            else:
+                result.table.to_parquet(out, index=False)
     if args.contacts:
-        folder = Path(args.contacts)
-        folder.mkdir(parents=True, exist_ok=True)
-        for joint, frame in (result.contacts or {}).items():
-            frame.to_parquet(folder / f"{joint}.parquet", index=False)
+        with output_folder(args.contacts, force=args.force, option="--contacts") as folder:
+            for joint, frame in (result.contacts or {}).items():
+                frame.to_parquet(folder / f"{joint}.parquet", index=False)
     if args.plots:
         from wearbench.model.plots import save_figures
 
-        save_figures(result, args.plots)
+        with output_folder(args.plots, force=args.force, option="--plots") as folder:
+            save_figures(result, folder)
     s = result.summary
     if args.json:
         print(json.dumps(s, indent=2))

@@ -8,8 +8,9 @@ import sys
 from pathlib import Path
 
 from wearbench.bench.load import load_bench, resolve_bench
+from wearbench.bench.output_file import output_folder
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import positive_number
+from wearbench.cli.options import add_force_argument, positive_number
 from wearbench.cli.wear import add_plan_arguments, plan_from_args
 
 
@@ -28,7 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true",
                    help="cut-down study for tests: 2 simulated cycles per stage, 1-revolution dynamics")
     add_compute_arguments(p)
-    p.add_argument("--out", default="study", help="output directory (default ./study)")
+    p.add_argument("--out", default="study", help="output directory (default ./study; an existing one with files "
+                   "only with --force)")
+    add_force_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -49,9 +52,9 @@ def run(args: argparse.Namespace) -> int:
         config = replace(config, dyn_revolutions=args.dyn_revolutions)
     config = replace(config, **compute_options(args, bench))
     cases = 1 + len(config.clearance_cases)
-    with progress() as bar:
+    with output_folder(args.out, force=args.force) as out, progress() as bar:
         task = bar.add_task(f"study {bench.name}", total=cases, info="")
-        summary = run_study(bench, args.out, config,
+        summary = run_study(bench, out, config,
                             on_case=lambda r: bar.update(task, advance=1, info=f"{r.case.name} ({r.wall_time:.0f} s)"))
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=float)

@@ -7,9 +7,13 @@ import json
 import sys
 
 from wearbench.bench.load import load_bench, resolve_bench
+from wearbench.bench.output_file import check_output, output_folder
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import (
+    add_force_argument,
+    check_clearances,
     check_motor_speed,
+    check_wear_coefficient,
     nonnegative_int,
     nonnegative_number,
     positive_int,
@@ -30,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("bench", metavar="BENCH.toml")
     p.add_argument("--vary", action="append", required=True, metavar="NAME=FROM..TO:N",
                    help="a varied parameter: clearance (every clearance joint), clearance.JOINT, speed or "
-                   "wear_coefficient, as FROM..TO:COUNT (ends included) or V1,V2,...; repeat for a grid")
+                   "wear_coefficient, as FROM..TO:COUNT (ends included) or V1,V2,...; repeat for a grid. "
+                   "clearance.JOINT sets that joint over clearance (every joint), in either order")
     p.add_argument("--wear-stages", type=nonnegative_int, default=0, help="wear stages per run before the dynamics "
                    "(default 0: unworn)")
     p.add_argument("--realisations", type=positive_int, default=1,
@@ -46,23 +51,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_compute_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    add_force_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import note_compiling
-    from wearbench.model.sweep import SweepSpec, axes_from, run_sweep, write_sweep
+    from wearbench.model.sweep import SweepSpec, axes_from, format_value, run_sweep, write_sweep
 
     bench = load_bench(resolve_bench(args.bench))
     note_compiling()
     axes = axes_from(args.vary)
-    for a in axes:
-        if a.name == "speed":
-            for value in a.values:
-                check_motor_speed(value, "--vary speed", f"{value:.6g} rad/s")
     clearance_names = [j.name for j in bench.clearance_joints]
-    for a in axes:
+    for a in axes:  # every value checked as the other commands check it, before any run
         if a.name.startswith("clearance") and not clearance_names:
             raise ValueError(f"--vary {a.name}: {args.bench} has no clearance joints")
         if a.name.startswith("clearance."):
@@ -70,12 +72,25 @@ def run(args: argparse.Namespace) -> int:
             if joint not in clearance_names:
                 raise ValueError(f"--vary {a.name}: {args.bench} has no clearance joint {joint!r}; "
                                  f"it has {clearance_names}")
+        option = f"--vary {a.name}"
+        for value in a.values:
+            text = format_value(a.name, value)
+            if a.name == "speed":
+                check_motor_speed(value, option, text, max_speed=bench.motor.max_speed,
+                                  source=str(bench.path or bench.name))
+            elif a.name == "wear_coefficient":
+                check_wear_coefficient(value, option, text)
+            else:
+                joints = clearance_names if a.name == "clearance" else [a.name.partition(".")[2]]
+                check_clearances(dict.fromkeys(joints, value), bench, option, text)
     spec = SweepSpec(axes=axes, stages=args.wear_stages, realisations=args.realisations, seed=args.seed,
                      plan=plan_from_args(args, bench, max(1, args.wear_stages)), revolutions=args.dyn_revolutions,
                      settle=args.dyn_settle, output_rate=args.output_rate)
     n = len(spec.points()) * spec.realisations
+    check_output(args.out, force=args.force, folder=True)  # refused before the runs
     result = run_sweep(bench, spec, progress=f"sweep {bench.name} ({n} runs)", **compute_options(args, bench))
-    summary = write_sweep(result, spec, args.out, plots=not args.no_plots)
+    with output_folder(args.out, force=args.force) as tmp:
+        summary = write_sweep(result, spec, tmp, plots=not args.no_plots)
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=float)
         print()

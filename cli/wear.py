@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 from wearbench.bench.load import load_bench, resolve_bench
+from wearbench.bench.output_file import check_output, output_folder
 from wearbench.bench.schema import Bench
 from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import (
+    add_force_argument,
+    check_wear_coefficient,
     motor_speed,
     nonnegative_int,
     parse_clearances,
@@ -64,6 +68,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_compute_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    add_force_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -90,9 +95,10 @@ def _coefficient(text: str | None) -> float | None:
     if text is None:
         return None
     try:
-        return parse_quantity(text, "wear_coefficient", bare_unit="1/Pa")
+        value = parse_quantity(text, "wear_coefficient", bare_unit="1/Pa")
     except (QuantityError, KeyError) as exc:
         raise ValueError(f"--wear-coefficient {text!r}: {exc}") from None
+    return check_wear_coefficient(value, "--wear-coefficient", text)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -107,7 +113,9 @@ def run(args: argparse.Namespace) -> int:
     speed = parse_speed(args.speed)
     plan = plan_from_args(args, bench, args.stages)
     compute = compute_options(args, bench) if args.convergence else {}  # a bad scheduler fails now, not after the run
+    ks = _refinements(args.convergence) if args.convergence else []
     initial = surfaces_from_bench(bench) or None
+    check_output(args.out, force=args.force, folder=True)  # refused before the wear run
     with progress() as bar:
         task = bar.add_task(f"wear {bench.name}", total=plan.stages * plan.stage_cycles, info="")
 
@@ -116,22 +124,19 @@ def run(args: argparse.Namespace) -> int:
             bar.update(task, completed=cycles, info=f"{cycles:,.0f} cycles, max depth {peak}")
 
         wear_run = run_stages(bench, plan, clearances=clearances, speed=speed, initial=initial, on_update=update)
-    paths = write_run(wear_run, args.out, plots=not args.no_plots)
-    summary = run_summary(wear_run)
-    if args.convergence:
-        from wearbench.model.study import staging_convergence
+    with output_folder(args.out, force=args.force) as out:
+        paths = write_run(wear_run, out, plots=not args.no_plots)
+        summary = run_summary(wear_run)
+        if ks:
+            from wearbench.model.study import staging_convergence
 
-        try:
-            ks = sorted({float(k) for k in args.convergence.split(",")})
-        except ValueError:
-            raise ValueError(f"--convergence {args.convergence!r}: expected refinement factors such as 1,2,4") from None
-        total = plan.stage_cycles * plan.stages
-        rows = staging_convergence(bench, ks, total, plan, clearances=clearances, speed=speed, initial=initial,
-                                   out=args.out, known={plan.refinement: wear_run}, **compute)
-        summary["convergence"] = rows
-        paths["summary"].write_text(json.dumps(summary, indent=2, default=float) + "\n")
-        if not args.json:
-            print(convergence_markdown(rows))
+            total = plan.stage_cycles * plan.stages
+            rows = staging_convergence(bench, ks, total, plan, clearances=clearances, speed=speed, initial=initial,
+                                       out=out, known={plan.refinement: wear_run}, **compute)
+            summary["convergence"] = rows
+            paths["summary"].write_text(json.dumps(summary, indent=2, default=float) + "\n")
+    if ks and not args.json:
+        print(convergence_markdown(summary["convergence"]))
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=float)
         print()
@@ -144,3 +149,14 @@ def run(args: argparse.Namespace) -> int:
                       f"{jr['max_depth_m']:.3e} m (reachable {jr['reachable_depth_m']:.3e} m)")
         print(f"wrote {args.out}/ (surfaces/*.npz, depths.csv, summary.json{', figures' if not args.no_plots else ''})")
     return 0
+
+
+def _refinements(text: str) -> list[float]:
+    """``--convergence K1,K2,...``: refinement factors > 0."""
+    try:
+        ks = sorted({float(k) for k in text.split(",")})
+    except ValueError:
+        ks = []
+    if not ks or not all(math.isfinite(k) and k > 0 for k in ks):
+        raise ValueError(f"--convergence {text!r}: expected refinement factors > 0 such as 1,2,4")
+    return ks

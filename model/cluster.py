@@ -14,6 +14,8 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import os
+import signal
+import threading
 import tomllib
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -113,6 +115,22 @@ _LEAN_LOCAL = {"distributed.admin.tick.interval": "1s", "distributed.worker.memo
                "distributed.scheduler.work-stealing": False, "distributed.scheduler.worker-saturation": 1.0}
 
 
+@contextlib.contextmanager
+def _children_ignore_ctrl_c() -> Iterator[None]:
+    """Processes started in this block ignore SIGINT (inherited across exec; Python installs its
+    KeyboardInterrupt handler only over the default): a Ctrl-C at the terminal reaches the whole
+    process group, and only this process should act on it, closing the cluster; workers that take it
+    too print tracebacks and leave semaphores behind."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @dataclass
 class ActiveClient:
     """The client of the innermost :func:`compute_client` block."""
@@ -155,7 +173,7 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
     cluster = None
     try:
         if address is None:
-            with dask.config.set(_LEAN_LOCAL):  # the nannies pass this config on to their workers
+            with dask.config.set(_LEAN_LOCAL), _children_ignore_ctrl_c():  # nannies pass the config on
                 cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
                                        host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
                                        # a worker's heartbeat racing the scheduler's close logs a traceback

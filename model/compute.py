@@ -24,7 +24,7 @@ import traceback as tb
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 from wearbench.model.cluster import active_client, compute_client, resolve_scheduler, usable_cores
@@ -41,7 +41,7 @@ from wearbench.model.task_cache import (
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["LAYOUT_VERSION", "Task", "TaskFailure", "cache_dir", "compute_client", "resolve_scheduler",
+__all__ = ["LAYOUT_VERSION", "ProgressLines", "Task", "TaskFailure", "cache_dir", "compute_client", "resolve_scheduler",
            "run_tasks", "task_key", "usable_cores"]
 
 RETRIES = 1  # Dask retries of a task whose error escaped the task wrapper (lost data, a dead worker)
@@ -144,21 +144,74 @@ def _failure(task: Task, error: str, trace: str) -> TaskFailure:
 # progress
 
 
+class ProgressLines:
+    """Progress for a log file (stderr is not a terminal), with the calls of rich's ``Progress`` that
+    wearbench uses (``add_task``, ``update``, a context): one line when a task starts, one each time
+    another tenth of it is done (at most every ``every`` s otherwise), and one when it ends."""
+
+    def __init__(self, stream=None, every: float = 30.0):
+        self.stream, self.every = stream or sys.stderr, every
+        self.tasks: list[dict] = []
+
+    def add_task(self, description: str, total: float | None = None, info: str = "", **_: Any) -> int:
+        self.tasks.append({"description": description, "total": total, "completed": 0.0, "info": info,
+                           "start": time.monotonic(), "said": -1.0, "said_at": 0.0})
+        self._say(self.tasks[-1], "start")
+        return len(self.tasks) - 1
+
+    def update(self, task: int, *, completed: float | None = None, advance: float | None = None,
+               description: str | None = None, info: str | None = None, **_: Any) -> None:
+        t = self.tasks[task]
+        t["completed"] = completed if completed is not None else t["completed"] + (advance or 0)
+        t["description"] = description if description is not None else t["description"]
+        t["info"] = info if info is not None else t["info"]
+        step = (t["total"] or 0) / 10
+        now = time.monotonic()
+        if (step and t["completed"] >= t["said"] + step) or now - t["said_at"] >= self.every:
+            self._say(t)
+
+    def advance(self, task: int, advance: float = 1) -> None:
+        self.update(task, advance=advance)
+
+    def _say(self, t: dict, state: str = "") -> None:
+        t["said"], t["said_at"] = t["completed"], time.monotonic()
+        total = f"/{t['total']:g}" if t["total"] else ""
+        progress = "started" if state == "start" else f"{t['completed']:.4g}{total}"
+        print(f"{t['description'].strip()}: {progress}  {t['info']}  ({time.monotonic() - t['start']:.0f} s)".rstrip(),
+              file=self.stream, flush=True)
+
+    def stop(self) -> None:
+        """The last line of every task not said yet."""
+        for t in self.tasks:
+            if t["said"] != t["completed"]:
+                self._say(t)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
 class _Progress:
-    """A rich bar "label  [bar]  done N  failed F  remaining R"; silent unless stderr is a terminal."""
+    """A rich bar "label  [bar]  done N  failed F  remaining R" on a terminal; off one,
+    :class:`ProgressLines` (a line per tenth of the batch)."""
 
     def __init__(self, label: str | None, total: int):
-        self.bar = None
-        if label is None or not sys.stderr.isatty():
-            return
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-        self.bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
-                            TimeElapsedColumn(), transient=False,
-                            refresh_per_second=2)  # tasks take seconds: 2 redraws a second, not 10
         self.total, self.done, self.failed = total, 0, 0
+        self.bar: Any = None
+        if label is None:
+            return
+        if sys.stderr.isatty():
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self.bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
+                                TimeElapsedColumn(), transient=False,
+                                refresh_per_second=2)  # tasks take seconds: 2 redraws a second, not 10
+            self.bar.start()
+        else:
+            self.bar = ProgressLines()
         self.task = self.bar.add_task(label, total=total, info=self._info())
-        self.bar.start()
 
     def _info(self) -> str:
         return f"done {self.done}  failed {self.failed}  remaining {self.total - self.done - self.failed}"

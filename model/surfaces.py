@@ -15,6 +15,7 @@ continuous, and no depth goes negative between two non-negative centres).
 from __future__ import annotations
 
 import math
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -122,6 +123,8 @@ class JointSurfaces:
     def load(cls, path: str | Path) -> JointSurfaces:
         """Read a file written by :meth:`save`; errors name the file and what is wrong."""
         path = Path(path)
+        if path.is_file() and not zipfile.is_zipfile(path):
+            raise SurfaceError(f"{path}: not a worn-surface .npz file (not an .npz archive)")
         try:
             with np.load(path, allow_pickle=False) as data:
                 fields = {k: data[k] for k in data.files}

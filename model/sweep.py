@@ -28,8 +28,8 @@ from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan
 
-__all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "SweepSpec", "parse_axis",
-           "plot_sweep", "run_point", "run_sweep"]
+__all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "SweepSpec", "format_value",
+           "parse_axis", "plot_sweep", "run_point", "run_sweep"]
 
 
 @dataclass(frozen=True)
@@ -151,13 +151,12 @@ class SweepSpec:
 
 
 def _apply(bench, values: Mapping[str, float], plan: StagePlan):
-    """(clearances {joint: m} or None, speed rad/s, plan) of one grid point."""
+    """(clearances {joint: m} or None, speed rad/s, plan) of one grid point. Overlapping axes follow
+    one rule, whatever their order: ``clearance.J`` sets joint J over ``clearance`` (every joint)."""
     names = [j.name for j in bench.clearance_joints]
-    clear: dict[str, float] = {}
+    clear: dict[str, float] = dict.fromkeys(names, values["clearance"]) if "clearance" in values else {}
     for name, v in values.items():
-        if name == "clearance":
-            clear.update(dict.fromkeys(names, v))
-        elif m := _JOINT_CLEARANCE.match(name):
+        if m := _JOINT_CLEARANCE.match(name):
             if m["joint"] not in names:
                 raise ValueError(f"clearance.{m['joint']}: {bench.name} has no clearance joint {m['joint']!r}; "
                                  f"it has {names}")
@@ -224,17 +223,19 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
     """
     t0 = time.perf_counter()
     part = bench_key(bench)  # what the bench is, not where its file lies
-    how = {f.name: getattr(spec, f.name) for f in fields(spec) if f.name not in ("axes", "realisations", "seed")}
+    # the key is the computation: the point's applied clearances, speed and plan, not its axis names
+    how = {f.name: getattr(spec, f.name) for f in fields(spec)
+           if f.name not in ("axes", "realisations", "seed", "plan")}
     runs, tasks = [], []
     for point in spec.points():
         for r, seed in enumerate(spec.seeds):
             run = {"run": len(runs), **{parameter(n).column: v for n, v in point.items()},
                    "realisation": r, "seed": -1 if seed is None else seed}
             runs.append(run)
-            label = " ".join(f"{n}={_format(n, v)}" for n, v in point.items()) + (f" seed={seed}" if seed is not None
+            label = " ".join(f"{n}={format_value(n, v)}" for n, v in point.items()) + (f" seed={seed}" if seed is not None
                                                                                   else "")
             tasks.append(Task(run_point, {"bench": bench, "values": point, "seed": seed, "spec": spec},
-                              task_key("sweep-point", part, point, seed, how), label))
+                              task_key("sweep-point", part, _apply(bench, point, spec.plan), seed, how), label))
     results = run_tasks(tasks, workers=workers, scheduler=scheduler, progress=progress, cache=cache)
     rows, failures = [], []
     for run, res in zip(runs, results, strict=True):
@@ -247,7 +248,8 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
     return SweepResult(pd.DataFrame(rows, columns=columns), failures, time.perf_counter() - t0)
 
 
-def _format(name: str, si: float) -> str:
+def format_value(name: str, si: float) -> str:
+    """A parameter's SI value in its printed unit, e.g. ``0.3mm``."""
     p = parameter(name)
     from wearbench.bench.units import UNITS
 
@@ -282,7 +284,7 @@ def plot_sweep(result: SweepResult, spec: SweepSpec, out: str | Path) -> list[Pa
             for g, gd in groups:
                 agg = gd.groupby(xp.column)["value"].agg(["mean", "min", "max"]).sort_index()
                 x = agg.index.to_numpy() / x_scale
-                label = None if g is None else _format(group_axis.name, g)
+                label = None if g is None else format_value(group_axis.name, g)
                 line, = ax.plot(x, agg["mean"], marker="o", ms=3, label=label)
                 if spec.realisations > 1:
                     ax.fill_between(x, agg["min"], agg["max"], color=line.get_color(), alpha=0.2, lw=0)

@@ -82,19 +82,33 @@ def test_a_failed_run_is_named_with_its_parameters_and_hides_nothing(bench):
     assert res.failures_table()["clearance_m"].tolist() == [2 * bearing]
 
 
-def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys):
+def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys, monkeypatch):
+    from wearbench.model import sweep
+
     out = tmp_path / "sweep"
-    rc = main(["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance=0.2mm,20mm",
-               "--vary", "speed=-4000rpm", "--dyn-revolutions", "0.5", "--dyn-settle", "0.25",
-               "--output-rate", "2000", "--workers", "0", "--out", str(out)])
+    args = ["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance=0.2mm,20mm", "--vary", "speed=-4000rpm",
+            "--dyn-revolutions", "0.5", "--dyn-settle", "0.25", "--output-rate", "2000", "--workers", "0",
+            "--out", str(out)]
+    assert main(args) == 2  # a clearance beyond the bearing is refused before any run
+    assert "--vary clearance '20mm'" in capsys.readouterr().err and not out.exists()
+    real = sweep.run_point
+
+    def fails_at_half_a_millimetre(bench, values, seed, spec):
+        if values["clearance"] > 0.4e-3:
+            raise ValueError("contact at S: penetration beyond the bearing radius")
+        return real(bench, values, seed, spec)
+
+    monkeypatch.setattr(sweep, "run_point", fails_at_half_a_millimetre)
+    args[3] = "clearance=0.2mm,0.5mm"
+    rc = main(args)
     assert rc == 1  # one run failed; the rest is written
     err = capsys.readouterr().err
-    assert "failed: clearance=20mm speed=-418.9rad/s" in err and "bearing radius" in err
+    assert "failed: clearance=0.5mm speed=-418.9rad/s" in err and "bearing radius" in err
     df = pd.read_parquet(out / "sweep.parquet")
     assert list(df.columns) == ["run", "clearance_m", "speed_rad_s", "realisation", "seed", "state", "statistic",
                                 "value", "unit"]
     assert set(df["run"]) == {0}
-    assert pd.read_csv(out / "failures.csv")["clearance_m"].tolist() == [0.02]
+    assert pd.read_csv(out / "failures.csv")["clearance_m"].tolist() == [0.0005]
     summary = json.loads((out / "sweep.json").read_text())
     assert summary["runs"] == 2 and summary["failed"] == 1
     assert {p.name for p in (out / "plots").glob("*.png")} == {"peak_slider_acc.png", "rms_slider_acc.png",
@@ -130,3 +144,25 @@ def test_commands_on_a_bench_use_its_compute_scheduler_unless_told_otherwise(tmp
     assert main(["wear", str(bench), "--convergence", "1,2", "--scheduler", "10.0.0.5", "--workers", "2",
                  "--out", str(tmp_path / "wear")]) == 2
     assert "scheduler = '10.0.0.5': expected 'local' or a Dask scheduler address" in capsys.readouterr().err
+
+
+def test_overlapping_axes_follow_one_rule_and_the_cache_keys_the_computation(bench):
+    """Issue 25, item 5: `--vary clearance.A=0.2mm,0.5mm --vary clearance=0.3mm` gave two identical
+    rows computed at 0.3 mm, and in the other order an answer that depended on what ran before (the
+    cache keyed the request, sorted, while applying it depended on the order). The joint's own axis
+    sets that joint in either order, and the cache key is the applied parameters."""
+    joint = Axis("clearance.S", (0.2e-3, 0.5e-3))
+    every = Axis("clearance", (0.3e-3,))
+
+    def values(*axes):
+        df = run_sweep(bench, _spec(*axes), workers=0).table
+        peaks = df[df["statistic"] == "rms_slider_acc"]
+        return {c: peaks[peaks["clearance_S_m"] == c]["value"].item() for c in joint.values}
+
+    first = values(joint, every)  # cold cache
+    second = values(every, joint)  # the other order: served from the cache only where the computation is equal
+    alone = values(joint)  # the same clearances without the overlapping axis: the same computation
+    assert first == second == alone
+    assert first[0.2e-3] != first[0.5e-3]
+    direct = pd.DataFrame(run_point(bench, {"clearance.S": 0.5e-3}, None, _spec(joint)))
+    assert direct[direct["statistic"] == "rms_slider_acc"]["value"].item() == first[0.5e-3]

@@ -11,17 +11,25 @@ the ensembles.
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from wearbench.acquisition.layout import clip_level, recorded_clip_level
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
 from wearbench.validation.calibration import session_calibration
 from wearbench.validation.compare import motor_speed
-from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
+from wearbench.validation.ensemble import (
+    Ensemble,
+    EnsembleSettings,
+    build_ensembles,
+    check_ensembles_fit,
+    load_ensembles,
+)
 from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_features
 from wearbench.validation.identify import (
     Identification,
@@ -42,7 +50,7 @@ from wearbench.validation.windows import (
     window_theory,
 )
 
-__all__ = ["Assessment", "assess_sessions", "judging_models", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "judging_models", "session_clip_level", "session_features"]
 
 
 @dataclass
@@ -79,15 +87,22 @@ def _arrays(session: MeasuredSession) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 def session_features(session: MeasuredSession, spec: FeatureSpec | None = None,
                      arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> CycleFeatures:
-    """Cycle features of a measured session; clipped samples counted at the accelerometer's range.
+    """Cycle features of a measured session; clipped samples counted by the recorder's rule at the
+    range the session recorded in its calibration (a session without one: its bench file's range).
     ``arrays``: the session's ``_arrays`` when the caller has them already."""
-    range_ = None
-    if session.bench is not None:
-        try:
-            range_ = session.bench.sensor("accelerometer").range
-        except KeyError:
-            range_ = None
-    return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), range_=range_)
+    return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), clip_level=session_clip_level(session))
+
+
+def session_clip_level(session: MeasuredSession) -> float | None:
+    """|a| from which a sample of ``session`` is clipped (``acquisition.layout.clip_level``) from its
+    recorded calibration (range, LSB), else its bench file's accelerometer range; None if neither."""
+    level = recorded_clip_level(session.metadata.get("calibration", {}))
+    if math.isfinite(level):
+        return level
+    try:
+        return clip_level(session.bench.sensor("accelerometer").range) if session.bench is not None else None
+    except KeyError:
+        return None
 
 
 def commanded_speed(session: MeasuredSession) -> float:
@@ -144,30 +159,39 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                     candidates: str | Path | Sequence[WearState] | None = None,
                     settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
                     window_options: WindowOptions | None = None,
-                    ensembles: Mapping[str, Ensemble] | None = None, scheduler: str | None = None,
+                    ensembles: Mapping[str, Ensemble] | str | Path | None = None, scheduler: str | None = None,
                     workers: int | None = None, progress: str | None = "theory ensembles",
                     calibration: str | Path | None = "auto", mount: str = "") -> list[Assessment]:
     """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
 
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
     recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
-    layer and cached; ``ensembles`` ({state: Ensemble}) uses those instead. Defaults: the default
-    ensemble settings, identification options and window options.
+    layer and cached; ``ensembles`` ({state: Ensemble}, or a file saved by ``wearbench ensemble``,
+    refused where its bench, speed or candidates do not fit a session) uses those instead. Defaults:
+    the default ensemble settings, identification options and window options.
     calibration: "auto" uses the stored calibration of each session's bench, sensor and ``mount``
     (``calibration.py``) when there is one, else the sensor-path prior; a calibration file uses that;
     None never uses one.
     """
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
+    ensembles_file = None
+    if isinstance(ensembles, (str, Path)):
+        ensembles_file, ensembles = Path(ensembles), load_ensembles(ensembles)
     window_options = window_options or WindowOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
     groups: dict[tuple, list[int]] = {}
     for i, s in enumerate(loaded):
         if s.bench is None and ensembles is None:
-            raise ValueError(f"session {s.label}: no bench file recorded in it; candidate states need one")
+            why = next((p for p in (s.problem or "").split("; ") if "bench" in p), "no bench file recorded in it")
+            raise ValueError(f"session {s.label}: {why}; candidate states need its bench")
         groups.setdefault((s.bench.sha256 if s.bench else "", round(commanded_speed(s), 6)), []).append(i)
     out: list[Assessment | None] = [None] * len(loaded)
     for idx in groups.values():
         first = loaded[idx[0]]
+        if ensembles_file is not None:
+            states = _states(first.bench, candidates) if first.bench and (candidates or first.bench.states) else None
+            check_ensembles_fit(ensembles_file, ensembles, bench=first.bench, states=states,
+                                speed=commanded_speed(first), session=first.label)
         ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
                                            speed=commanded_speed(first), settings=settings, scheduler=scheduler,
                                            workers=workers, progress=progress)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -23,8 +24,8 @@ from wearbench.bench.schema import Bench, WearState
 from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
 
-__all__ = ["Ensemble", "EnsembleSettings", "build_ensembles", "ensembles_key", "load_ensembles", 
-           "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
+__all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "build_ensembles", "check_ensembles_fit",
+           "ensembles_key", "load_ensembles", "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
 
 @dataclass(frozen=True)
 class EnsembleSettings:
@@ -117,10 +118,17 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
     """
     from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
+    from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
     if not states:
         raise ValueError(f"{bench.name}: no candidate states (give [[state]] tables or --candidates)")
+    for state in states:  # a bad surface file fails here, not in every realisation
+        for joint, surface in state.surfaces.items():
+            try:
+                JointSurfaces.load(surface)
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"candidate state {state.name!r}, joint {joint}: {exc}") from None
     if shipped and cache and shipped_ensembles_path(bench).exists():
         found = load_ensembles(shipped_ensembles_path(bench), key=ensembles_key(bench, states, speed, settings))
         if found is not None:
@@ -151,9 +159,17 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     return out
 
 
-def save_ensembles(ensembles: Mapping[str, Ensemble], path: str | Path, *, key: str) -> Path:
-    """Write ensembles to one ``.npz`` (float32 curves) tagged with ``key`` (see :func:`ensembles_key`)."""
-    arrays: dict[str, np.ndarray] = {"key": np.array(key), "states": np.array(list(ensembles))}
+MIN_REALISATIONS = 4  # identification fits each state without one realisation at a time (>= 3 left)
+
+
+def save_ensembles(ensembles: Mapping[str, Ensemble], path: str | Path, *, key: str, bench: Bench,
+                   states: Sequence[WearState]) -> Path:
+    """Write ensembles to one ``.npz`` (float32 curves) tagged with ``key`` (see :func:`ensembles_key`)
+    and with what they fit: the bench (name and :func:`bench_key`) and the candidate states' keys
+    (the speed is each ensemble's), checked by :func:`check_ensembles_fit` before a session uses them."""
+    fit = {"bench": bench.name, "bench_key": bench_key(bench), "states": [_state_key(s) for s in states]}
+    arrays: dict[str, np.ndarray] = {"key": np.array(key), "states": np.array(list(ensembles)),
+                                     "fit": np.array(json.dumps(fit))}
     for i, e in enumerate(ensembles.values()):
         arrays[f"features_{i}"] = e.features
         arrays[f"curves_{i}"] = e.curves.astype(np.float32)
@@ -168,18 +184,64 @@ def save_ensembles(ensembles: Mapping[str, Ensemble], path: str | Path, *, key: 
     return path
 
 
+def _not_ensembles(path: Path, why: str) -> ValueError:
+    return ValueError(f"{path}: not an ensembles file saved by 'wearbench ensemble' ({why})")
+
+
 def load_ensembles(path: str | Path, *, key: str | None = None) -> dict[str, Ensemble] | None:
-    """Ensembles saved by :func:`save_ensembles`; None when ``key`` is given and differs (stale)."""
-    with np.load(path) as data:
-        if key is not None and str(data["key"]) != key:
-            return None
-        out = {}
-        for i, name in enumerate(data["states"]):
-            meta = json.loads(str(data[f"meta_{i}"]))
-            st = meta["settings"]
-            settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
-            out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"], data[f"curves_{i}"].astype(float),
-                                      data[f"peaks_{i}"], float(meta["speed"]), tuple(meta["failures"]))
+    """Ensembles saved by :func:`save_ensembles`; None when ``key`` is given and differs (stale).
+    A file that is not one (another .npz, a cut file) raises one ValueError naming it."""
+    path = Path(path)
+    if path.is_file() and not zipfile.is_zipfile(path):
+        raise _not_ensembles(path, "not an .npz archive")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if key is not None and str(data["key"]) != key:
+                return None
+            out = {}
+            for i, name in enumerate(data["states"]):
+                meta = json.loads(str(data[f"meta_{i}"]))
+                st = meta["settings"]
+                settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
+                out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"],
+                                          data[f"curves_{i}"].astype(float), data[f"peaks_{i}"],
+                                          float(meta["speed"]), tuple(meta["failures"]))
+    except FileNotFoundError:
+        raise OSError(f"{path}: no such ensembles file") from None
+    except KeyError as exc:
+        raise _not_ensembles(path, f"no array {exc.args[0]!r}") from None
+    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise _not_ensembles(path, f"{type(exc).__name__}: {exc}") from None
     return out
+
+
+def check_ensembles_fit(path: str | Path, ensembles: Mapping[str, Ensemble], *, bench: Bench | None,
+                        states: Sequence[WearState] | None, speed: float, session: str) -> None:
+    """Refuse (one ValueError line naming the mismatch) ensembles from ``path`` that do not fit a
+    session of ``bench`` commanded at ``speed`` with candidate ``states`` (None: not known, unchecked)."""
+    path = Path(path)
+    with np.load(path, allow_pickle=False) as data:
+        fit = json.loads(str(data["fit"])) if "fit" in data.files else None
+    if fit is None:
+        raise ValueError(f"{path}: saved without the bench, speed and candidates it was built for (an earlier "
+                         "wearbench); build it again with 'wearbench ensemble'")
+    first = next(iter(ensembles.values()))
+    if first.realisations < MIN_REALISATIONS:
+        raise ValueError(f"{path}: {first.realisations} realisations per state; identification needs at least "
+                         f"{MIN_REALISATIONS} (wearbench ensemble --realisations)")
+    if bench is not None and fit["bench_key"] != bench_key(bench):
+        same = "another version of " if fit["bench"] == bench.name else ""
+        raise ValueError(f"{path}: built for bench {fit['bench']!r}; session {session} was recorded on "
+                         f"{same}bench {bench.name!r} (other physics or tolerances): build its ensembles with "
+                         "'wearbench ensemble BENCH'")
+    if not np.isclose(first.speed, speed, rtol=1e-6, atol=1e-9):
+        raise ValueError(f"{path}: built at {first.speed:.6g} rad/s; session {session} was commanded at "
+                         f"{speed:.6g} rad/s: build its ensembles with 'wearbench ensemble BENCH --speed ...'")
+    if states is not None and [_state_key(s) for s in states] != fit["states"]:
+        built = [s["name"] for s in fit["states"]]
+        asked = [s.name for s in states]
+        what = "other clearances or worn surfaces" if built == asked else f"{asked}"
+        raise ValueError(f"{path}: built for the candidate states {built}; session {session}'s candidates "
+                         f"(--candidates, else its bench's [[state]] tables) are {what}")
 
 

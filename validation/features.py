@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy import signal
+from wearbench.acquisition.layout import clipped as is_clipped
 from wearbench.validation.filters import FilterSpec, apply_filter
 
 __all__ = ["CycleFeatures", "FeatureSpec", "cycle_features"]
@@ -108,13 +109,14 @@ def _turns(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
 
 
 def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: FeatureSpec = FeatureSpec(), *,
-                   range_: float | None = None) -> CycleFeatures:
+                   clip_level: float | None = None) -> CycleFeatures:
     """Features of every complete crank revolution of a record.
 
     t: sample times (s, uniform rate); angle: unwrapped absolute crank angle at those times (rad;
     either sense of rotation); acc: slider acceleration (m/s^2). A cycle runs from one crossing of
     crank angle 0 (mod 2 pi, in the sense of rotation) to the next; partial cycles at the ends are
-    dropped. range_: the sensor's range (m/s^2): samples at or beyond it count as clipped.
+    dropped. clip_level: |a| (m/s^2) from which a sample is clipped, by the acquisition's rule
+    (``acquisition.layout.clip_level`` of the recorded range, ``clipped``).
     """
     t = np.asarray(t, dtype=float)
     angle = np.asarray(angle, dtype=float)
@@ -146,9 +148,8 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
         blocks.append(np.log10((np.bincount(cells, power, n_cells) / count).reshape(-1, spec.bins) + spec.floor))
     values = np.hstack(blocks)
     clipped = np.zeros(last - first + 1, dtype=np.int64)
-    if range_ is not None:
-        hit = np.abs(acc[keep]) >= range_ * (1 - 1e-6)
-        clipped = np.bincount(k[hit], minlength=clipped.size)
+    if clip_level is not None:
+        clipped = np.bincount(k[is_clipped(acc[keep], clip_level)], minlength=clipped.size)
     return CycleFeatures(spec, values, clipped)
 
 

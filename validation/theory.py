@@ -108,6 +108,9 @@ def load_theory(path: str | Path) -> pd.DataFrame:
         raise ValueError(f"theory {path}: not a readable parquet results table ({exc})") from exc
 
 
+UNWORN = ("", "new", "none", "unworn", "before wear")  # wear-state labels of an unworn joint
+
+
 def resolve_surfaces(wear_state: Mapping[str, str], base: Path | None = None,
                      embedded: Mapping[str, bytes] | None = None) -> dict[str, Any] | None:
     """Worn surfaces named by a session's wear state: {joint: JointSurfaces} for entries that are
@@ -121,7 +124,7 @@ def resolve_surfaces(wear_state: Mapping[str, str], base: Path | None = None,
     surfaces: dict[str, Any] = {}
     for joint, state in wear_state.items():
         s = str(state).strip()
-        if s.lower() in ("", "new", "none", "unworn", "before wear"):
+        if s.lower() in UNWORN:
             continue
         p = Path(s)
         if not p.is_absolute() and base is not None and not p.exists():

@@ -126,7 +126,7 @@ def test_cut_file_reads_and_recovers_every_complete_chunk(chunked_file, tmp_path
         if not complete:
             continue
         fixed = tmp_path / "fixed.mcap"
-        r = recover(broken, fixed)
+        r = recover(broken, fixed, force=True)  # the previous cut's
         assert r.messages == sum(per_chunk[:complete])
         got = recorded_blocks(fixed)[ACCELERATION]
         for seq, block in got.items():
@@ -138,7 +138,10 @@ def test_cut_file_reads_and_recovers_every_complete_chunk(chunked_file, tmp_path
 def test_inspect_unfinished(chunked_file, tmp_path):
     broken = tmp_path / "half.mcap"
     data = chunked_file.read_bytes()
-    broken.write_bytes(data[: len(data) * 2 // 3])
+    with open(chunked_file, "rb") as fh:
+        index = make_reader(fh).get_summary().chunk_indexes
+    middle = index[len(index) // 2]  # cut inside a chunk in the middle of the data
+    broken.write_bytes(data[: middle.chunk_start_offset + middle.chunk_length // 2])
     text = format_summary(summarize(broken))
     assert "NOT finished" in text and "/acceleration" in text
 

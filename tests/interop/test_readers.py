@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from mcap.reader import make_reader
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.recorder import Recorder
@@ -44,7 +45,9 @@ def sessions(tmp_path_factory):
         rig.close()
     cut = tmp / "cut.mcap"
     data = finished.read_bytes()
-    cut.write_bytes(data[: len(data) * 3 // 4])
+    with open(finished, "rb") as fh:
+        last = make_reader(fh).get_summary().chunk_indexes[-1]
+    cut.write_bytes(data[: last.chunk_start_offset + last.chunk_length // 2])
     recovered = tmp / "recovered.mcap"
     recover(cut, recovered)
     return finished, recovered

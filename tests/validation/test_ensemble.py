@@ -46,7 +46,7 @@ def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, 
     lo, med, hi = ens.band()
     assert np.all(lo <= med) and np.all(med <= hi) and np.ptp(med) > 10.0  # the kinematics is in the band
     key = ensembles_key(BENCH, [state], BENCH.speed, settings)
-    path = save_ensembles({state.name: ens}, tmp_path / "e.npz", key=key)
+    path = save_ensembles({state.name: ens}, tmp_path / "e.npz", key=key, bench=BENCH, states=[state])
     back = load_ensembles(path, key=key)[state.name]
     np.testing.assert_array_equal(back.features, ens.features)
     np.testing.assert_allclose(back.curves, ens.curves, rtol=1e-6)

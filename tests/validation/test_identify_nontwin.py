@@ -68,7 +68,8 @@ def test_identify_command_with_saved_ensembles(case, tmp_path, capsys):
     from wearbench.cli import main
     from wearbench.validation.ensemble import ensembles_key, save_ensembles
     bench, ensembles, _, paths = case
-    saved = save_ensembles(ensembles, tmp_path / "e.npz", key=ensembles_key(bench, bench.states, bench.speed, SETTINGS))
+    saved = save_ensembles(ensembles, tmp_path / "e.npz", key=ensembles_key(bench, bench.states, bench.speed, SETTINGS),
+                           bench=bench, states=bench.states)
     out = tmp_path / "ids.json"
     assert main(["identify", str(paths[0]), str(paths[2]), "--ensembles", str(saved), "--json", str(out),
                  "--out", str(tmp_path / "report")]) == 0

@@ -48,9 +48,9 @@ def test_each_band_sees_only_its_own_tone():
 
 def test_reverse_rotation_and_clipping():
     t, theta, acc = record()
-    f = cycle_features(t, -theta, np.clip(acc, -29.0, 29.0), range_=29.0)
+    f = cycle_features(t, -theta, np.clip(acc, -29.0, 29.0), clip_level=29.0)
     assert f.cycles == 5 and np.all(f.clipped > 0)
-    assert cycle_features(t, theta, acc, range_=100.0).clipped.sum() == 0
+    assert cycle_features(t, theta, acc, clip_level=100.0).clipped.sum() == 0
 
 
 def test_too_coarse_a_record_is_refused():
