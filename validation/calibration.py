@@ -31,7 +31,8 @@ from wearbench.validation.features import CycleFeatures, FeatureSpec
 from wearbench.validation.sensor_path import SensorPath, calibrate_path, design_matrix
 
 __all__ = ["Calibration", "calibration_key", "calibration_path", "calibrations_dir", "check_calibration_output",
-           "find_calibration", "fit_calibration", "load_calibration", "save_calibration", "sensor_record", "session_calibration"]
+           "find_calibration", "fit_calibration", "load_calibration", "save_calibration", "sensor_record",
+           "session_calibration"]
 
 _SENSOR_FIELDS = ("name", "sensitivity", "range", "axis", "body", "point", "sample_rate")
 
