@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.options import add_force_argument
 
 
 def add_calibration_arguments(p: argparse.ArgumentParser) -> None:
@@ -39,20 +40,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ensembles", metavar="FILE.npz", help="ensembles saved by 'wearbench ensemble' (no simulation)")
     p.add_argument("--dir", metavar="DIR", help="where calibrations live (default $WEARBENCH_CALIBRATIONS or "
                    "~/.local/share/wearbench/calibrations)")
-    p.add_argument("--replace", action="store_true", help="replace a stored calibration of this bench, sensor and mount")
+    add_force_argument(p)  # a stored calibration of this bench, sensor and mount is replaced only with --force
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.validation.calibration import save_calibration
+    from wearbench.validation.calibration import check_calibration_output, save_calibration
     from wearbench.validation.ensemble import load_ensembles
     from wearbench.validation.measure import calibrate_sessions
 
     ensembles = load_ensembles(args.ensembles) if args.ensembles else None
     cal = calibrate_sessions(args.sessions, args.state, candidates=args.candidates, ensembles=ensembles,
-                             mount=args.mount, **compute_options(args))
-    path = save_calibration(cal, args.dir, replace=args.replace)
+                             mount=args.mount, before=lambda key: check_calibration_output(key, args.dir, force=args.force),
+                             **compute_options(args))
+    path = save_calibration(cal, args.dir, force=args.force)
     print(cal.describe())
     sd = cal.path.theta_cov.diagonal() ** 0.5
     print(f"uncertainty (1 sd): gain {sd[0]:.3f}, bands " + ", ".join(f"{10 * v:.1f} dB" for v in sd[1:]))

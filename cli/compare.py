@@ -11,7 +11,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from wearbench.cli.options import nonnegative_number, positive_int, positive_number
+from wearbench.bench.output_file import check_output, output_folder
+from wearbench.cli.options import (
+    add_force_argument,
+    nonnegative_number,
+    positive_int,
+    positive_number,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,7 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "one theory (simulated from the bench file at the measured speed, clearances and wear state, or the "
         "--theory table). Writes report.html (self-contained), scores.json and PNG figures.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="recorded session file(s)")
-    p.add_argument("--out", default="report", help="output folder (default: report/)")
+    p.add_argument("--out", default="report", help="output folder (default: report/; one with files in it only "
+                   "with --force)")
+    add_force_argument(p)
     p.add_argument("--theory", action="append", metavar="RUN.parquet",
                    help="simulation results table to compare with instead of simulating; once for all "
                         "sessions or once per session, in order")
@@ -76,7 +84,9 @@ def _assess(args: argparse.Namespace, options, sessions) -> int:
     windows = WindowOptions(cycles=args.cycles, alpha=args.alpha, max_delay=options.max_delay)
     assessed = assess_sessions(sessions, candidates=None if args.candidates in (None, "bench") else args.candidates,
                                window_options=windows)
-    report = write_assessment_report(assessed, args.out)
+    with output_folder(args.out, force=args.force) as tmp:
+        report = write_assessment_report(assessed, tmp)
+    report = report.moved_to(args.out)
     for a in assessed:
         r = a.identification
         line = f"{r.session}: {r.verdict} (" + ", ".join(f"{s} {p:.3f}" for s, p in r.posterior.items()) + "); "
@@ -112,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         periodic_theory=not args.contiguous_theory, max_delay=parse_quantity(args.max_delay, "time"))
     if args.candidates and args.theory:
         raise ValueError("--candidates and --theory exclude each other: the theory is the candidates' ensembles")
+    check_output(args.out, force=args.force, folder=True)  # refused before anything is simulated
     if args.candidates:
         return _assess(args, options, args.sessions)
     if not args.theory and (loaded := _with_states(args.sessions)) is not None:
@@ -147,7 +158,9 @@ def run(args: argparse.Namespace) -> int:
         if not c.session.finished:
             print(f"wearbench compare: {c.session.path}: unfinished session ({c.session.problem}); scored up "
                   "to its last complete chunk", file=sys.stderr)
-    report = write_report(comparisons, args.out)
+    with output_folder(args.out, force=args.force) as tmp:
+        report = write_report(comparisons, tmp)
+    report = report.moved_to(args.out)
     table = Table(title=f"{options.filter.label}; {options.windows.label}")
     for col in ("session", "windows", "ISO R", "grade", "shift ms", "NRMSE", "corr", "S&G C"):
         table.add_column(col, justify="left" if col == "session" else "right")

@@ -10,6 +10,13 @@ ensemble of realisations (shipped precomputed for this bench, or built on the co
 each session gets the posterior probability of every state, a band comparison and a verdict for
 each five-cycle window against every state's ensemble windows, in one report. ``--twin`` plays the nominal model instead
 (the demo of earlier versions, for comparison).
+
+The demo's output folder follows the output-file policy (``bench.output_file``) with one rule of its
+own: the demo marks the folders it writes (``.wearbench-demo``), and a rerun into a marked folder
+replaces its four sessions and its report there (files of other names stay). A folder with files in
+it that the demo did not mark is refused unless ``--force``; even then, a session file at one of
+the demo's session names is never written over (the demo's emulated sessions never replace a
+recording).
 """
 
 from __future__ import annotations
@@ -19,11 +26,14 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from wearbench.bench.output_file import check_output, output_folder
 from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.options import add_force_argument
 from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
 
 BENCH = "ninebar-testbed"
 TRUTH_SEED = 2026  # truth i is drawn with TRUTH_SEED + i; the ensembles use seeds from 1
+MARK = ".wearbench-demo"  # in a folder the demo wrote: a rerun may replace its sessions and report
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,7 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "ensembles, band comparisons and window scores, in report.html, scores.json and figures.",
         epilog="example: wearbench demo --out demo/   (then open demo/report/report.html)")
     p.add_argument("--out", "-o", type=Path, default=Path("demo"),
-                   help="folder for sessions/ (MCAP) and report/ (default: demo/)")
+                   help="folder for sessions/ (MCAP) and report/ (default: demo/); a rerun replaces the demo's own "
+                   "files there, a folder with other files in it is used only with --force")
+    add_force_argument(p)
     p.add_argument("--quick", action="store_true",
                    help="record from the in-process emulator as fast as the host can (about a minute)")
     p.add_argument("--backend", choices=["serial", "sim"],
@@ -66,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
     states = bench.states
     seeds = {s.name: None if args.twin else args.seed + i for i, s in enumerate(states)}
     sessions_dir, report_dir = args.out / "sessions", args.out / "report"
+    paths = [sessions_dir / f"{slug(s.name)}.mcap" for s in states]
+    force = claim_folder(args.out, paths, report_dir, force=args.force)
     sessions_dir.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
     with compute_client(**compute_options(args)):
@@ -79,7 +93,6 @@ def run(args: argparse.Namespace) -> int:
             raise RuntimeError(f"demo: the emulator's truth failed: {failed[0].error}")
     # the sessions are recorded at once, each from its own emulator: recording runs in real time and
     # costs the host about 1 % of a core, so four take the wall time of one
-    paths = [sessions_dir / f"{slug(s.name)}.mcap" for s in states]
     with progress() as bar, ThreadPoolExecutor(len(states)) as pool:
         def record(state, path) -> None:
             task = bar.add_task(f"record {state.name:20s}", total=args.cycles, info="")
@@ -102,12 +115,33 @@ def run(args: argparse.Namespace) -> int:
             raise
     assessed = assess_sessions([load_session(p, label=s.name) for p, s in zip(paths, states, strict=True)],
                                ensembles=ensembles)
-    report = write_assessment_report(assessed, report_dir, title=f"wearbench demo: {bench.name}, which state "
-                                     f"explains each session ({'twin' if args.twin else 'non-twin truths'})")
+    with output_folder(report_dir, force=force) as tmp:
+        report = write_assessment_report(assessed, tmp, title=f"wearbench demo: {bench.name}, which state explains "
+                                         f"each session ({'twin' if args.twin else 'non-twin truths'})")
+    report = report.moved_to(report_dir)
     print(summary_text([s.name for s in states], assessed))
     print(f"\nreport: {report.html}\nscores: {report.scores_json}\nsessions: {sessions_dir}/ "
           f"({len(states)} MCAP files)\n{len(report.figures)} figures; {time.monotonic() - start:.0f} s")
     return 0
+
+
+def claim_folder(out: Path, sessions: list[Path], report: Path, *, force: bool) -> bool:
+    """Refuse (before anything runs) an ``out`` folder the demo may not write into: one with files
+    in it that the demo did not mark, unless ``force``; a file at one of the demo's ``sessions``
+    names that holds a session, in a folder the demo did not mark, even with ``force``. Marks ``out``
+    as the demo's and returns whether its files may be replaced."""
+    owned = (out / MARK).is_file()
+    if not owned:
+        check_output(out, force=force, option="--out", folder=True)
+    force = force or owned
+    for path in sessions:
+        check_output(path, force=force, option="--out", session=owned)
+    check_output(report, force=force, option="--out", folder=True)
+    out.mkdir(parents=True, exist_ok=True)
+    if not owned:
+        (out / MARK).write_text("written by 'wearbench demo': a rerun of the demo into this folder replaces its "
+                                "sessions/ and report/ files\n", encoding="utf-8")
+    return force
 
 
 def summary_text(truths, assessed) -> str:

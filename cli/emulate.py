@@ -22,7 +22,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--serial", action="store_true", required=True,
                    help="serve the serial protocol on a new pseudo-terminal and print its path")
     p.add_argument("--config", type=Path, help="JSON file replacing the bench's [emulator] table")
-    p.add_argument("--sent-log", type=Path, help="append every byte sent to the host to this file")
+    p.add_argument("--sent-log", type=Path, help="append every byte sent to the host to this file (never to a "
+                   "recorded session)")
     p.add_argument("--state", help="the true state: a [[state]] name of the bench (default: the table's truth)")
     truth = p.add_mutually_exclusive_group()
     truth.add_argument("--seed", type=int, help="a truth drawn from the bench's [tolerances] with this seed "
@@ -34,9 +35,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from wearbench.bench.load import load_bench, resolve_bench
+    from wearbench.bench.output_file import check_output
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.hardware.emulators.serial_server import serve
 
+    if args.sent_log is not None:  # appended to (nothing in it is lost); bytes after a session's footer break it
+        check_output(args.sent_log, force=True, option="--sent-log")
     bench = load_bench(resolve_bench(args.bench))
     if args.config is not None:
         try:

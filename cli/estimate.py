@@ -11,6 +11,7 @@ import argparse
 from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.estimator import add_design_arguments, design_from_args
+from wearbench.cli.options import add_force_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,9 +25,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
     add_design_arguments(p)
     add_calibration_arguments(p)
-    p.add_argument("--json", metavar="FILE", help="write every estimate as JSON (a new file)")
-    p.add_argument("--out", metavar="DIR", help="write each session's joint posterior figure here (a new folder "
-                   "or an empty one)")
+    p.add_argument("--json", metavar="FILE", help="write every estimate as JSON (never over an existing file "
+                   "unless --force)")
+    p.add_argument("--out", metavar="DIR", help="write each session's joint posterior figure here, "
+                   "posterior_N.png (a folder with files in it only with --force)")
+    add_force_argument(p)
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
@@ -35,13 +38,13 @@ def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
+    from wearbench.bench.output_file import check_output, output_file, output_folder
     from wearbench.validation.estimate import load_estimator
     from wearbench.validation.measure import estimate_sessions
 
-    if args.json and Path(args.json).exists():
-        raise FileExistsError(f"--json {args.json}: exists; give a new file")
-    if args.out and Path(args.out).exists() and any(Path(args.out).iterdir()):
-        raise FileExistsError(f"--out {args.out}: not empty; give a new or empty folder")
+    for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
+        if path:  # refused before the estimator is built
+            check_output(path, force=args.force, option=option, folder=folder)
     estimator = load_estimator(args.estimator) if args.estimator else None
     results = estimate_sessions(args.sessions, design=design_from_args(args), estimator=estimator,
                                 **calibration_options(args), **compute_options(args))
@@ -58,14 +61,16 @@ def run(args: argparse.Namespace) -> int:
         for note in e.notes:
             print(f"  {note}")
     if args.json:
-        with open(args.json, "x", encoding="utf-8") as f:
+        with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
             json.dump([e.as_dict() for e in results], f, indent=1)
         print(f"results: {args.json}")
     if args.out:
         from wearbench.validation.estimate_figure import posterior_figure
 
-        Path(args.out).mkdir(parents=True, exist_ok=True)
-        for k, e in enumerate(results):
-            path = posterior_figure(e, Path(args.out) / f"posterior_{k + 1}.png")
-            print(f"figure: {path}")
+        names = [f"posterior_{k + 1}.png" for k in range(len(results))]
+        with output_folder(args.out, force=args.force) as tmp:
+            for name, e in zip(names, results, strict=True):
+                posterior_figure(e, tmp / name)
+        for name in names:
+            print(f"figure: {Path(args.out) / name}")
     return 0

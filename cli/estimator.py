@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import positive_int
+from wearbench.cli.options import add_force_argument, positive_int
 
 
 def add_design_arguments(p: argparse.ArgumentParser) -> None:
@@ -41,9 +41,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("bench", metavar="BENCH.toml", help="bench file (or the name of a shipped bench)")
     add_design_arguments(p)
     p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-estimator.npz)")
-    p.add_argument("--replace", action="store_true", help="replace an existing --out file")
+    add_force_argument(p)
     p.add_argument("--ship", action="store_true",
-                   help="save where wearbench looks for a shipped bench's precomputed estimator (maintainers)")
+                   help="save where wearbench looks for a shipped bench's precomputed estimator, replacing it "
+                   "(maintainers)")
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
@@ -52,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wearbench.bench.load import load_bench, resolve_bench
+    from wearbench.bench.output_file import check_output, output_file
     from wearbench.validation.estimate import (
         build_estimator,
         save_estimator,
@@ -61,10 +63,11 @@ def run(args: argparse.Namespace) -> int:
     bench = load_bench(resolve_bench(args.bench))
     design = design_from_args(args)
     out = shipped_estimator_path(bench) if args.ship else Path(args.out or f"{bench.name}-estimator.npz")
-    if out.exists() and not (args.replace or args.ship):
-        raise FileExistsError(f"{out}: exists; give --replace to replace it or another --out")
+    force = args.force or args.ship  # --ship refreshes the package's own file
+    check_output(out, force=force)  # refused before the design is simulated
     est = build_estimator(bench, design, shipped=False, **compute_options(args, bench))
-    save_estimator(est, out)
+    with output_file(out, force=force) as tmp:
+        save_estimator(est, tmp)
     print(f"{len(design.clearances)} clearances x {len(design.cycles)} cycles-run values, "
           f"{est.features.shape[2]} realisations x {est.features.shape[3]} cycles each; largest wear depth "
           f"{est.depth.max() * 1e6:.1f} um")

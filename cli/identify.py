@@ -41,7 +41,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import json
-    from pathlib import Path
 
     from rich.table import Table
     from wearbench.bench.output_file import check_output, output_file, output_folder
@@ -82,5 +81,5 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         with output_folder(args.out, force=args.force) as tmp:
             report = write_assessment_report(assessed, tmp, threshold=args.threshold)
-        console.print(f"report: {Path(args.out) / report.html.relative_to(tmp)}")
+        console.print(f"report: {report.moved_to(args.out).html}")
     return 0

@@ -11,6 +11,7 @@ import argparse
 from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.estimator import add_design_arguments, design_from_args
+from wearbench.cli.options import add_force_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,16 +27,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
     add_design_arguments(p)
     add_calibration_arguments(p)
-    p.add_argument("--json", metavar="FILE", help="write the result as JSON (a new file)")
-    p.add_argument("--figure", metavar="FILE.png", help="write the wear-over-life figure (a new file)")
+    p.add_argument("--json", metavar="FILE", help="write the result as JSON (never over an existing file unless "
+                   "--force)")
+    p.add_argument("--figure", metavar="FILE.png", help="write the wear-over-life figure (never over an existing "
+                   "file unless --force)")
+    add_force_argument(p)
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     import json
-    from pathlib import Path
 
+    from wearbench.bench.output_file import check_output, output_file
     from wearbench.bench.units import parse_quantity
     from wearbench.validation.estimate import load_estimator
     from wearbench.validation.measure import track_sessions
@@ -48,9 +52,9 @@ def run(args: argparse.Namespace) -> int:
     if len(runs) != len(args.sessions):
         raise ValueError(f"--cycles-run {args.cycles_run!r}: {len(runs)} values for {len(args.sessions)} sessions; "
                          "expected one per session")
-    for name in ("json", "figure"):
-        if getattr(args, name) and Path(getattr(args, name)).exists():
-            raise FileExistsError(f"--{name} {getattr(args, name)}: exists; give a new file")
+    for option, path in (("--json", args.json), ("--figure", args.figure)):
+        if path:  # refused before the estimator is built
+            check_output(path, force=args.force, option=option)
     limit = parse_quantity(args.limit, "length", bare_unit="mm") if args.limit else None
     estimator = load_estimator(args.estimator) if args.estimator else None
     t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=estimator,
@@ -72,9 +76,11 @@ def run(args: argparse.Namespace) -> int:
     for note in t.notes:
         print(note)
     if args.json:
-        with open(args.json, "x", encoding="utf-8") as f:
+        with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
             json.dump(t.as_dict(), f, indent=1)
         print(f"results: {args.json}")
     if args.figure:
-        print(f"figure: {track_figure(t, args.figure)}")
+        with output_file(args.figure, force=args.force, option="--figure") as tmp:
+            track_figure(t, tmp)
+        print(f"figure: {args.figure}")
     return 0

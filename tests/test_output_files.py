@@ -10,7 +10,9 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
+import numpy as np
 import pytest
 from wearbench.acquisition.session_file import read_session
 from wearbench.bench.load import shipped_bench
@@ -155,3 +157,260 @@ def test_ctrl_c_during_a_forced_recording_keeps_the_good_session(tmp_path):
     interrupted = read_session(new)
     assert interrupted.finished and interrupted.metadata["result"]["reason"].startswith("interrupted")
     assert not any(p.name.endswith((".lock", ".ballast")) for p in tmp_path.iterdir()), os.listdir(tmp_path)
+
+
+# ---- the commands added beside the policy: estimate, estimator, track, calibrate, compare, demo, emulate ----
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """A short finished session of the test bed, shared by the cases below (none writes it)."""
+    return _session(tmp_path_factory.mktemp("session"))
+
+
+@pytest.fixture(scope="module")
+def synthetic():
+    """A small fitted estimator on synthetic design features (``validation/test_estimate.py``), an
+    estimate of one session and a track of two: real results to write, in a second."""
+    from wearbench.validation.estimate import Estimator, estimate_features, fit_estimator
+    from wearbench.validation.track import track_features
+
+    from .validation.test_estimate import DESIGN, OPTIONS, draw, session, true_mean
+
+    rng = np.random.default_rng(0)
+    feats = np.stack([np.stack([draw(rng, true_mean(c, n), 16, 8) for n in DESIGN.cycles])
+                      for c in DESIGN.clearances])
+    est = Estimator("synthetic", "k", DESIGN, feats, np.outer(np.ones(5), np.array(DESIGN.cycles) * 2e-11), 2 * np.pi)
+    model = fit_estimator(est, OPTIONS)
+    estimates = [estimate_features(session(rng, 0.4e-3, n), model) for n in (1e5, 3e5)]
+    track = track_features([session(rng, 0.4e-3, n) for n in (0.0, 3e5)], [0.0, 3e5], model, coefficient=5.2e-14)
+    return est, estimates, track
+
+
+def _left(folder) -> list[str]:
+    """The names in ``folder`` but the per-test result cache (``conftest.py``)."""
+    return sorted(p.name for p in folder.iterdir() if p.name != "wearbench-cache")
+
+
+class _Interrupted(dict):
+    """A JSON object whose encoding is cut by a Ctrl-C half way through a file."""
+
+    def items(self):
+        raise KeyboardInterrupt
+
+
+def _calibration_key(session) -> str:
+    from wearbench.validation.calibration import calibration_key
+    from wearbench.validation.ensemble import EnsembleSettings
+    from wearbench.validation.measured import load_session
+
+    s = load_session(session)
+    return calibration_key(s.bench, s.metadata, EnsembleSettings().features)
+
+
+def test_the_new_commands_never_write_over_a_session(recorded, capsys):
+    """estimate/track --json (a file, like identify's), estimate/compare/demo --out, estimator --out and
+    emulate --sent-log (appended to: bytes after a footer would break the session): refused, with or
+    without --force, before any work."""
+    s = str(recorded)
+    before = recorded.read_bytes()
+    capsys.readouterr()
+    for args in (["estimate", s, "--json", s, "--force"], ["estimate", s, "--out", s, "--force"],
+                 ["estimator", "ninebar-testbed", "--out", s, "--force"],
+                 ["track", s, "--cycles-run", "0", "--json", s, "--force"],
+                 ["track", s, "--cycles-run", "0", "--figure", s, "--force"],
+                 ["compare", s, "--out", s, "--force"], ["demo", "--out", s, "--force"],
+                 ["emulate", "ninebar-testbed", "--serial", "--sent-log", s]):
+        assert main(args) == 2, args
+        err = _one_line(capsys)
+        assert s in err and "holds a recorded MCAP session" in err, (args, err)
+    assert recorded.read_bytes() == before
+
+
+def test_an_existing_result_is_refused_before_the_work(recorded, tmp_path, capsys):
+    """Every command refuses an existing file (or a folder with files) without --force, with the one
+    message, before it builds an estimator or ensembles; the file is left byte for byte."""
+    s = str(recorded)
+    old = tmp_path / "old.json"
+    old.write_bytes(OLD)
+    folder = tmp_path / "figures"
+    folder.mkdir()
+    (folder / "posterior_1.png").write_bytes(OLD)
+    calibrations = tmp_path / "calibrations"
+    calibrations.mkdir()
+    stored = calibrations / f"{_calibration_key(recorded)}.json"
+    stored.write_bytes(OLD)
+    capsys.readouterr()
+    for args, message in (
+            (["estimate", s, "--json", str(old)], f"--json {old}: a file already exists"),
+            (["estimate", s, "--out", str(folder)], f"--out {folder}: a folder with files"),
+            (["estimator", "ninebar-testbed", "--out", str(old)], f"--out {old}: a file already exists"),
+            (["track", s, "--cycles-run", "0", "--json", str(old)], f"--json {old}: a file already exists"),
+            (["track", s, "--cycles-run", "0", "--figure", str(old)], f"--figure {old}: a file already exists"),
+            (["compare", s, "--out", str(folder)], f"--out {folder}: a folder with files"),
+            (["demo", "--out", str(folder)], f"--out {folder}: a folder with files"),
+            (["calibrate", s, "--state", "0.3 mm new", "--dir", str(calibrations)],
+             f"calibration {stored}: a file already exists")):
+        assert main(args) == 2, args
+        err = _one_line(capsys)
+        assert message in err and "--force" in err, (args, err)
+    assert old.read_bytes() == OLD and (folder / "posterior_1.png").read_bytes() == OLD
+    assert stored.read_bytes() == OLD and sorted(p.name for p in calibrations.iterdir()) == [stored.name]
+    assert _left(tmp_path) == ["calibrations", "figures", "old.json"]
+
+
+def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(recorded, synthetic, tmp_path,
+                                                                                 monkeypatch, capsys):
+    """A Ctrl-C half way through writing --json or the figures leaves the old files as they were;
+    with --force and no failure they are replaced (other files in an --out folder stay)."""
+    import wearbench.validation.track as track_module
+    from wearbench.validation import estimate_figure, measure
+
+    _est, estimates, track = synthetic
+    s = str(recorded)
+    monkeypatch.setattr(measure, "estimate_sessions", lambda *a, **k: estimates)
+    monkeypatch.setattr(measure, "track_sessions", lambda *a, **k: track)
+    old, figure, folder = tmp_path / "e.json", tmp_path / "life.png", tmp_path / "posterior"
+    folder.mkdir()
+    for p in (old, figure, folder / "posterior_1.png", folder / "mine.txt"):
+        p.write_bytes(OLD)
+    real_as_dict, real_figure = type(estimates[0]).as_dict, estimate_figure.posterior_figure
+
+    def half_figure(e, path, *a, **k):  # the first figure is written, then Ctrl-C
+        if e is estimates[1]:
+            raise KeyboardInterrupt
+        return real_figure(e, path, *a, **k)
+
+    def half_track_figure(t, path, **k):
+        Path(path).write_bytes(b"\x89PNG half")
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(type(estimates[0]), "as_dict", lambda e: _Interrupted(cut=1) if e is estimates[1] else real_as_dict(e))
+        m.setattr(estimate_figure, "posterior_figure", half_figure)
+        m.setattr(track_module, "track_figure", half_track_figure)
+        assert main(["estimate", s, s, "--json", str(old), "--force"]) == 130
+        assert main(["estimate", s, s, "--out", str(folder), "--force"]) == 130
+        assert main(["track", s, s, "--cycles-run", "0,300000", "--figure", str(figure), "--force"]) == 130
+    for p in (old, figure, folder / "posterior_1.png", folder / "mine.txt"):
+        assert p.read_bytes() == OLD, p
+    assert _left(tmp_path) == ["e.json", "life.png", "posterior"]
+    assert sorted(p.name for p in folder.iterdir()) == ["mine.txt", "posterior_1.png"]
+    capsys.readouterr()
+    assert main(["estimate", s, s, "--json", str(old), "--out", str(folder), "--force"]) == 0
+    rows = json.loads(old.read_text())
+    assert [r["clearance"]["median"] for r in rows] == [e.clearance.median for e in estimates]
+    assert (folder / "posterior_2.png").read_bytes()[:4] == b"\x89PNG" and (folder / "mine.txt").read_bytes() == OLD
+    assert f"figure: {folder / 'posterior_1.png'}" in capsys.readouterr().out
+    assert main(["track", s, s, "--cycles-run", "0,300000", "--json", str(old), "--figure", str(figure),
+                 "--force"]) == 0
+    assert json.loads(old.read_text())["factor"] and figure.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_estimator_replaces_its_file_only_with_force_and_only_complete(synthetic, tmp_path, monkeypatch, capsys):
+    """`estimator` had its own --replace: now the one --force, and a failure while saving keeps the old file."""
+    from wearbench.validation import estimate
+
+    est = synthetic[0]
+    out = tmp_path / "bed-estimator.npz"
+    out.write_bytes(OLD)
+    monkeypatch.setattr(estimate, "build_estimator", lambda *a, **k: est)
+    real_save = estimate.save_estimator
+
+    def half_save(e, path):
+        Path(path).write_bytes(b"PK half an npz")
+        raise OSError(28, "No space left on device")
+
+    args = ["estimator", "ninebar-testbed", "--out", str(out)]
+    with pytest.raises(SystemExit):
+        main([*args, "--replace"])  # the old switch is gone: one switch name across commands
+    capsys.readouterr()
+    assert main(args) == 2 and "--force" in _one_line(capsys)
+    monkeypatch.setattr(estimate, "save_estimator", half_save)
+    assert main([*args, "--force"]) == 2 and "No space left" in _one_line(capsys)
+    assert out.read_bytes() == OLD and _left(tmp_path) == [out.name]
+    monkeypatch.setattr(estimate, "save_estimator", real_save)
+    assert main([*args, "--force"]) == 0
+    assert estimate.load_estimator(out).features.shape == est.features.shape
+
+
+def test_compare_writes_its_report_folder_under_the_policy(recorded, tmp_path, monkeypatch, capsys):
+    """`compare --out DIR` (default report/): a folder with files in it is refused without --force; a
+    report cut half way keeps the old one; with --force its files are replaced and others stay."""
+    from wearbench.validation import assess
+    from wearbench.validation.report import ComparisonReport
+
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "report.html").write_bytes(OLD)
+    (out / "notes.txt").write_bytes(OLD)
+    monkeypatch.setattr(assess, "assess_sessions", lambda *a, **k: [])
+
+    def report(half: bool):
+        def write(assessed, folder, **k):
+            (folder / "report.html").write_text("new report")
+            if half:
+                raise KeyboardInterrupt
+            (folder / "scores.json").write_text("{}")
+            return ComparisonReport([], folder, folder / "report.html", folder / "scores.json")
+        return write
+
+    args = ["compare", str(recorded), "--out", str(out)]
+    monkeypatch.setattr(assess, "write_assessment_report", report(half=True))
+    assert main(args) == 2 and "--force" in _one_line(capsys)
+    assert main([*args, "--force"]) == 130
+    assert (out / "report.html").read_bytes() == OLD and sorted(p.name for p in out.iterdir()) == [
+        "notes.txt", "report.html"]
+    monkeypatch.setattr(assess, "write_assessment_report", report(half=False))
+    capsys.readouterr()
+    assert main([*args, "--force"]) == 0
+    assert f"report: {out / 'report.html'}  scores: {out / 'scores.json'}" in capsys.readouterr().out
+    assert (out / "report.html").read_text() == "new report" and (out / "notes.txt").read_bytes() == OLD
+    assert _left(tmp_path) == ["report"]
+
+
+def test_the_demo_reruns_into_its_own_folder_and_nowhere_else(recorded, tmp_path):
+    """The demo marks its folder: a rerun replaces its sessions and report there; a folder with files the
+    demo did not mark needs --force, and even then a session at one of the demo's names stays."""
+    from wearbench.cli.demo import MARK, claim_folder
+
+    out = tmp_path / "demo"
+    sessions = [out / "sessions" / "a.mcap", out / "sessions" / "b.mcap"]
+    assert claim_folder(out, sessions, out / "report", force=False) is False  # new: nothing to replace
+    assert (out / MARK).is_file()
+    sessions[0].parent.mkdir()
+    sessions[0].write_bytes(recorded.read_bytes())  # the demo's own session of the first run
+    (out / "report").mkdir()
+    (out / "report" / "report.html").write_text("first run")
+    assert claim_folder(out, sessions, out / "report", force=False) is True  # a rerun: its files replaced
+    mine = tmp_path / "mine"
+    (mine / "sessions").mkdir(parents=True)
+    (mine / "sessions" / "a.mcap").write_bytes(recorded.read_bytes())  # a recording the demo did not make
+    with pytest.raises(FileExistsError, match="a folder with files in it exists"):
+        claim_folder(mine, [mine / "sessions" / "a.mcap"], mine / "report", force=False)
+    with pytest.raises(FileExistsError, match="holds a recorded MCAP session"):
+        claim_folder(mine, [mine / "sessions" / "a.mcap"], mine / "report", force=True)
+    assert not (mine / MARK).exists() and (mine / "sessions" / "a.mcap").read_bytes() == recorded.read_bytes()
+    assert claim_folder(mine, [mine / "sessions" / "b.mcap"], mine / "report", force=True) is True
+    assert (mine / MARK).is_file()
+
+
+def test_a_stored_calibration_is_a_user_file(tmp_path):
+    """`calibrate` had its own --replace: its store is a user file under the one policy (--force), and a
+    failure while writing keeps the stored calibration."""
+    from types import SimpleNamespace
+
+    from wearbench.validation.calibration import save_calibration
+
+    stored = tmp_path / f"{'k' * 64}.json"
+    stored.write_bytes(OLD)
+    with pytest.raises(FileExistsError, match="--force"):
+        save_calibration(SimpleNamespace(key="k" * 64, as_dict=dict), tmp_path)
+
+    def cut():
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        save_calibration(SimpleNamespace(key="k" * 64, as_dict=cut), tmp_path, force=True)
+    assert stored.read_bytes() == OLD and _left(tmp_path) == [stored.name]
+    assert save_calibration(SimpleNamespace(key="k" * 64, as_dict=lambda: {"new": 1}), tmp_path, force=True) == stored
+    assert json.loads(stored.read_text()) == {"new": 1}

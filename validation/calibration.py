@@ -11,7 +11,8 @@ bench, sensor and mount find it (:func:`find_calibration`) and identification an
 as their prior instead of the unmeasured mount's; their results name it.
 
 Files live in ``$WEARBENCH_CALIBRATIONS`` (default ``~/.local/share/wearbench/calibrations``); an
-existing calibration of the same key is replaced only when asked.
+existing calibration of the same key is a user file under the output-file policy: replaced only with
+``force`` (``--force``), and only once the new one is complete.
 """
 
 from __future__ import annotations
@@ -25,11 +26,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from wearbench.bench.output_file import check_output, output_file
 from wearbench.validation.features import CycleFeatures, FeatureSpec
 from wearbench.validation.sensor_path import SensorPath, calibrate_path, design_matrix
 
-__all__ = ["Calibration", "calibration_key", "calibrations_dir", "find_calibration", "fit_calibration",
-           "load_calibration", "save_calibration", "sensor_record", "session_calibration"]
+__all__ = ["Calibration", "calibration_key", "calibration_path", "calibrations_dir", "check_calibration_output",
+           "find_calibration", "fit_calibration", "load_calibration", "save_calibration", "sensor_record",
+           "session_calibration"]
 
 _SENSOR_FIELDS = ("name", "sensitivity", "range", "axis", "body", "point", "sample_rate")
 
@@ -111,18 +114,33 @@ def fit_calibration(features: Sequence[CycleFeatures], models_exact, state: str,
                        time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()) + " UTC")
 
 
-def save_calibration(cal: Calibration, directory: str | Path | None = None, *, replace: bool = False) -> Path:
-    """Write ``cal`` as ``KEY.json`` under ``directory`` (default :func:`calibrations_dir`); an existing
-    calibration of the key is kept (FileExistsError) unless ``replace``."""
-    d = Path(directory) if directory is not None else calibrations_dir()
-    d.mkdir(parents=True, exist_ok=True)
-    path = d / f"{cal.key}.json"
-    if path.exists() and not replace:
-        raise FileExistsError(f"{path}: a calibration of this bench, sensor and mount exists "
-                              f"({load_calibration(path).describe()}); --replace replaces it")
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(cal.as_dict(), indent=1), encoding="utf-8")
-    os.replace(tmp, path)
+def calibration_path(key: str, directory: str | Path | None = None) -> Path:
+    """Where the calibration of ``key`` is stored: ``KEY.json`` under ``directory`` (default
+    :func:`calibrations_dir`)."""
+    return (Path(directory) if directory is not None else calibrations_dir()) / f"{key}.json"
+
+
+def check_calibration_output(key: str, directory: str | Path | None = None, *, force: bool = False) -> Path:
+    """Refuse (the output-file policy, ``bench.output_file``) to replace a stored calibration of
+    ``key`` unless ``force``; the message names what the stored one holds. Returns its path."""
+    path = calibration_path(key, directory)
+    try:
+        return check_output(path, force=force, option="calibration")
+    except FileExistsError as exc:
+        try:
+            held = f"; it holds {load_calibration(path).describe()}"
+        except (OSError, ValueError):
+            held = ""
+        raise FileExistsError(f"{exc}{held}; another --mount or --dir keeps both") from None
+
+
+def save_calibration(cal: Calibration, directory: str | Path | None = None, *, force: bool = False) -> Path:
+    """Write ``cal`` as ``KEY.json`` under ``directory`` (default :func:`calibrations_dir`): a user
+    file under the output-file policy, so an existing calibration of the key is kept
+    (FileExistsError) unless ``force``, and it is replaced only once the new one is complete."""
+    path = check_calibration_output(cal.key, directory, force=force)
+    with output_file(path, force=force, option="calibration") as tmp:
+        tmp.write_text(json.dumps(cal.as_dict(), indent=1), encoding="utf-8")
     return path
 
 
@@ -135,7 +153,7 @@ def load_calibration(path: str | Path) -> Calibration:
 
 def find_calibration(key: str, directory: str | Path | None = None) -> Calibration | None:
     """The stored calibration of ``key`` (see :func:`calibration_key`), None when there is none."""
-    path = (Path(directory) if directory is not None else calibrations_dir()) / f"{key}.json"
+    path = calibration_path(key, directory)
     return load_calibration(path) if path.exists() else None
 
 

@@ -206,10 +206,13 @@ def save_estimator(est: Estimator, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez_compressed(tmp, key=np.array(est.key), features=est.features, depth=est.depth,
-                        meta=np.array(json.dumps({"bench": est.bench, "speed": est.speed,
-                                                  "design": est.design.as_dict()})))
-    os.replace(tmp, path)
+    try:
+        np.savez_compressed(tmp, key=np.array(est.key), features=est.features, depth=est.depth,
+                            meta=np.array(json.dumps({"bench": est.bench, "speed": est.speed,
+                                                      "design": est.design.as_dict()})))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)  # a failure half way leaves nothing beside the file
     return path
 
 

@@ -7,7 +7,7 @@ the ensembles.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -55,9 +55,12 @@ def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: 
                        settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
                        ensembles: Mapping[str, Ensemble] | None = None, mount: str = "",
                        scheduler: str | None = None, workers: int | None = None,
-                       progress: str | None = "theory ensembles") -> Calibration:
+                       progress: str | None = "theory ensembles",
+                       before: Callable[[str], object] | None = None) -> Calibration:
     """The sensor-path calibration of one bench from ``sessions`` recorded in the known ``state``
-    (a ``[[state]]`` name of the bench or of ``candidates``); see ``calibration.py``. Not saved."""
+    (a ``[[state]]`` name of the bench or of ``candidates``); see ``calibration.py``. Not saved.
+    ``before`` is called with the calibration's key once the sessions are read, before any ensemble
+    is built (``wearbench calibrate`` refuses an existing calibration there, not minutes later)."""
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
     first = loaded[0]
@@ -68,6 +71,9 @@ def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: 
                 first.metadata):
             raise ValueError(f"session {s.label}: another bench file or sensor than {first.label}; calibrate one "
                              "bench and sensor at a time")
+    if before is not None:
+        spec = next(iter(ensembles.values())).settings.features if ensembles else settings.features
+        before(calibration_key(first.bench, first.metadata, spec, mount))
     ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates), speed=commanded_speed(first),
                                        settings=settings, scheduler=scheduler, workers=workers, progress=progress)
     if state not in ens:

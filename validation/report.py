@@ -74,6 +74,17 @@ class ComparisonReport:
     def scores(self) -> dict:
         return json.loads(self.scores_json.read_text())
 
+    def moved_to(self, out_dir: str | Path) -> ComparisonReport:
+        """This report with its paths in ``out_dir``, where its files were moved (written to a
+        temporary folder under the output-file policy, ``bench.output_file.output_folder``)."""
+        out = Path(out_dir)
+
+        def move(p: Path) -> Path:
+            return out / p.relative_to(self.out_dir)
+
+        return ComparisonReport(self.sessions, out, move(self.html), move(self.scores_json),
+                                [move(f) for f in self.figures])
+
 
 def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "session"

@@ -53,7 +53,7 @@ def test_calibration_names_a_session_the_exact_path_cannot_explain(sessions, tmp
     out = capsys.readouterr().out
     assert "calibration: " in out and "gain" in out
     assert main(["calibrate", str(paths["0.3 mm new"]), "--state", "0.3 mm new", "--ensembles", str(saved)]) == 2
-    assert "--replace" in capsys.readouterr().err
+    assert "--force" in capsys.readouterr().err
     cal = tmp_path / "cal.json"
     assert main(["identify", str(paths["0.6 mm new"]), "--ensembles", str(saved), "--json", str(cal)]) == 0
     row = json.loads(cal.read_text())[0]

@@ -57,9 +57,12 @@ def test_fit_recovers_a_band_gain_and_the_store_keeps_it(exact_models, tmp_path)
     path = save_calibration(cal, tmp_path)
     assert load_calibration(path) == cal and find_calibration("k" * 64, tmp_path) == cal
     assert find_calibration("j" * 64, tmp_path) is None
-    with pytest.raises(FileExistsError, match="--replace"):
+    before = path.read_bytes()
+    with pytest.raises(FileExistsError, match="--force") as refused:
         save_calibration(cal, tmp_path)
-    save_calibration(cal, tmp_path, replace=True)
+    assert "it holds" in str(refused.value) and path.read_bytes() == before
+    save_calibration(cal, tmp_path, force=True)
+    assert load_calibration(path) == cal and sorted(p.name for p in tmp_path.iterdir()) == [path.name]
     with pytest.raises(ValueError, match="state 'nominal'"):
         fit_calibration([CycleFeatures(SPEC, x, np.zeros(20))], exact_models, "nominal", key="k", bench="b",
                         labels=["s1"])

@@ -83,7 +83,7 @@ def test_compare_cli(recorded, tmp_path, capsys):
     assert "ISO R" in capsys.readouterr().out
     # errors meant for the user: one line, exit 2
     assert main(["compare", str(files["ideal"]), "--out", str(out), "--filter", "cfc100"]) == 2
-    assert main(["compare", str(tmp_path / "missing.mcap"), "--out", str(out)]) == 2
+    assert main(["compare", str(tmp_path / "missing.mcap"), "--out", str(tmp_path / "report2")]) == 2
 
 
 def test_compare_scores_what_it_can_and_says_what_is_unfinished(recorded, tmp_path, capsys):
