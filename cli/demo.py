@@ -114,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
                 r.stop("interrupted", "interrupt")
             raise
     assessed = assess_sessions([load_session(p, label=s.name) for p, s in zip(paths, states, strict=True)],
-                               ensembles=ensembles)
+                               ensembles=ensembles, calibration=None)  # its own emulated mounts, not a lab's
     with output_folder(report_dir, force=force) as tmp:
         report = write_assessment_report(assessed, tmp, title=f"wearbench demo: {bench.name}, which state explains "
                                          f"each session ({'twin' if args.twin else 'non-twin truths'})")

@@ -39,6 +39,8 @@ def _isolated_compute(_session_compute, tmp_path, monkeypatch):
     autouse fixtures run after module fixtures, so overriding theirs would move their cache away)."""
     if os.environ.get("WEARBENCH_CACHE") == _session_compute:
         monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "wearbench-cache"))
+        # and its own sensor-path calibrations: one a test stores is never found by another's identify
+        monkeypatch.setenv("WEARBENCH_CALIBRATIONS", str(tmp_path / "calibrations"))
 
 
 @pytest.fixture(scope="session")

@@ -35,7 +35,8 @@ def sessions(tmp_path_factory):
         paths[name] = out / f"{slug(name)}.mcap"
         record_state(bench, state, 7000, paths[name], backend="sim", cycles=11, revolutions=14, accelerometer=MOUNT)
     ens = build_ensembles(bench, bench.states, progress=None)  # shipped: no simulation
-    saved = save_ensembles(ens, out / "e.npz", key=ensembles_key(bench, bench.states, bench.speed, EnsembleSettings()))
+    saved = save_ensembles(ens, out / "e.npz", key=ensembles_key(bench, bench.states, bench.speed, EnsembleSettings()),
+                           bench=bench, states=bench.states)
     return paths, saved
 
 
