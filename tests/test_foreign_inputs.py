@@ -54,7 +54,9 @@ COMMANDS = [  # {f}: the bad input; {s}: a good session; {d}: a folder for outpu
     "sweep {f} --vary speed=1 --out {d}/sw", "study {f} --quick --out {d}/st", "ensemble {f}",
     "ensemble ninebar-testbed --candidates {f} --out {d}/e.npz", "record {f} --cycles 1 --out {d}/x.mcap",
     "record ninebar-testbed --backend sim --cycles 1 --wear A={f} --out {d}/y.mcap", "emulate {f} --serial",
-    "emulate ninebar-testbed --serial --config {f}",
+    "emulate ninebar-testbed --serial --config {f}", "estimate {f}", "estimate {s} --estimator {f}",
+    "track {f} --cycles-run 0", "track {s} --cycles-run 0 --estimator {f}", "calibrate {f} --state x",
+    "calibrate {s} --state x --ensembles {f}", "estimator {f}",
 ]
 READABLE = {("inspect {f}", "cut.mcap")}  # what it is for: an unfinished file says what it holds
 

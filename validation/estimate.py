@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -217,17 +218,29 @@ def save_estimator(est: Estimator, path: str | Path) -> Path:
 
 
 def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | None:
-    """An estimator saved by :func:`save_estimator`; None when ``key`` is given and differs (stale)."""
-    with np.load(path) as data:
-        if key is not None and str(data["key"]) != key:
-            return None
-        meta = json.loads(str(data["meta"]))
-        d = meta["design"]
-        st = d["settings"]
-        settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
-        design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]), settings)
-        return Estimator(meta["bench"], str(data["key"]), design, data["features"], data["depth"],
-                         float(meta["speed"]))
+    """An estimator saved by :func:`save_estimator`; None when ``key`` is given and differs (stale).
+    A file that is not one (another .npz, a session, a cut file) raises one ValueError naming it."""
+    path = Path(path)
+    if path.is_file() and not zipfile.is_zipfile(path):
+        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' (not an .npz archive)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if key is not None and str(data["key"]) != key:
+                return None
+            meta = json.loads(str(data["meta"]))
+            d = meta["design"]
+            st = d["settings"]
+            settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
+            design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]), settings)
+            return Estimator(meta["bench"], str(data["key"]), design, data["features"], data["depth"],
+                             float(meta["speed"]))
+    except FileNotFoundError:
+        raise OSError(f"{path}: no such estimator file") from None
+    except KeyError as exc:
+        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' (no {exc.args[0]!r})") from None
+    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' ({type(exc).__name__}: "
+                         f"{exc})") from None
 
 
 # ---- fitting ----------------------------------------------------------------------------------
