@@ -50,6 +50,21 @@ def _grouped(sessions: Sequence[str | Path | MeasuredSession], needs_bench: str 
     return loaded, list(groups.values())
 
 
+def _one_bench(loaded: Sequence[MeasuredSession], noun: str, verb: str, *, sensor: bool = False) -> MeasuredSession:
+    """The first of ``loaded``, which all record one bench file (and, with ``sensor``, one sensor
+    calibration); else one ValueError naming the session that does not."""
+    first = loaded[0]
+    if first.bench is None:
+        raise ValueError(f"session {first.label}: no bench file recorded in it; {noun} needs one")
+    for s in loaded[1:]:
+        if s.bench is None or s.bench.sha256 != first.bench.sha256 or (
+                sensor and sensor_record(s.metadata) != sensor_record(first.metadata)):
+            what = "bench file or sensor" if sensor else "bench file"
+            raise ValueError(f"session {s.label}: another {what} than {first.label}; {verb} one "
+                             f"{'bench and sensor' if sensor else 'bench'} at a time")
+    return first
+
+
 def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: str, *,
                        candidates: str | Path | Sequence[WearState] | None = None,
                        settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
@@ -63,14 +78,7 @@ def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: 
     is built (``wearbench calibrate`` refuses an existing calibration there, not minutes later)."""
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
-    first = loaded[0]
-    if first.bench is None:
-        raise ValueError(f"session {first.label}: no bench file recorded in it; calibration needs one")
-    for s in loaded[1:]:
-        if s.bench is None or s.bench.sha256 != first.bench.sha256 or sensor_record(s.metadata) != sensor_record(
-                first.metadata):
-            raise ValueError(f"session {s.label}: another bench file or sensor than {first.label}; calibrate one "
-                             "bench and sensor at a time")
+    first = _one_bench(loaded, "calibration", "calibrate", sensor=True)
     if before is not None:
         spec = next(iter(ensembles.values())).settings.features if ensembles else settings.features
         before(calibration_key(first.bench, first.metadata, spec, mount))
@@ -124,12 +132,7 @@ def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run:
     ``track.py``); ``limit``: a clearance limit (m). Other arguments as :func:`estimate_sessions`."""
     design, options = design or EstimatorDesign(), options or IdentifyOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
-    first = loaded[0]
-    if first.bench is None:
-        raise ValueError(f"session {first.label}: no bench file recorded in it; tracking needs one")
-    for s in loaded[1:]:
-        if s.bench is None or s.bench.sha256 != first.bench.sha256:
-            raise ValueError(f"session {s.label}: another bench file than {first.label}; track one bench at a time")
+    first = _one_bench(loaded, "tracking", "track")
     est = estimator or build_estimator(first.bench, design, speed=commanded_speed(first), scheduler=scheduler,
                                        workers=workers, progress=progress)
     cal = session_calibration(first, est.spec, calibration, mount)
