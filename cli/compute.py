@@ -22,7 +22,7 @@ def add_compute_arguments(p: argparse.ArgumentParser) -> None:
 def compute_options(args: argparse.Namespace, bench: Bench | None = None) -> dict:
     """{"scheduler", "workers"} from the parsed options and ``bench``'s ``[compute]`` table, the
     scheduler resolved here ("local" when none is set); bad values and negative workers are errors."""
-    from wearbench.model.compute import resolve_scheduler
+    from wearbench.compute import resolve_scheduler
 
     if args.workers is not None and args.workers < 0:
         raise ValueError(f"--workers {args.workers}: expected 0 (in-process) or more")

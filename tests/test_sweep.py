@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
-from wearbench.model.sweep import Axis, SweepSpec, parse_axis, run_point, run_sweep
+from wearbench.studies.sweep import Axis, SweepSpec, parse_axis, run_point, run_sweep
 
 
 def test_parse_axis_ranges_and_lists_in_si():
@@ -83,7 +83,7 @@ def test_a_failed_run_is_named_with_its_parameters_and_hides_nothing(bench):
 
 
 def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys, monkeypatch):
-    from wearbench.model import sweep
+    from wearbench.studies import sweep
 
     out = tmp_path / "sweep"
     args = ["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance=0.2mm,20mm", "--vary", "speed=-4000rpm",
@@ -119,7 +119,8 @@ def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys, monkeypatch):
 
 
 def test_commands_on_a_bench_use_its_compute_scheduler_unless_told_otherwise(tmp_path, monkeypatch, capsys):
-    from wearbench.model import sweep, wear_stages
+    from wearbench.model import wear_stages
+    from wearbench.studies import sweep
 
     bench = tmp_path / "bench.toml"
     bench.write_text(shipped_bench("slider-crank").read_text() + '\n[compute]\nscheduler = "tcp://127.0.0.1:8791"\n')

@@ -137,7 +137,7 @@ def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, 
     path or the options' default) and every state's window theory (their held-out nulls): the costly
     part of judging a session, computed once per ensembles' content, options, sensor path and code,
     and kept in the result cache (``$WEARBENCH_CACHE``)."""
-    from wearbench.model.task_cache import MISSING, cache_load, cache_store, task_key
+    from wearbench.compute.task_cache import MISSING, cache_load, cache_store, task_key
 
     key = task_key("window-calibration", _source_digest(),
                    {n: (e.features, e.curves, e.speed) for n, e in ensembles.items()}, asdict(options),

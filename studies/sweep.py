@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 from wearbench.bench.content import bench_key
 from wearbench.bench.units import QuantityError, parse_quantity
-from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
+from wearbench.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan
 
 __all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "SweepSpec", "format_value",

@@ -27,9 +27,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
-from wearbench.model.cluster import active_client, compute_client, resolve_scheduler, usable_cores
-from wearbench.model.digest import model_source_digest
-from wearbench.model.task_cache import (
+from wearbench.compute.cluster import active_client, compute_client, resolve_scheduler, usable_cores
+from wearbench.compute.task_cache import (
     LAYOUT_VERSION,
     MISSING,
     cache_dir,
@@ -37,6 +36,7 @@ from wearbench.model.task_cache import (
     cache_store,
     task_key,
 )
+from wearbench.model.digest import model_source_digest
 
 if TYPE_CHECKING:
     from distributed import Client
