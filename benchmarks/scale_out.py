@@ -1,4 +1,4 @@
-"""Scale-out of one batch of simulations on wearbench.model.compute: serial loop, 1 and 2 workers.
+"""Scale-out of one batch of simulations on wearbench.compute: serial loop, 1 and 2 workers.
 
 The batch: ``--tasks`` sweep runs of the nine-bar bench (the nominal bench and realisations drawn
 within its tolerances, 0.3 mm clearance, ``--revolutions`` motor revolutions each), the kind of task

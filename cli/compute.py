@@ -10,7 +10,7 @@ if TYPE_CHECKING:
 
 
 def add_compute_arguments(p: argparse.ArgumentParser) -> None:
-    """``--scheduler`` and ``--workers`` (see :mod:`wearbench.model.compute`)."""
+    """``--scheduler`` and ``--workers`` (see :mod:`wearbench.compute`)."""
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="a running Dask scheduler, e.g. tcp://10.0.0.5:8786, or 'local' (default: "
                    "$WEARBENCH_SCHEDULER, [compute] scheduler in the bench file, then in "

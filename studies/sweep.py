@@ -1,5 +1,5 @@
 """Parameter sweeps of a bench: a grid of operating points, optional wear stages and realisations per
-point, one task per (point, realisation) on :mod:`wearbench.model.compute`, a tidy results table.
+point, one task per (point, realisation) on :mod:`wearbench.compute`, a tidy results table.
 
 A sweep varies parameters of :data:`PARAMETERS` ("clearance", "clearance.<joint>", "speed",
 "wear_coefficient") over given values; each run wears the point's clearance joints for ``stages``

@@ -4,7 +4,7 @@ Each realisation is one bench drawn within the bench's ``[tolerances]`` with a r
 (``wearbench.model.realisation``), settled, then simulated for ``cycles`` crank revolutions. A
 realisation is reduced on the worker to what the comparison needs (per-cycle features, the
 filtered curve of each cycle on a crank-angle grid, per-cycle peaks), so only kilobytes travel
-back. Realisations run on the compute layer (``wearbench.model.compute``: dask.distributed,
+back. Realisations run on the compute layer (``wearbench.compute``: dask.distributed,
 local by default) and are cached by content: bench physics, state (surfaces by their bytes),
 tolerances, seed, settings and the model's source digest.
 """
