@@ -167,3 +167,23 @@ def test_overlapping_axes_follow_one_rule_and_the_cache_keys_the_computation(ben
     assert first[0.2e-3] != first[0.5e-3]
     direct = pd.DataFrame(run_point(bench, {"clearance.S": 0.5e-3}, None, _spec(joint)))
     assert direct[direct["statistic"] == "rms_slider_acc"]["value"].item() == first[0.5e-3]
+
+
+def test_a_change_of_the_studies_code_changes_the_task_keys(bench, monkeypatch):
+    """The sweep left ``model/`` (whose source digest every task key holds): its keys hold the
+    studies' own source digest, so a changed sweep never replays a cached result of the old code."""
+    from wearbench.studies import sweep
+
+    keys = []
+
+    def capture(tasks, **_):
+        keys.append([t.key for t in tasks])
+        raise KeyboardInterrupt  # the keys are all this test needs
+
+    monkeypatch.setattr(sweep, "run_tasks", capture)
+    spec = _spec(Axis("clearance.S", (0.2e-3,)))
+    for digest in (sweep.studies_source_digest(), "changed"):
+        monkeypatch.setattr(sweep, "studies_source_digest", lambda d=digest: d)
+        with pytest.raises(KeyboardInterrupt):
+            run_sweep(bench, spec, workers=0)
+    assert len(keys[0]) == len(keys[1]) == 1 and keys[0] != keys[1]
