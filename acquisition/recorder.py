@@ -199,11 +199,11 @@ class Recorder:
         is handed over before the first such error is raised."""
         w = self.writer
         if isinstance(item, Block):
-            note = self._checks[item.stream].check(item.stream, item.sequence, len(item.samples))
+            broken = self._checks[item.stream].check(item.stream, item.sequence, len(item.samples))
             events = [self._clip_check(item) if item.stream == ACCELERATION else None]
-            if note:
+            if broken:
                 self._events += 1
-                events.append(Event("drop" if "missing" in note else "repeat", note, device_time=item.device_time))
+                events.append(Event(broken.kind, broken.note, device_time=item.device_time))
             error = None
             for part in (item, *filter(None, events)):
                 try:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.layout import TOPICS
-from wearbench.acquisition.sequence import SequenceCheck
+from wearbench.acquisition.sequence import SequenceCheck, gaps
 from wearbench.acquisition.session_file import blocks, events, scan_mcap
 
 __all__ = ["SessionSummary", "StreamSummary", "format_summary", "summarize"]
@@ -28,7 +28,7 @@ class StreamSummary:
     rate: float = 0.0  # samples (or messages) per second of device time
     dropped_blocks: int = 0
     repeated_blocks: int = 0
-    gaps: int = 0  # breaks in time longer than 1.5 sample periods between consecutive blocks
+    gaps: int = 0  # steps between consecutive blocks' samples longer than 1.5 periods (sequence.gaps)
     longest_gap: float = 0.0  # s
     clipped: int = 0  # acceleration samples at or beyond the range (layout 2 records them per block)
 
@@ -61,8 +61,8 @@ def _block_stream(topic: str, blocks) -> StreamSummary:
     s.duration = float(end[-1] - start[0])
     s.rate = s.samples / s.duration if s.duration > 0 else 0.0
     breaks = start[1:] - end[:-1]
-    period = 1.0 / blocks[0].sample_rate
-    s.gaps = int(np.sum(breaks > 1.5 * period))
+    rate = blocks[0].sample_rate
+    s.gaps = int(np.count_nonzero(gaps(breaks + 1.0 / rate, rate)))  # last sample of a block to the next one's first
     s.longest_gap = float(breaks.max()) if len(breaks) else 0.0
     return s
 

@@ -84,7 +84,7 @@ def main() -> None:
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-estimate-")
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
+    from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.validation.estimate import (
         EstimatorDesign,
         build_estimator,

@@ -57,7 +57,7 @@ def main() -> None:
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-identify-")
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.model.compute import Task, compute_client, run_tasks, task_key
+    from wearbench.compute import Task, compute_client, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
     from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.validation import CompareOptions, load_session, rank_theories

@@ -27,7 +27,7 @@ def main() -> None:
     args = ap.parse_args()
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.model.compute import Task, run_tasks, task_key
+    from wearbench.compute import Task, run_tasks, task_key
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles, realisation_summary
     from wearbench.validation.features import CycleFeatures
     from wearbench.validation.identify import fit_states, identify_features

@@ -1,4 +1,4 @@
-"""Scale-out of one batch of simulations on wearbench.model.compute: serial loop, 1 and 2 workers.
+"""Scale-out of one batch of simulations on wearbench.compute: serial loop, 1 and 2 workers.
 
 The batch: ``--tasks`` sweep runs of the nine-bar bench (the nominal bench and realisations drawn
 within its tolerances, 0.3 mm clearance, ``--revolutions`` motor revolutions each), the kind of task
@@ -36,7 +36,7 @@ import time
 def timed_point(bench, seed, spec) -> dict:
     """One sweep run; returns its wall and CPU time (this thread only: a worker's own background
     threads count as the cluster's CPU, not the task's) and the worker's pid."""
-    from wearbench.model.sweep import run_point
+    from wearbench.studies.sweep import run_point
 
     t0, c0 = time.perf_counter(), time.thread_time()
     rows = run_point(bench, {"clearance": 3e-4}, seed, spec)
@@ -85,10 +85,9 @@ def main() -> None:
 
     os.environ["WEARBENCH_CACHE"] = tempfile.mkdtemp(prefix="wearbench-scale-out-")
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.model import cluster
-    from wearbench.model.cluster import usable_cores, warm_up
-    from wearbench.model.compute import Task, compute_client, run_tasks, task_key
-    from wearbench.model.sweep import Axis, SweepSpec
+    from wearbench.compute import Task, cluster, compute_client, run_tasks, task_key
+    from wearbench.compute.cluster import usable_cores, warm_up
+    from wearbench.studies.sweep import Axis, SweepSpec
 
     bench = load_bench(shipped_bench("ninebar"))
     spec = SweepSpec(axes=(Axis("clearance", (3e-4,)),), revolutions=args.revolutions, settle=0.5)

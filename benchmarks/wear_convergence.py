@@ -24,8 +24,8 @@ from pathlib import Path
 
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.surfaces import JointSurfaces
-from wearbench.model.wear_report import convergence_markdown, write_run
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages
+from wearbench.studies.wear_report import convergence_markdown, write_run
 
 
 def _run(bench, k: float, args) -> None:

@@ -49,7 +49,7 @@ def true_sensor_delay(bench, accel_delay: float) -> float:
 
 def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, float]]:
     """(true state, session path, true sensor delay) of every truth, recorded once into ``folder``."""
-    from wearbench.model.compute import Task, compute_client, run_tasks, task_key
+    from wearbench.compute import Task, compute_client, run_tasks, task_key
     from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
 
     folder.mkdir(parents=True, exist_ok=True)

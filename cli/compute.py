@@ -10,7 +10,7 @@ if TYPE_CHECKING:
 
 
 def add_compute_arguments(p: argparse.ArgumentParser) -> None:
-    """``--scheduler`` and ``--workers`` (see :mod:`wearbench.model.compute`)."""
+    """``--scheduler`` and ``--workers`` (see :mod:`wearbench.compute`)."""
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="a running Dask scheduler, e.g. tcp://10.0.0.5:8786, or 'local' (default: "
                    "$WEARBENCH_SCHEDULER, [compute] scheduler in the bench file, then in "
@@ -22,7 +22,7 @@ def add_compute_arguments(p: argparse.ArgumentParser) -> None:
 def compute_options(args: argparse.Namespace, bench: Bench | None = None) -> dict:
     """{"scheduler", "workers"} from the parsed options and ``bench``'s ``[compute]`` table, the
     scheduler resolved here ("local" when none is set); bad values and negative workers are errors."""
-    from wearbench.model.compute import resolve_scheduler
+    from wearbench.compute import resolve_scheduler
 
     if args.workers is not None and args.workers < 0:
         raise ValueError(f"--workers {args.workers}: expected 0 (in-process) or more")

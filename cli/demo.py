@@ -66,7 +66,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.cli.progress import progress
-    from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
+    from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.validation import load_session
     from wearbench.validation.assess import assess_sessions, write_assessment_report
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles

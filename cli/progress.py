@@ -18,7 +18,7 @@ def progress(enabled: bool | None = None) -> Iterator[Progress]:
     if enabled is None:
         enabled = sys.stderr.isatty()
     if not enabled:
-        from wearbench.model.compute import ProgressLines
+        from wearbench.compute import ProgressLines
 
         with ProgressLines() as lines:
             yield lines

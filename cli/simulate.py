@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
             for joint, frame in (result.contacts or {}).items():
                 frame.to_parquet(folder / f"{joint}.parquet", index=False)
     if args.plots:
-        from wearbench.model.plots import save_figures
+        from wearbench.studies.plots import save_figures
 
         with output_folder(args.plots, force=args.force, option="--plots") as folder:
             save_figures(result, folder)

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from wearbench.cli.progress import note_compiling, progress
-    from wearbench.model.study import StudyConfig, run_study
+    from wearbench.studies.study import StudyConfig, run_study
 
     bench = load_bench(resolve_bench(args.bench))
     note_compiling()

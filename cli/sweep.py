@@ -58,7 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import note_compiling
-    from wearbench.model.sweep import SweepSpec, axes_from, format_value, run_sweep, write_sweep
+    from wearbench.studies.sweep import SweepSpec, axes_from, format_value, run_sweep, write_sweep
 
     bench = load_bench(resolve_bench(args.bench))
     note_compiling()

@@ -104,8 +104,8 @@ def _coefficient(text: str | None) -> float | None:
 def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import note_compiling, progress
     from wearbench.model.surfaces import surfaces_from_bench
-    from wearbench.model.wear_report import convergence_markdown, run_summary, write_run
     from wearbench.model.wear_stages import run_stages
+    from wearbench.studies.wear_report import convergence_markdown, run_summary, write_run
 
     bench = load_bench(resolve_bench(args.bench))
     note_compiling()
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
         paths = write_run(wear_run, out, plots=not args.no_plots)
         summary = run_summary(wear_run)
         if ks:
-            from wearbench.model.study import staging_convergence
+            from wearbench.studies.study import staging_convergence
 
             total = plan.stage_cycles * plan.stages
             rows = staging_convergence(bench, ks, total, plan, clearances=clearances, speed=speed, initial=initial,

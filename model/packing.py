@@ -16,7 +16,7 @@ import numpy as np
 from wearbench.bench.schema import GROUND, Bench, BenchError, Joint
 from wearbench.model import kernel as K
 from wearbench.model.contact import LAWS, contact_stiffness
-from wearbench.model.midpoints import TABLE_ROWS, surface_curvature, surface_tables
+from wearbench.model.surface_tables import TABLE_ROWS, surface_curvature, surface_tables
 from wearbench.model.surfaces import JointSurfaces
 
 __all__ = ["Spring", "Torque", "pack_params"]

@@ -1,9 +1,10 @@
 """Worn surfaces of a clearance joint: wear depth per angular region on the bearing and the journal.
 
 Holds the :class:`JointSurfaces` contract (see the paper, section 2.2: the worn profile is stored
-as depths over equal angular regions fixed to each body), its ``.npz`` storage and the
-interpolation the contact geometry uses. Imports only numpy (and, lazily, the bench dataclasses in
-:func:`surfaces_from_bench`); it must not import the multibody model.
+as depths over equal angular regions fixed to each body), its ``.npz`` storage and the depth a
+counter-body can reach. The interpolation between region centres is ``surface_tables``'. Imports
+numpy and ``surface_tables`` (and, lazily, the bench dataclasses in :func:`surfaces_from_bench`); it
+must not import the multibody model.
 
 Worn geometry (contract): the bearing radius in direction phi (bearing frame) is
 ``R1 + bearing_depth(phi)``, the journal radius in direction phi (journal frame) is
@@ -21,11 +22,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from wearbench.model.surface_tables import depth_at
 
 if TYPE_CHECKING:
     from wearbench.bench.schema import Bench
 
-__all__ = ["JointSurfaces", "SurfaceError", "depth_at", "reachable_depth", "region_of", "surfaces_from_bench"]
+__all__ = ["JointSurfaces", "SurfaceError", "reachable_depth", "region_of", "surfaces_from_bench"]
 
 _FORMAT = "wearbench.surfaces/1"
 
@@ -150,33 +152,6 @@ def region_of(phi: float | np.ndarray, n: int) -> int | np.ndarray:
     """Index of the region (of ``n``) holding body-frame angle ``phi`` (rad)."""
     idx = np.floor(np.mod(phi, 2 * np.pi) * (n / (2 * np.pi))).astype(int) % n
     return int(idx) if np.ndim(idx) == 0 else idx
-
-
-def _pchip_slopes(depths: np.ndarray) -> np.ndarray:
-    """Periodic PCHIP node slopes (m per region): harmonic mean of the neighbouring differences,
-    zero at a local extremum (Fritsch-Butland; the same rule as ``contact.depth_eval``)."""
-    d_right = np.roll(depths, -1) - depths
-    d_left = depths - np.roll(depths, 1)
-    prod = d_left * d_right
-    with np.errstate(divide="ignore", invalid="ignore"):
-        m = np.where(prod > 0, 2.0 * prod / np.where(prod > 0, d_left + d_right, 1.0), 0.0)
-    return m
-
-
-def depth_at(depths: np.ndarray, phi: float | np.ndarray) -> float | np.ndarray:
-    """Depth (m) at angle ``phi`` (rad): periodic PCHIP (C1, shape-preserving) through the region
-    centres, region ``i`` of ``n`` centred at ``2 pi (i + 0.5)/n``; the same curve the contact
-    kernel evaluates (``wearbench.model.contact.depth_eval``)."""
-    n = depths.size
-    x = np.mod(phi, 2 * np.pi) * (n / (2 * np.pi)) - 0.5
-    i0 = np.floor(x).astype(int)
-    f = x - i0
-    m = _pchip_slopes(depths)
-    y0, y1 = depths[i0 % n], depths[(i0 + 1) % n]
-    m0, m1 = m[i0 % n], m[(i0 + 1) % n]
-    f2, f3 = f * f, f * f * f
-    out = (2 * f3 - 3 * f2 + 1) * y0 + (f3 - 2 * f2 + f) * m0 + (-2 * f3 + 3 * f2) * y1 + (f3 - f2) * m1
-    return float(out) if np.ndim(out) == 0 else out
 
 
 def reachable_depth(depths: np.ndarray, clearance: float, oversample: int = 4) -> float:

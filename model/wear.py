@@ -26,9 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from numba import njit
-from wearbench.model.contact import (
-    conformal_radius,
-    effective_modulus,
+from wearbench.model.contact import conformal_radius, effective_modulus
+from wearbench.model.surface_tables import (
     node_slopes,
     region_coordinate,
     region_interval,

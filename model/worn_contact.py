@@ -20,12 +20,15 @@ import math
 
 import numpy as np
 from numba import njit
-from wearbench.model.contact import depth_eval, region_coordinate, rewrap, table_eval
-from wearbench.model.midpoints import (
+from wearbench.model.surface_tables import (
+    depth_eval,
     fill_midpoints,
     midpoint_window,
+    region_coordinate,
+    rewrap,
     surface_curvature,
     surface_tables,
+    table_eval,
 )
 
 __all__ = ["SECOND_ZONE_RATIO", "contact_zones", "overlap_at", "search_second_zone", "search_top_zone",

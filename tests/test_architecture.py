@@ -16,18 +16,21 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("bench", "model", "hardware", "acquisition", "validation", "testing", "cli")
-LIBRARY = ("bench", "model", "hardware", "hardware.protocol", "hardware.emulators", "acquisition", "validation")
+PACKAGES = ("bench", "model", "compute", "studies", "hardware", "acquisition", "validation", "testing", "cli")
+LIBRARY = ("bench", "model", "compute", "studies", "hardware", "hardware.protocol", "hardware.emulators", "acquisition",
+           "validation")
 
 # layer -> the layers it may import (itself always allowed)
 ALLOWED: dict[str, set[str]] = {
     "bench": set(),
     "model": {"bench"},
+    "compute": {"bench", "model"},  # batches of simulations: its workers run the model
+    "studies": {"bench", "model", "compute"},  # studies, sweeps and their figures
     "hardware.protocol": {"bench"},
     "hardware.emulators": {"bench", "model", "hardware.protocol"},
     "hardware": {"bench"},  # hardware/__init__.py
     "acquisition": {"bench", "hardware.protocol"},
-    "validation": {"bench", "model", "acquisition"},
+    "validation": {"bench", "model", "compute", "acquisition"},
     # the pytest plugin and emulated sessions: emulators, recorder and identification together
     "testing": set(LIBRARY),
     "cli": set(LIBRARY) | {"testing"},

@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
-from wearbench.model.sweep import Axis, SweepSpec, parse_axis, run_point, run_sweep
+from wearbench.studies.sweep import Axis, SweepSpec, parse_axis, run_point, run_sweep
 
 
 def test_parse_axis_ranges_and_lists_in_si():
@@ -83,7 +83,7 @@ def test_a_failed_run_is_named_with_its_parameters_and_hides_nothing(bench):
 
 
 def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys, monkeypatch):
-    from wearbench.model import sweep
+    from wearbench.studies import sweep
 
     out = tmp_path / "sweep"
     args = ["sweep", str(shipped_bench("slider-crank")), "--vary", "clearance=0.2mm,20mm", "--vary", "speed=-4000rpm",
@@ -119,7 +119,8 @@ def test_cli_writes_parquet_plots_and_failures(tmp_path, capsys, monkeypatch):
 
 
 def test_commands_on_a_bench_use_its_compute_scheduler_unless_told_otherwise(tmp_path, monkeypatch, capsys):
-    from wearbench.model import sweep, wear_stages
+    from wearbench.model import wear_stages
+    from wearbench.studies import sweep
 
     bench = tmp_path / "bench.toml"
     bench.write_text(shipped_bench("slider-crank").read_text() + '\n[compute]\nscheduler = "tcp://127.0.0.1:8791"\n')
@@ -166,3 +167,23 @@ def test_overlapping_axes_follow_one_rule_and_the_cache_keys_the_computation(ben
     assert first[0.2e-3] != first[0.5e-3]
     direct = pd.DataFrame(run_point(bench, {"clearance.S": 0.5e-3}, None, _spec(joint)))
     assert direct[direct["statistic"] == "rms_slider_acc"]["value"].item() == first[0.5e-3]
+
+
+def test_a_change_of_the_studies_code_changes_the_task_keys(bench, monkeypatch):
+    """The sweep left ``model/`` (whose source digest every task key holds): its keys hold the
+    studies' own source digest, so a changed sweep never replays a cached result of the old code."""
+    from wearbench.studies import sweep
+
+    keys = []
+
+    def capture(tasks, **_):
+        keys.append([t.key for t in tasks])
+        raise KeyboardInterrupt  # the keys are all this test needs
+
+    monkeypatch.setattr(sweep, "run_tasks", capture)
+    spec = _spec(Axis("clearance.S", (0.2e-3,)))
+    for digest in (sweep.studies_source_digest(), "changed"):
+        monkeypatch.setattr(sweep, "studies_source_digest", lambda d=digest: d)
+        with pytest.raises(KeyboardInterrupt):
+            run_sweep(bench, spec, workers=0)
+    assert len(keys[0]) == len(keys[1]) == 1 and keys[0] != keys[1]

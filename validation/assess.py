@@ -11,13 +11,10 @@ the ensembles.
 from __future__ import annotations
 
 import hashlib
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import numpy as np
-from wearbench.acquisition.layout import clip_level, recorded_clip_level
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
@@ -50,7 +47,7 @@ from wearbench.validation.windows import (
     window_theory,
 )
 
-__all__ = ["Assessment", "assess_sessions", "judging_models", "session_clip_level", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "judging_models", "session_features"]
 
 
 @dataclass
@@ -77,32 +74,10 @@ class Assessment:
         return self.identification.verdict in self.identification.posterior
 
 
-def _arrays(session: MeasuredSession) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Acceleration times and samples with the encoder's crank angle interpolated to each sample."""
-    acc = session.acceleration
-    t = acc["time"].to_numpy(float)
-    enc = session.encoder
-    return t, np.interp(t, enc["time"].to_numpy(float), enc["angle"].to_numpy(float)), acc["acc"].to_numpy(float)
-
-
-def session_features(session: MeasuredSession, spec: FeatureSpec | None = None,
-                     arrays: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> CycleFeatures:
-    """Cycle features of a measured session; clipped samples counted by the recorder's rule at the
-    range the session recorded in its calibration (a session without one: its bench file's range).
-    ``arrays``: the session's ``_arrays`` when the caller has them already."""
-    return cycle_features(*(arrays or _arrays(session)), spec or FeatureSpec(), clip_level=session_clip_level(session))
-
-
-def session_clip_level(session: MeasuredSession) -> float | None:
-    """|a| from which a sample of ``session`` is clipped (``acquisition.layout.clip_level``) from its
-    recorded calibration (range, LSB), else its bench file's accelerometer range; None if neither."""
-    level = recorded_clip_level(session.metadata.get("calibration", {}))
-    if math.isfinite(level):
-        return level
-    try:
-        return clip_level(session.bench.sensor("accelerometer").range) if session.bench is not None else None
-    except KeyError:
-        return None
+def session_features(session: MeasuredSession, spec: FeatureSpec | None = None) -> CycleFeatures:
+    """Cycle features of a measured session, from its samples, sample rate and clip level (the
+    recorder's rule at the range the session recorded in its calibration)."""
+    return cycle_features(*session.samples, spec or FeatureSpec(), clip_level=session.clip_level, fs=session.fs)
 
 
 def commanded_speed(session: MeasuredSession) -> float:
@@ -137,7 +112,7 @@ def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, 
     path or the options' default) and every state's window theory (their held-out nulls): the costly
     part of judging a session, computed once per ensembles' content, options, sensor path and code,
     and kept in the result cache (``$WEARBENCH_CACHE``)."""
-    from wearbench.model.task_cache import MISSING, cache_load, cache_store, task_key
+    from wearbench.compute.task_cache import MISSING, cache_load, cache_store, task_key
 
     key = task_key("window-calibration", _source_digest(),
                    {n: (e.features, e.curves, e.speed) for n, e in ensembles.items()}, asdict(options),
@@ -206,14 +181,13 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
             if tag not in judged:
                 judged[tag] = judging_models(ens, options, window_options, crank, cal.path if cal else None)
             models, theories = judged[tag]
-            arrays = _arrays(s)
-            feats = session_features(s, st.features, arrays)
+            feats = session_features(s, st.features)
             ident = identify_features(feats, models, label=s.label)
             if cal is not None:
                 ident.notes.append(f"sensor path: {cal.describe()}")
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
-            mc = measured_curves(*arrays, grid=st.grid, filter_spec=st.curve_filter,
-                                 lowpass=window_options.delay_lowpass)
+            mc = measured_curves(*s.samples, grid=st.grid, filter_spec=st.curve_filter,
+                                 lowpass=window_options.delay_lowpass, fs=s.fs)
             bands = compare_bands(mc.at(0.0), mc.peaks, ens[state])
             windows = {name: score_windows(mc, th, feats) for name, th in theories.items()}
             out[i] = Assessment(s, ident, bands, windows, mc)

@@ -191,8 +191,7 @@ def _score_window(session: MeasuredSession, theory: TheoryCurve, start: int, opt
     test = acc_all[i0:i1].copy()
     if not np.all(np.isfinite(test)):
         return f"{int(np.sum(~np.isfinite(test)))} non-finite acceleration samples in the window"
-    enc = session.encoder
-    angle = np.interp(t, enc["time"].to_numpy(float), enc["angle"].to_numpy(float))
+    angle = session.crank_angle[i0:i1]
     try:
         theo = theory.at(angle, direction=session.direction)
     except ValueError as exc:
@@ -228,8 +227,7 @@ def compare_session(session: MeasuredSession | str | Path, theory: Any = None, *
     if not starts:
         raise ValueError(f"session {session.label}: no run of {options.windows.cycles} steady crank cycles "
                          f"({len(session.cycles)} complete cycles recorded)")
-    t_all = session.acceleration["time"].to_numpy(float)
-    acc_all = session.acceleration["acc"].to_numpy(float)
+    t_all, _, acc_all = session.samples
     windows, skipped = [], []
     for s in starts:
         r = _score_window(session, curve, s, options, t_all, acc_all)

@@ -1,9 +1,10 @@
 """Crank cycles of a record: cut from the encoder angle and index pulse, resampled by crank angle,
 and grouped into the five-cycle windows the paper compares.
 
-Holds ``cut_cycles`` (cycle table), ``angle_view`` (signal per cycle on a uniform crank-angle grid),
-``WindowSpec``/``parse_windows`` and ``choose_windows``. Pure numpy/pandas; imports nothing from
-wearbench.
+Holds ``crank_turns`` (the one derivation of a record's direction of rotation, crank progress and
+cycle index per sample), ``cut_cycles`` (cycle table), ``angle_view`` (signal per cycle on a uniform
+crank-angle grid), ``WindowSpec``/``parse_windows`` and ``choose_windows``. Pure numpy/pandas;
+imports nothing from wearbench.
 """
 
 from __future__ import annotations
@@ -13,9 +14,34 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-__all__ = ["WindowSpec", "angle_view", "choose_windows", "cut_cycles", "parse_windows", "reference_angle"]
+__all__ = ["CrankTurns", "WindowSpec", "angle_view", "choose_windows", "crank_turns", "cut_cycles", "parse_windows",
+           "reference_angle"]
 
 TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class CrankTurns:
+    """A record's crank, sample by sample: ``direction`` of rotation (+1 or -1, from the first and
+    last angle), ``progress`` (rad, ``direction * angle`` never turning back: a standing or jittering
+    crank never counts a cycle twice), ``cycle`` (each sample's cycle index, cycles starting where the
+    progress passes ``direction * start_angle + 2 pi k``), and the first and last complete cycle."""
+
+    direction: float
+    progress: np.ndarray
+    cycle: np.ndarray
+    first: int
+    last: int
+
+
+def crank_turns(angle: np.ndarray, *, start_angle: float = 0.0) -> CrankTurns:
+    """:class:`CrankTurns` of an unwrapped crank angle (rad, either sense of rotation) per sample;
+    cycles start at crank angle ``start_angle`` (0: absolute crank angle, shared by test and theory)."""
+    a = np.asarray(angle, dtype=float)
+    direction = 1.0 if a[-1] >= a[0] else -1.0
+    u = np.maximum.accumulate(a if direction > 0 else -a)
+    cycle = np.floor((u - direction * start_angle) / TWO_PI).astype(np.int64)
+    return CrankTurns(direction, u, cycle, int(cycle[0]) + 1, int(cycle[-1]) - 1)
 
 
 def reference_angle(encoder: pd.DataFrame) -> float:
@@ -49,9 +75,8 @@ def cut_cycles(encoder: pd.DataFrame, *, start_angle: float | None = None,
     columns = ["cycle", "t_start", "t_end", "speed", "steady"]
     if t.size < 2 or a[-1] == a[0]:
         return pd.DataFrame(columns=columns)
-    direction = 1.0 if a[-1] > a[0] else -1.0
-    u = direction * a
-    u = np.maximum.accumulate(u)  # a standing or jittering crank never counts a cycle twice
+    turns = crank_turns(a)
+    direction, u = turns.direction, turns.progress
     ref = start_angle if start_angle is not None else reference_angle(encoder)
     ref_u = direction * ref
     k0 = np.ceil((u[0] - ref_u) / TWO_PI)
@@ -84,8 +109,8 @@ def angle_view(time: np.ndarray, values: np.ndarray, encoder: pd.DataFrame, cycl
     ae = encoder["angle"].to_numpy(float)
     if cycles.empty:
         return pd.DataFrame(columns=["cycle", "angle", "value"])
-    direction = 1.0 if ae[-1] > ae[0] else -1.0
-    u = np.maximum.accumulate(direction * ae)
+    turns = crank_turns(ae)
+    direction, u = turns.direction, turns.progress
     grid = np.arange(points_per_rev) * (TWO_PI / points_per_rev)
     frames = []
     for row in cycles.itertuples():

@@ -4,7 +4,7 @@ Each realisation is one bench drawn within the bench's ``[tolerances]`` with a r
 (``wearbench.model.realisation``), settled, then simulated for ``cycles`` crank revolutions. A
 realisation is reduced on the worker to what the comparison needs (per-cycle features, the
 filtered curve of each cycle on a crank-angle grid, per-cycle peaks), so only kilobytes travel
-back. Realisations run on the compute layer (``wearbench.model.compute``: dask.distributed,
+back. Realisations run on the compute layer (``wearbench.compute``: dask.distributed,
 local by default) and are cached by content: bench physics, state (surfaces by their bytes),
 tolerances, seed, settings and the model's source digest.
 """
@@ -93,7 +93,7 @@ def realisation_summary(bench: Bench, state: WearState, seed: int, *, speed: flo
 
 def ensembles_key(bench: Bench, states: Sequence[WearState], speed: float, settings: EnsembleSettings) -> str:
     """Content address of a set of ensembles (also keys shipped precomputed ones)."""
-    from wearbench.model.compute import task_key
+    from wearbench.compute import task_key
 
     return task_key("ensembles", bench_key(bench), asdict(bench.tolerances), [_state_key(s) for s in states],
                     round(speed, 9), asdict(settings))
@@ -117,7 +117,7 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     go to the compute layer as one batch. A realisation that fails numerically is reported in
     ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
     """
-    from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
+    from wearbench.compute import Task, TaskFailure, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)

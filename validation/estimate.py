@@ -137,7 +137,7 @@ def estimator_key(bench: Bench, design: EstimatorDesign, speed: float) -> str:
     """Content address of an estimator (also keys a shipped one): bench physics and tolerances, the
     wear settings, the design, the speed and the model source."""
     from wearbench.bench.content import bench_key
-    from wearbench.model.compute import task_key
+    from wearbench.compute import task_key
 
     return task_key("estimator", bench_key(bench), asdict(bench.tolerances), asdict(bench.wear), design.as_dict(),
                     round(speed, 9))
@@ -155,7 +155,7 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
                     shipped: bool = True, progress: str | None = "estimator") -> Estimator:
     """The estimator of ``bench``: a shipped one when its key matches, else the design's wear runs
     (one per clearance) and ensembles (one per design point) on the compute layer, cached by content."""
-    from wearbench.model.compute import Task, TaskFailure, cache_dir, run_tasks, task_key
+    from wearbench.compute import Task, TaskFailure, cache_dir, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)

@@ -28,9 +28,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy import signal
 from wearbench.acquisition.layout import clipped as is_clipped
+from wearbench.validation.cycles import crank_turns
 from wearbench.validation.filters import FilterSpec, apply_filter
 
-__all__ = ["CycleFeatures", "FeatureSpec", "cycle_features"]
+__all__ = ["CycleFeatures", "FeatureSpec", "cycle_features", "sample_rate"]
 
 TWO_PI = 2.0 * np.pi
 
@@ -99,24 +100,22 @@ def _band(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
     return signal.sosfiltfilt(sos, x, padtype="odd", padlen=min(x.size - 1, int(10 * fs / lo)))
 
 
-def _turns(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
-    """Crank progress in the sense of rotation (never turning back), each sample's cycle index
-    (cycles start at crank angle 0), and the first and last complete cycle."""
-    u = np.asarray(angle, dtype=float)
-    u = np.maximum.accumulate(u if u[-1] >= u[0] else -u)
-    cycle = np.floor(u / TWO_PI).astype(np.int64)
-    return u, cycle, int(cycle[0]) + 1, int(cycle[-1]) - 1
+def sample_rate(t: np.ndarray) -> float:
+    """The sample rate (Hz) of uniformly sampled times ``t`` (s): 1 / the median step. A measured
+    session's is its own (``MeasuredSession.fs``): callers on the measured path pass it."""
+    return float(1.0 / np.median(np.diff(t)))
 
 
 def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: FeatureSpec = FeatureSpec(), *,
-                   clip_level: float | None = None) -> CycleFeatures:
+                   clip_level: float | None = None, fs: float | None = None) -> CycleFeatures:
     """Features of every complete crank revolution of a record.
 
     t: sample times (s, uniform rate); angle: unwrapped absolute crank angle at those times (rad;
     either sense of rotation); acc: slider acceleration (m/s^2). A cycle runs from one crossing of
     crank angle 0 (mod 2 pi, in the sense of rotation) to the next; partial cycles at the ends are
     dropped. clip_level: |a| (m/s^2) from which a sample is clipped, by the acquisition's rule
-    (``acquisition.layout.clip_level`` of the recorded range, ``clipped``).
+    (``acquisition.layout.clip_level`` of the recorded range, ``clipped``). fs: the sample rate (Hz;
+    default :func:`sample_rate` of ``t``).
     """
     t = np.asarray(t, dtype=float)
     angle = np.asarray(angle, dtype=float)
@@ -126,8 +125,9 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
                          f"{acc.size}")
     if not np.all(np.isfinite(acc)):
         raise ValueError(f"features: {int(np.sum(~np.isfinite(acc)))} non-finite acceleration samples")
-    fs = float(1.0 / np.median(np.diff(t)))
-    u, cycle, first, last = _turns(angle)
+    fs = sample_rate(t) if fs is None else fs
+    turns = crank_turns(angle)  # cycles from crank angle 0
+    u, cycle, first, last = turns.progress, turns.cycle, turns.first, turns.last
     if last < first:
         return CycleFeatures(spec, np.zeros((0, spec.size)), np.zeros(0, dtype=np.int64))
     keep = (cycle >= first) & (cycle <= last)
@@ -164,8 +164,9 @@ def cycle_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int
     """
     t = np.asarray(t, dtype=float)
     acc = np.asarray(acc, dtype=float)
-    u, cycle, k0, k1 = _turns(angle)
-    fs = float(1.0 / np.median(np.diff(t)))
+    turns = crank_turns(angle)
+    u, cycle, k0, k1 = turns.progress, turns.cycle, turns.first, turns.last
+    fs = sample_rate(t)
     if k1 < k0:
         return np.zeros((0, grid)), np.zeros(0)
     whole = (cycle >= k0) & (cycle <= k1)

@@ -1,8 +1,10 @@
 """A measured session as validation sees it: acceleration and encoder in pandas, cut into cycles.
 
 Holds ``MeasuredSession`` (time signals, cycle table, crank-angle view, recorded conditions) and
-``load_session`` (from a session MCAP via wearbench.acquisition.session_file.read_session).
-Imports acquisition only inside ``load_session``.
+``load_session`` (from a session MCAP via wearbench.acquisition.session_file.read_session). The
+session owns what was recorded: its sample rate, its clip level (the recorder's rule on the recorded
+calibration), its gaps (the acquisition's rule) and each sample's crank angle, direction and cycle
+(``cycles.crank_turns``); features, windows and identification take them from here.
 """
 
 from __future__ import annotations
@@ -13,7 +15,16 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from wearbench.validation.cycles import angle_view, cut_cycles, reference_angle
+from wearbench.acquisition.layout import recorded_clip_level
+from wearbench.acquisition.sequence import gaps
+from wearbench.validation.cycles import (
+    CrankTurns,
+    angle_view,
+    crank_turns,
+    cut_cycles,
+    reference_angle,
+)
+from wearbench.validation.features import sample_rate
 
 __all__ = ["MeasuredSession", "load_session"]
 
@@ -23,8 +34,13 @@ class MeasuredSession:
     """Acceleration (time, acc) and encoder (time, angle, speed, index) of one session, device clock.
 
     cycles: ``cut_cycles`` table; angles: ``angle_view`` of the acceleration (cycle, angle, value);
-    fs: acceleration sample rate (Hz, median of the time steps); gaps: number of acceleration time
-    steps longer than 1.5 sample periods (dropped samples); windows spanning a gap are not scored.
+    fs: acceleration sample rate (Hz, ``features.sample_rate`` of the recorded sample times); gaps:
+    acceleration time steps the acquisition counts as gaps (``acquisition.sequence.gaps``: dropped
+    samples), windows spanning one are not scored; clip_level: |a| (m/s^2) from which a sample is
+    clipped, the recorder's rule on the recorded calibration (None when the session recorded no
+    range); crank_angle: the encoder's crank angle (rad, unwrapped) at each acceleration sample;
+    turns: its ``crank_turns`` (direction, progress and cycle index per sample, cycles from crank
+    angle 0 as the features count them).
     """
 
     label: str
@@ -55,16 +71,23 @@ class MeasuredSession:
         if self.encoder["angle"].isna().all():
             raise ValueError(f"session {self.label}: the encoder angle is missing (no counts per revolution "
                              "in the bench or calibration)")
-        dt = np.diff(t)
-        self.fs = float(1.0 / np.median(dt))
-        self.gap_times = t[:-1][dt > 1.5 / self.fs]
+        self.fs = sample_rate(t)
+        self.gap_times = t[:-1][gaps(np.diff(t), self.fs)]
+        level = recorded_clip_level(self.metadata.get("calibration", {}))
+        self.clip_level = level if np.isfinite(level) else None
+        self.crank_angle = np.interp(t, self.encoder["time"].to_numpy(float), self.encoder["angle"].to_numpy(float))
+        self.turns: CrankTurns = crank_turns(self.crank_angle)
+        self.direction = self.turns.direction
         self.start_angle = reference_angle(self.encoder)
         self.cycles = cut_cycles(self.encoder, start_angle=self.start_angle,
                                  speed_tolerance=self.speed_tolerance)
-        a = self.encoder["angle"].to_numpy(float)
-        self.direction = 1.0 if a[-1] >= a[0] else -1.0
         self.angles = angle_view(t, self.acceleration["acc"].to_numpy(float), self.encoder, self.cycles,
                                  start_angle=self.start_angle, points_per_rev=self.points_per_rev)
+
+    @property
+    def samples(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Acceleration sample times (s), the crank angle at each (rad) and the samples (m/s^2)."""
+        return self.acceleration["time"].to_numpy(float), self.crank_angle, self.acceleration["acc"].to_numpy(float)
 
     @property
     def gaps(self) -> int:

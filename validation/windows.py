@@ -41,9 +41,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from scipy import signal, stats
-from wearbench.validation.cycles import WindowSpec, choose_windows
+from wearbench.validation.cycles import WindowSpec, choose_windows, crank_turns
 from wearbench.validation.ensemble import Ensemble
-from wearbench.validation.features import CycleFeatures, FeatureSpec, _turns
+from wearbench.validation.features import CycleFeatures, FeatureSpec, sample_rate
 from wearbench.validation.filters import apply_filter, parse_filter
 from wearbench.validation.identify import StateModels, _ranges, direction_distance2, feature_ranges
 from wearbench.validation.metrics import iso18571
@@ -100,13 +100,15 @@ class MeasuredCurves:
 
 
 def measured_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int, filter_spec: str,
-                    speed_tolerance: float = 0.02, lowpass: float = 10.0) -> MeasuredCurves:
+                    speed_tolerance: float = 0.02, lowpass: float = 10.0, fs: float | None = None) -> MeasuredCurves:
     """``MeasuredCurves`` of a record (times t, absolute crank angle at t, acceleration), filtered as
     ``validation.features.cycle_curves`` filters the ensemble's (bias over whole cycles removed), and
-    low-passed at ``lowpass`` Hz for the delay fit."""
+    low-passed at ``lowpass`` Hz for the delay fit. fs: the sample rate (Hz; a measured session's
+    ``fs``, default ``features.sample_rate`` of ``t``)."""
     t, acc = np.asarray(t, dtype=float), np.asarray(acc, dtype=float)
-    u, cycle, k0, k1 = _turns(angle)
-    fs = float(1.0 / np.median(np.diff(t)))
+    turns = crank_turns(angle)
+    u, cycle, k0, k1 = turns.progress, turns.cycle, turns.first, turns.last
+    fs = sample_rate(t) if fs is None else fs
     if k1 < k0:
         return MeasuredCurves(t, acc, np.zeros((0, grid)), np.zeros(0, dtype=bool), np.zeros(0), acc)
     whole = (cycle >= k0) & (cycle <= k1)

@@ -9,13 +9,13 @@ import pytest
 from wearbench.model.contact import (
     MIN_IMPACT_SPEED,
     contact_stiffness,
-    depth_at,
     friction_factor,
     friction_force,
     impact_speed,
     normal_force,
 )
-from wearbench.model.surfaces import depth_at as surfaces_depth_at
+from wearbench.model.surface_tables import depth_at as surfaces_depth_at
+from wearbench.model.surface_tables import depth_eval
 
 
 def test_conformal_stiffness_is_about_seven_times_the_printed_form():
@@ -56,4 +56,4 @@ def test_depth_interpolation_matches_the_surfaces_contract():
     rng = np.random.default_rng(1)
     depths = rng.uniform(0, 1e-4, 37)
     for phi in rng.uniform(-10, 10, 50):
-        assert depth_at(depths, depths.size, phi) == pytest.approx(surfaces_depth_at(depths, phi), abs=1e-18)
+        assert depth_eval(depths, depths.size, phi)[0] == pytest.approx(surfaces_depth_at(depths, phi), abs=1e-18)

@@ -8,11 +8,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import PchipInterpolator
 from wearbench.bench.load import load_bench, shipped_bench
-from wearbench.model.contact import depth_eval
+from wearbench.model.surface_tables import depth_at, depth_eval
 from wearbench.model.surfaces import (
     JointSurfaces,
     SurfaceError,
-    depth_at,
     region_of,
     surfaces_from_bench,
 )

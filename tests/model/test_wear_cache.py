@@ -2,7 +2,7 @@
 
 numba's own ``cache=True`` keys a kernel on its own file only; ``wearbench.model.jit_cache`` keys the
 cache directory on the digest of the whole model package. The check runs a copy of the package in
-subprocesses: compile and cache, edit the callee (``contact.depth_eval``, called by
+subprocesses: compile and cache, edit the callee (``surface_tables.depth_eval``, called by
 ``worn_contact.worn_contact``), run again and see the new physics.
 """
 
@@ -55,12 +55,12 @@ def test_editing_a_callee_recompiles_the_cached_kernel(tmp_path):
     again = _run(tmp_path)
     assert again["cache"] == first["cache"] and again["loaded"], "second run should load the cached kernel"
     # the callee doubles every depth: a kernel cached on its own file alone would still see 10 um
-    contact = pkg / "model" / "contact.py"
-    text = contact.read_text()
+    callee = pkg / "model" / "surface_tables.py"
+    text = callee.read_text()
     edited = text.replace("    return h, dh * scale, d2h * scale * scale",
                           "    return 2.0 * h, 2.0 * dh * scale, 2.0 * d2h * scale * scale")
     assert edited != text
-    contact.write_text(edited)
+    callee.write_text(edited)
     after = _run(tmp_path)
     assert after["cache"] != first["cache"]
     assert after["hb"] == pytest.approx(2e-5, rel=1e-12)

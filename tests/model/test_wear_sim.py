@@ -51,7 +51,7 @@ def test_circular_journal_rests_on_the_rims_of_a_narrow_pit(bench):
     pit[495:505] = 100e-6 * np.hanning(12)[1:-1]
     centre = 2 * np.pi * 500 / n
     phi = np.linspace(centre - 0.5, centre + 0.5, 20_001)
-    from wearbench.model.surfaces import depth_at
+    from wearbench.model.surface_tables import depth_at
 
     for emag, alpha in ((c + 5e-6, centre), (c + 20e-6, centre + 0.004), (c + 2e-6, centre - 0.02)):
         _, f, hb, _, _, _ = worn_contact(pit, n, np.zeros(n), n, emag, alpha, 0.0, 0.3, c)
@@ -71,7 +71,7 @@ def _rims(n=1000):
 def test_second_zone_is_the_other_rim_of_a_bridged_pit():
     """A journal bridging a narrow pit touches both rims: the second zone is the other local
     maximum of the overlap, with the saddle between them, as a brute-force grid finds them."""
-    from wearbench.model.surfaces import depth_at
+    from wearbench.model.surface_tables import depth_at
     from wearbench.model.worn_contact import second_zone, worn_contact
 
     pit, centre = _rims()

@@ -16,14 +16,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from wearbench.model.contact import depth_eval, node_slopes, table_depth_eval
-from wearbench.model.midpoints import (
+from wearbench.model.surface_tables import (
+    depth_at,
+    depth_eval,
     fill_midpoints,
     midpoint_window,
+    node_slopes,
     surface_curvature,
     surface_tables,
+    table_depth_eval,
 )
-from wearbench.model.surfaces import depth_at
 from wearbench.model.worn_contact import SECOND_ZONE_RATIO, overlap_at, second_zone, worn_contact
 
 DATA = Path(__file__).parent / "data" / "worn_search_previous.npz"

@@ -92,7 +92,7 @@ def test_files_that_are_not_ensembles_are_one_line(session, tmp_path, capsys):
 def test_a_candidate_surface_that_is_no_npz_fails_before_any_realisation(tmp_path, monkeypatch, capsys):
     """Issue 25, item 13: a --candidates wear file that is not an .npz submitted all realisations and
     then failed with numpy's advice to load pickles unsafely."""
-    from wearbench.model import compute
+    from wearbench import compute
 
     monkeypatch.setattr(compute, "run_tasks", lambda *a, **k: pytest.fail("realisations submitted"))
     bad = tmp_path / "worn.npz"

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 from wearbench.bench.load import load_bench, shipped_bench
-from wearbench.model.compute import Task, compute_client, run_tasks, task_key
+from wearbench.compute import Task, compute_client, run_tasks, task_key
 from wearbench.testing.truths import prepare_truth, record_state, slug
 from wearbench.validation.assess import assess_sessions
 from wearbench.validation.ensemble import EnsembleSettings, build_ensembles

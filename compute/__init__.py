@@ -7,8 +7,8 @@ at a scheduler address) and returns results in task order; a failed task yields 
 :class:`TaskFailure` in its slot and never hides the others. Results are pickled to the cache as
 they arrive on the client, so a rerun, a restarted cluster or a Ctrl-C loses nothing finished.
 
-Content addresses and the result cache are :mod:`~wearbench.model.task_cache`'s, the scheduler
-and the client :mod:`~wearbench.model.cluster`'s; their public names are exported here too, so a
+Content addresses and the result cache are :mod:`~wearbench.compute.task_cache`'s, the scheduler
+and the client :mod:`~wearbench.compute.cluster`'s; their public names are exported here too, so a
 batch's code imports one module. Imports the standard library, numpy, rich and
 ``dask.distributed`` (lazily); no CLI code.
 """
@@ -27,9 +27,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
-from wearbench.model.cluster import active_client, compute_client, resolve_scheduler, usable_cores
-from wearbench.model.digest import model_source_digest
-from wearbench.model.task_cache import (
+from wearbench.compute.cluster import active_client, compute_client, resolve_scheduler, usable_cores
+from wearbench.compute.task_cache import (
     LAYOUT_VERSION,
     MISSING,
     cache_dir,
@@ -37,6 +36,7 @@ from wearbench.model.task_cache import (
     cache_store,
     task_key,
 )
+from wearbench.model.digest import model_source_digest
 
 if TYPE_CHECKING:
     from distributed import Client

@@ -1,5 +1,5 @@
 """Parameter sweeps of a bench: a grid of operating points, optional wear stages and realisations per
-point, one task per (point, realisation) on :mod:`wearbench.model.compute`, a tidy results table.
+point, one task per (point, realisation) on :mod:`wearbench.compute`, a tidy results table.
 
 A sweep varies parameters of :data:`PARAMETERS` ("clearance", "clearance.<joint>", "speed",
 "wear_coefficient") over given values; each run wears the point's clearance joints for ``stages``
@@ -25,8 +25,9 @@ import numpy as np
 import pandas as pd
 from wearbench.bench.content import bench_key
 from wearbench.bench.units import QuantityError, parse_quantity
-from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
+from wearbench.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan
+from wearbench.studies import studies_source_digest
 
 __all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "SweepSpec", "format_value",
            "parse_axis", "plot_sweep", "run_point", "run_sweep"]
@@ -235,7 +236,8 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
             label = " ".join(f"{n}={format_value(n, v)}" for n, v in point.items()) + (f" seed={seed}" if seed is not None
                                                                                   else "")
             tasks.append(Task(run_point, {"bench": bench, "values": point, "seed": seed, "spec": spec},
-                              task_key("sweep-point", part, _apply(bench, point, spec.plan), seed, how), label))
+                              task_key("sweep-point", studies_source_digest(), part, _apply(bench, point, spec.plan),
+                                       seed, how), label))
     results = run_tasks(tasks, workers=workers, scheduler=scheduler, progress=progress, cache=cache)
     rows, failures = [], []
     for run, res in zip(runs, results, strict=True):

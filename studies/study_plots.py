@@ -26,7 +26,8 @@ def plot_case_dynamics(result, bench, out: str | Path, *, clearance_study: bool 
     Rebuilds each state's scene (cheap) so the model's plots can draw clearance circles and
     Poincare sections, then draws every state of the case on the same axes.
     """
-    from wearbench.model import SimulationResult, build_scene, plots
+    from wearbench.model import SimulationResult, build_scene
+    from wearbench.studies import plots
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

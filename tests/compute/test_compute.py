@@ -14,8 +14,8 @@ import cloudpickle
 import numpy as np
 import psutil
 import pytest
-from wearbench.model import compute, task_cache
-from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
+from wearbench import compute
+from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_cache, task_key
 
 # the test module is imported by path (importlib mode), so workers get its functions by value
 cloudpickle.register_pickle_by_value(sys.modules[__name__])

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pandas as pd
 from wearbench.bench.content import bench_key
-from wearbench.model.compute import Task, TaskFailure, run_tasks, task_key
+from wearbench.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages
 
 __all__ = ["PAPER", "Case", "CaseResult", "StudyConfig", "run_case", "run_study", "staging_convergence",
@@ -219,8 +219,8 @@ def run_study(bench, out: str | Path, config: StudyConfig, *, on_case=None) -> d
     ``peaks.csv`` (peak slider acceleration, contact forces, depths per case and state),
     ``trends.json`` and the figures 9-32 analogues under ``figures/``. Returns the summary dict.
     """
-    from wearbench.model.study_plots import plot_case_dynamics
-    from wearbench.model.wear_report import write_run
+    from wearbench.studies.study_plots import plot_case_dynamics
+    from wearbench.studies.wear_report import write_run
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
