@@ -44,8 +44,10 @@ Control = namedtuple("Control", "adaptive project proj_tol drift_tol atol rtol h
 # peak tracking of run_loop (see its docstring): sensor, running peaks, previous step's pk, pe, pst
 Track = namedtuple("Track", "sensor peaks pk pe pst")
 # what run_loop fills: output times and, per time, state, accelerations, contact outputs and multipliers;
-# contact records (one row per accepted step and clearance joint) when ``record``
-Output = namedtuple("Output", "t y a c lam rec record")
+# contact records (one row per accepted step and clearance joint) when ``record``; ``evaluate``: each
+# sample's accelerations and multipliers from a right-hand side at the interpolated state (else from the
+# tableau's continuous extension, when it has one and the method no Baumgarte stabilisation)
+Output = namedtuple("Output", "t y a c lam rec record evaluate")
 # the mechanism as the loop evaluates it: parameters, motor speed, Baumgarte (alpha, beta), contact modes
 # (inc, v0i), blow-up penetration per joint, the kernel's workspace
 Model = namedtuple("Model", "P speed alpha beta inc v0i blow_pen W")
@@ -68,9 +70,10 @@ def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
 
 
 @njit(cache=True)
-def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cout, W, atol, rtol):
-    """One step of an explicit Runge-Kutta tableau: ynew and k[scheme.end] = f(t + h, ynew); returns
-    (status, error norm), the norm 0 for a method without an embedded estimate."""
+def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cout, W, atol, rtol):
+    """One step of an explicit Runge-Kutta tableau: ynew and k[scheme.end] = f(t + h, ynew), the
+    multipliers of stage s in lamk[s]; returns (status, error norm), the norm 0 for a method without an
+    embedded estimate."""
     N = y.shape[0]
     A, C, last = scheme.a, scheme.c, scheme.end
     for s in range(1, scheme.stages):
@@ -79,7 +82,7 @@ def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam
             for r in range(s):
                 acc += A[s, r] * k[r, i]
             ytmp[i] = y[i] + h * acc
-        st = deriv(t + C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
+        st = deriv(t + C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lamk[s], cout, W)
         if st != 0:
             return st, 0.0
     if scheme.fsal:
@@ -92,7 +95,7 @@ def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam
             for r in range(scheme.stages):
                 acc += B[r] * k[r, i]
             ynew[i] = y[i] + h / scheme.b_den * acc
-        st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[last], lam, cout, W)
+        st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[last], lamk[last], cout, W)
         if st != 0:
             return st, 0.0
     E = scheme.e
@@ -326,6 +329,71 @@ def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, 
 
 
 @njit(cache=True)
+def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, ynew, k, lamk, yo, fo, csamp):
+    """Output samples on (t, t_new] from the tableau's continuous extension (``scheme.d``) of the step
+    of length h: the state y + h sum_i b_i(theta) k_i, the accelerations and multipliers as its time
+    derivative sum_i b_i'(theta) (k_i, lamk_i) (the stages' values combined: no solve), the contact
+    outputs from the force law at the state with the step's modes (their peaks tracked too); the step's
+    end itself takes its evaluated values. Returns the next sample's index."""
+    N = y.shape[0]
+    n = N // 2
+    nc = csamp.shape[0]
+    m = lamk.shape[1]
+    D = scheme.d
+    ns, deg = D.shape[0], D.shape[1]
+    out_t = out.t
+    end = scheme.end
+    while iout < out_t.shape[0] and out_t[iout] <= t_new:
+        ts = out_t[iout]
+        lo = out.lam[iout]
+        if ts >= t_new or ts <= t:
+            src = end if ts >= t_new else 0
+            ysrc = ynew if ts >= t_new else y
+            for i in range(N):
+                yo[i] = ysrc[i]
+                fo[i] = k[src, i]
+            for r in range(m):
+                lo[r] = lamk[src, r]
+        else:
+            th = (ts - t) / h
+            for i in range(N):
+                yo[i] = y[i]
+                fo[i] = 0.0
+            for r in range(m):
+                lo[r] = 0.0
+            for s in range(ns):
+                b = 0.0
+                db = 0.0
+                p = th
+                dp = 1.0
+                for j in range(deg):
+                    b += D[s, j] * p
+                    db += (j + 1) * D[s, j] * dp
+                    dp = p
+                    p *= th
+                if b == 0.0 and db == 0.0:
+                    continue
+                hb = h * b
+                for i in range(N):
+                    yo[i] += hb * k[s, i]
+                for i in range(n, N):
+                    fo[i] += db * k[s, i]
+                for r in range(m):
+                    lo[r] += db * lamk[s, r]
+            for i in range(n):
+                fo[i] = yo[n + i]
+        K.clearance_forces(yo[:n], yo[n:], mdl.P, mdl.inc, mdl.v0i, mdl.W, csamp)
+        out.y[iout] = yo
+        out.a[iout] = fo[n:]
+        out.c[iout] = csamp
+        for c in range(nc):
+            peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
+        peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
+        iout += 1
+    return iout
+
+
+@njit(cache=True)
 def _record(rec, irec, t, t_new, cnew):
     """One contact record per clearance joint for the step (t, t_new]."""
     for c in range(cnew.shape[0]):
@@ -393,6 +461,8 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
     yo = np.empty(N)
     fo = np.empty(N)
     lam = np.empty(out.lam.shape[1])
+    lamk = np.empty((end + 1, out.lam.shape[1]))
+    stages_out = scheme.d.shape[0] > 0 and alpha == 0.0 and beta == 0.0 and not out.evaluate
     cnew = np.empty_like(cout_old)
     csamp = np.empty_like(cout_old)
     iout = int(st.out)
@@ -406,12 +476,15 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
         _raise_peaks(peaks, pe[1])
         pst[2] = 1
+    if stages_out:  # the multipliers at the start (k[0] holds f there)
+        deriv(t, y, speed, P, alpha, beta, inc, v0i, fo, lamk[0], csamp, W)
+        st.nfev += 1
     while t < t_end:
         if out.record and irec >= out.rec.shape[0]:
             return _save(st, FULL, t, h, iout, irec, err_old)
         hh = min(h, t_end - t)
         last = hh >= t_end - t
-        status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W,
+        status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cnew, W,
                               control.atol, control.rtol)
         st.nfev += scheme.nfev
         if status != 0:
@@ -427,14 +500,18 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
                 return _fail(st, STEP_COLLAPSE, t, -1, math.nan)
             continue
         t_new = t_end if last else t + hh
-        status = _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st)
+        status = _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lamk[end], cnew, st)
         if status != DONE:
             return status
         _track_peaks(mdl, track, t, y, k[0], t_new, ynew, k[end], lam, cnew, st, yo, fo, csamp, enew, vals)
-        iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
+        if stages_out:
+            iout = _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, hh, t_new, ynew, k, lamk, yo,
+                                        fo, csamp)
+        else:
+            iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
         pst[3] = 0.0
         if _update_modes(cout_old, cnew, inc, v0i):
-            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[end], lam, cnew, W)
+            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[end], lamk[end], cnew, W)
             st.nfev += 1
             pst[3] = 1.0
         if out.record:
@@ -443,6 +520,8 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         for i in range(N):
             y[i] = ynew[i]
             k[0, i] = k[end, i]
+        for r in range(lamk.shape[1]):
+            lamk[0, r] = lamk[end, r]
         _copy_rows(cout_old, cnew)
         t = t_new
         nsteps += 1

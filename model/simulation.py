@@ -228,7 +228,7 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
              speed: float | None = None, output_rate: float | None = None, record_contacts: bool = False,
              step: float | None = None, initial: tuple[np.ndarray, np.ndarray] | None = None,
              speed_profile: Callable[[np.ndarray], np.ndarray] | tuple[np.ndarray, np.ndarray] | None = None,
-             drift_tolerance: float = DRIFT_TOLERANCE) -> SimulationResult:
+             drift_tolerance: float = DRIFT_TOLERANCE, evaluate_samples: bool = False) -> SimulationResult:
     """Simulate ``scene`` from t = 0 (the bench's driver phases) to ``t_end``.
 
     revolutions: duration in motor revolutions when ``t_end`` (s) is None.
@@ -241,6 +241,10 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     speed_profile: motor speed against time instead of a constant speed: a function speed(t) (rad/s,
     vectorised; sampled every 0.1 ms) or arrays (times s, speeds rad/s), linear in between, held after
     the last time; the drivers turn at ratio x the integrated motor angle. Needs ``t_end``.
+    evaluate_samples: each table sample's accelerations and joint reactions from a full right-hand side
+    at the interpolated state, as before issue 27 (slower); by default they come from the step's
+    continuous extension (the derivative of the DOPRI5 dense output: the stages' values combined, no
+    solve) and the contact columns from the force law at the interpolated state.
     Raises SimulationError on numerical failure (naming time, joint, quantity and state).
     """
     wall0 = time.perf_counter()
@@ -324,7 +328,7 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
                         _STEPS_PER_CALL)
     track = I.Track(sensor, peaks, pk, pe, ps)
     mdl = I.Model(P, speed, alpha, beta, inc, v0i, blow, W)
-    out = I.Output(times, out_y, out_a, out_c, out_lam, rec, record_contacts)
+    out = I.Output(times, out_y, out_a, out_c, out_lam, rec, record_contacts, evaluate_samples)
     while True:
         status = I.run_loop(scheme, control, mdl, float(stats[0]["t"]), y, h, t_end, out, k, cout, stats, track)
         if status == I.FULL:
