@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DOPRI5", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Method", "RK4Paper", "Scheme",
+__all__ = ["DOPRI5", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Kinematics", "Method", "RK4Paper", "Scheme",
            "Tableau", "get_method"]
 
 # a tableau as the compiled step reads it: ``end`` is the row of the stage array k (end + 1 rows) holding f
@@ -113,13 +113,14 @@ TABLEAUS = {t.name: t for t in (DOPRI5, RK4)}
 class Method:
     """An integration method: its step kernel, step control and constraint stabilisation.
 
-    tableau: the explicit Runge-Kutta tableau the compiled loop steps with; adaptive: error-controlled
+    tableau: the explicit Runge-Kutta tableau the compiled loop steps with (None: no time integration,
+    the kinematics method); adaptive: error-controlled
     step (the tableau's embedded estimate; else fixed ``step``); project: coordinate projection onto the position and velocity constraints after
     every accepted step (drift-free); baumgarte: (alpha, beta) of eq. 30.
     """
 
     name: str
-    tableau: Tableau
+    tableau: Tableau | None
     adaptive: bool
     project: bool
     baumgarte: tuple[float, float] = (0.0, 0.0)
@@ -146,13 +147,19 @@ RK4Paper = Method(
     name="rk4-paper", tableau=RK4, adaptive=False, project=False, baumgarte=(20.0, 20.0), step=1e-4,
     doc="The paper's method: classical Runge-Kutta 4, fixed step 1e-4 s, Baumgarte alpha = beta = 20.",
 )
-METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper)}
+Kinematics = Method(
+    name="kinematics", tableau=None, adaptive=False, project=True,
+    doc="No time integration: position, velocity and acceleration analysis plus inverse dynamics at each "
+        "output time (a fully driven mechanism with ideal joints only; what 'default' does for such a scene).",
+)
+METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper, Kinematics)}
 METHODS["dopri5"] = Dopri5
 
 
 def get_method(name: str) -> Method:
-    """The method registered as ``name`` ("default", "dopri5", "accurate", "rk4-paper"); ValueError if unknown."""
+    """The method registered as ``name`` ("default", "dopri5", "accurate", "rk4-paper", "kinematics");
+    ValueError if unknown."""
     try:
         return METHODS[name]
     except KeyError:
-        raise ValueError(f"unknown method {name!r}: expected one of {sorted(METHODS) + ['kinematics']}") from None
+        raise ValueError(f"unknown method {name!r}: expected one of {sorted(METHODS)}") from None
