@@ -141,8 +141,14 @@ def test_point_along_is_the_derivative_of_its_own_position():
     vx, vy, w = 0.6 * t, 2 * np.cos(2 * t), 1.5 + 6.0 * t ** 2
     ax, ay, al = 0.6 + 0 * t, -4 * np.sin(2 * t), 12.0 * t
     pos, vel, acc = K.point_along(x, y, th, vx, vy, w, ax, ay, al, 0.07, -0.02, 0.4)
-    np.testing.assert_allclose(vel[1:-1], (pos[2:] - pos[:-2]) / (2 * dt), atol=1e-6)
-    np.testing.assert_allclose(acc[1:-1], (vel[2:] - vel[:-2]) / (2 * dt), atol=1e-5)
+    # the point in the plane, differentiated numerically, projected on the (turning) measuring axis
+    px, py = x + np.cos(th) * 0.07 + np.sin(th) * 0.02, y + np.sin(th) * 0.07 - np.cos(th) * 0.02
+    ux, uy = np.cos(th + 0.4), np.sin(th + 0.4)
+    np.testing.assert_allclose(pos, px * ux + py * uy, atol=1e-15)
+    dvx, dvy = np.gradient(px, dt), np.gradient(py, dt)
+    ddx, ddy = np.gradient(dvx, dt), np.gradient(dvy, dt)
+    np.testing.assert_allclose(vel[2:-2], (dvx * ux + dvy * uy)[2:-2], atol=1e-6)
+    np.testing.assert_allclose(acc[2:-2], (ddx * ux + ddy * uy)[2:-2], atol=1e-4)
     one = K.point_along(x[7], y[7], th[7], vx[7], vy[7], w[7], ax[7], ay[7], al[7], 0.07, -0.02, 0.4)
     assert one == pytest.approx((pos[7], vel[7], acc[7]), rel=1e-14)
 
