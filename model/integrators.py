@@ -380,13 +380,24 @@ def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, c
     pst[2] = min(pst[2] + 1.0, 2.0)
 
 
+@njit(cache=True, inline="always")
+def _store_sample(out, iout, yo, fo, csamp, peaks, sensor):
+    """Output sample iout: state, accelerations, contact outputs; the running peaks raised by its values."""
+    n = yo.shape[0] // 2
+    nc = csamp.shape[0]
+    out.y[iout] = yo
+    out.a[iout] = fo[n:]
+    out.c[iout] = csamp
+    for c in range(nc):
+        peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
+    peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
+
+
 @njit(cache=True)
 def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, fo, csamp):
     """Output samples on (t, t_new] by cubic Hermite interpolation of y with the modes of the step, f and
     the contact outputs evaluated there (their peaks tracked too); returns the next sample's index."""
     N = y.shape[0]
-    n = N // 2
-    nc = csamp.shape[0]
     out_t = out.t
     while iout < out_t.shape[0] and out_t[iout] <= t_new:
         ts = out_t[iout]
@@ -399,12 +410,7 @@ def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, 
         else:
             _hermite(t, y, f0, t_new, ynew, f1, ts, yo)
         deriv(ts, yo, mdl.speed, mdl.P, 0.0, 0.0, mdl.inc, mdl.v0i, fo, out.lam[iout], csamp, mdl.W)
-        out.y[iout] = yo
-        out.a[iout] = fo[n:]
-        out.c[iout] = csamp
-        for c in range(nc):
-            peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
-        peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
+        _store_sample(out, iout, yo, fo, csamp, peaks, sensor)
         iout += 1
     return iout
 
@@ -418,7 +424,6 @@ def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, 
     end itself takes its evaluated values. Returns the next sample's index."""
     N = y.shape[0]
     n = N // 2
-    nc = csamp.shape[0]
     m = lamk.shape[1]
     D = scheme.d
     ns, deg = D.shape[0], D.shape[1]
@@ -450,12 +455,7 @@ def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, 
                     for r in range(m):
                         lo[r] += db * lamk[s, r]
         K.clearance_forces(yo[:n], yo[n:], mdl.P, mdl.inc, mdl.v0i, mdl.W, csamp)
-        out.y[iout] = yo
-        out.a[iout] = fo[n:]
-        out.c[iout] = csamp
-        for c in range(nc):
-            peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
-        peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
+        _store_sample(out, iout, yo, fo, csamp, peaks, sensor)
         iout += 1
     return iout
 
