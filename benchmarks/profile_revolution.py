@@ -6,11 +6,13 @@ method (DOPRI5 + projection, 20 kHz table) and splits the wall time:
 - **Python** between compiled calls: ``simulate``'s set-up, the table and the pauses of the loop
   (wall time minus the time inside the compiled loop ``run_loop``);
 - the compiled loop's right-hand-side evaluations by where they are spent: accepted steps,
-  rejected steps, the dense output (one evaluation per table sample), the peak search
-  (golden-section on the dense output) and re-evaluations after a projection or a contact-mode
-  change, each as its count times the measured cost of one evaluation;
+  rejected steps and re-evaluations after a projection or a contact-mode change (and one at each
+  call's start), each as its count times the measured cost of one evaluation;
+- the table samples and the peak search (golden-section): since issue 27 no right-hand side each (the
+  state, accelerations and reactions come from DOPRI5's continuous extension), only the contact force
+  law at each point (count times its measured cost);
 - **step control**: what remains of the compiled loop (stage combinations, error norm, drift check
-  and projection, Hermite interpolation, contact records, peak bookkeeping).
+  and projection, the continuous extension, contact records, peak bookkeeping).
 
 The cost of one evaluation is measured on the run's own states (the table's samples: the same
 positions, speeds and contacts) part by part: the constraint Jacobian (Phi, Phi_q, gamma), the
@@ -202,18 +204,22 @@ def _profile(name: str, scene, revolutions: float) -> dict:
     cost["rest of an evaluation (a = M^-1 (g - Phi_q^T lam), rhs)"] = max(0.0, one - sum(cost.values()))
     stages = 6  # DOPRI5 with FSAL: six new evaluations per attempted step
     steps, rej, nfev = s["steps"], s["rejected_steps"], s["function_evaluations"]
-    peak_evals = s["peak_searches"] * (2 * I._GOLDEN_ITERATIONS + 4)
     counts = {
         "accepted steps": stages * steps,
         "rejected steps": stages * rej,
-        "dense output (table samples)": res.table.shape[0],
-        "peak search (dense output)": peak_evals,
-        "re-evaluation (projection, mode change)": max(0, nfev - stages * (steps + rej) - peak_evals),
+        "re-evaluation (projection, mode change, start)": max(0, nfev - stages * (steps + rej)),
     }
     loop = spent[0]
-    evals = sum(counts.values()) * one
+    # table samples and the peak search's points (golden section on the same continuous extension): the
+    # contact force law each, no right-hand side
+    law = cost["contact search + contact forces"]
+    table = res.table.shape[0] * law
+    peaks = s["peak_searches"] * (2 * I._GOLDEN_ITERATIONS + 4) * law
+    evals = sum(counts.values()) * one + table + peaks
     return {"state": name, "wall": wall, "loop": loop, "calls": spent[1], "python": wall - loop,
-            "one": one, "cost": cost, "counts": counts, "control": loop - evals, "steps": steps, "rejected": rej,
+            "one": one, "cost": cost, "counts": counts, "table": table, "samples": res.table.shape[0],
+            "peaks": peaks, "searches": s["peak_searches"],
+            "control": loop - evals, "steps": steps, "rejected": rej,
             "nfev": nfev, "revolutions": revolutions}
 
 
@@ -225,6 +231,8 @@ def _print_profile(p: dict) -> None:
           f"{p['nfev'] / rev:.0f} step evaluations per revolution; one evaluation {p['one'] * 1e6:.2f} us)")
     print(f"  {'where':<58} {'evals/rev':>10} {'ms/rev':>8} {'share':>7}")
     rows = [(f"RHS in {what}", cnt / rev, cnt * p["one"]) for what, cnt in p["counts"].items()]
+    rows.append((f"table samples ({p['samples'] / rev:.0f}/rev): contact force law only", None, p["table"]))
+    rows.append((f"peak search ({p['searches'] / rev:.0f}/rev): contact force law only", None, p["peaks"]))
     rows.append(("step control (combinations, error norm, drift/projection, records)", None, p["control"]))
     rows.append((f"Python between compiled calls ({p['calls']} calls)", None, p["python"]))
     for what, cnt, sec in rows:

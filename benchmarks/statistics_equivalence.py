@@ -45,8 +45,9 @@ ALPHA = 0.01
 BASELINE = Path(__file__).with_name("data") / "statistics_baseline.npz"
 
 
-def _realisation_table(bench, state, seed: int, revolutions: float, method: str):
-    """The full table of one realisation (as ``simulate_state`` runs it) and the kept mask."""
+def _realisation_table(bench, state, seed: int, revolutions: float, method: str, tolerances=None):
+    """The full table of one realisation (as ``simulate_state`` runs it, with ``method`` at its own or the
+    given (rtol, atol)) and the kept mask."""
     from wearbench.model import realisation as R
 
     kept = {}
@@ -54,6 +55,8 @@ def _realisation_table(bench, state, seed: int, revolutions: float, method: str)
 
     def capture(*args, **kw):
         kw["method"] = method
+        if tolerances is not None:
+            kw["rtol"], kw["atol"] = tolerances
         res = inner(*args, **kw)
         kept["res"] = res
         return res
@@ -100,7 +103,8 @@ def _cycle_features(bench, table, keep, joints) -> dict[str, np.ndarray]:
     return out
 
 
-def collect(seeds: int, revolutions: float, method: str) -> tuple[dict[str, dict[str, np.ndarray]], dict]:
+def collect(seeds: int, revolutions: float, method: str, tolerances=None
+            ) -> tuple[dict[str, dict[str, np.ndarray]], dict]:
     """Per-cycle features of every state (concatenated over seeds) and the time spent per state."""
     from wearbench.bench.load import load_bench, shipped_bench
 
@@ -113,7 +117,7 @@ def collect(seeds: int, revolutions: float, method: str) -> tuple[dict[str, dict
         t0 = time.process_time()
         acc: dict[str, list] = {}
         for seed in range(seeds):
-            table, keep, _ = _realisation_table(bench, by_name[name], seed, revolutions, method)
+            table, keep, _ = _realisation_table(bench, by_name[name], seed, revolutions, method, tolerances)
             for k, v in _cycle_features(bench, table, keep, joints).items():
                 acc.setdefault(k, []).append(v)
         feats[name] = {k: np.concatenate(v) for k, v in acc.items()}
@@ -182,6 +186,9 @@ def main() -> None:
     ap.add_argument("--dump", help="only write the importable version's features to this .npz")
     ap.add_argument("--method", default="default", help="with --dump: the method (default, or accurate for the "
                     "reference)")
+    ap.add_argument("--tolerances", type=float, nargs=2, metavar=("RTOL", "ATOL"),
+                    help="with --dump: the method at these tolerances (atol in m) instead of its own (the "
+                         "work-precision side of the check: which default tolerance keeps the statistics)")
     ap.add_argument("--baseline", default=str(BASELINE), help="stored baseline features (.npz)")
     ap.add_argument("--this", help="this version's features from a --dump file instead of simulating them")
     ap.add_argument("--reference", help="the reference's features from a --dump --method accurate file")
@@ -190,10 +197,11 @@ def main() -> None:
 
     source = os.path.dirname(wearbench.model.__file__)
     if args.dump:
-        feats, spent = collect(args.seeds, args.revolutions, args.method)
+        feats, spent = collect(args.seeds, args.revolutions, args.method, args.tolerances)
+        method = args.method + (" rtol {:g} atol {:g}".format(*args.tolerances) if args.tolerances else "")
         np.savez_compressed(args.dump, **_flat(feats), seeds=args.seeds, revolutions=args.revolutions,
-                            source=source, method=args.method, seconds=np.array([spent[s] for s in STATES]))
-        print(f"wrote {args.dump} from {source} ({args.method}): "
+                            source=source, method=method, seconds=np.array([spent[s] for s in STATES]))
+        print(f"wrote {args.dump} from {source} ({method}): "
               f"{[(s, len(next(iter(feats[s].values())))) for s in STATES]} cycles")
         return
     seeds, revs = args.seeds, args.revolutions

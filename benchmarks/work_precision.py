@@ -84,6 +84,8 @@ def main() -> None:
     # fixed-step methods over steps, adaptive ones over tolerances
     runs, seen = [], set()
     for name, m in sorted(METHODS.items(), key=lambda nm: nm[1].adaptive):
+        if m.tableau is None:  # kinematics: no time integration (the nine-bar has freedoms)
+            continue
         scheme = (m.tableau.name, m.adaptive, m.project, m.baumgarte)
         if scheme in seen:
             continue

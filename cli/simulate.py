@@ -37,11 +37,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", help="motor speed: '-5pi' (rad/s), '300rpm', '2Hz' (default: the bench's)")
     p.add_argument("--revolutions", type=positive_number, default=3.0, help="duration in motor revolutions (default 3)")
     p.add_argument("--t-end", help="duration instead of revolutions, e.g. '0.5s'")
-    p.add_argument("--method", default="default", choices=["kinematics", *METHODS],
+    p.add_argument("--method", default="default", choices=list(METHODS),
                    help="default: kinematics + inverse dynamics for a fully driven scene with ideal joints, else "
-                   "the registered default; kinematics; or a registered method: "
+                   "the registered default; or a registered method: "
                    + "; ".join(f"{name} ({m.tableau.name}, {'adaptive' if m.adaptive else 'fixed step'})"
-                               for name, m in METHODS.items() if name != "default"))
+                               if m.tableau else name for name, m in METHODS.items() if name != "default"))
     p.add_argument("--rtol", type=positive_number, help="relative tolerance of the adaptive method")
     p.add_argument("--atol", type=positive_number, help="absolute tolerance (m) of the adaptive method")
     p.add_argument("--step", help="fixed step of rk4-paper, e.g. '1e-4s' or '50us'")

@@ -44,8 +44,10 @@ Control = namedtuple("Control", "adaptive project proj_tol drift_tol atol rtol h
 # peak tracking of run_loop (see its docstring): sensor, running peaks, previous step's pk, pe, pst
 Track = namedtuple("Track", "sensor peaks pk pe pst")
 # what run_loop fills: output times and, per time, state, accelerations, contact outputs and multipliers;
-# contact records (one row per accepted step and clearance joint) when ``record``
-Output = namedtuple("Output", "t y a c lam rec record")
+# contact records (one row per accepted step and clearance joint) when ``record``; ``evaluate``: each
+# sample's accelerations and multipliers from a right-hand side at the interpolated state (else from the
+# tableau's continuous extension, when it has one and the method no Baumgarte stabilisation)
+Output = namedtuple("Output", "t y a c lam rec record evaluate")
 # the mechanism as the loop evaluates it: parameters, motor speed, Baumgarte (alpha, beta), contact modes
 # (inc, v0i), blow-up penetration per joint, the kernel's workspace
 Model = namedtuple("Model", "P speed alpha beta inc v0i blow_pen W")
@@ -68,9 +70,10 @@ def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
 
 
 @njit(cache=True)
-def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cout, W, atol, rtol):
-    """One step of an explicit Runge-Kutta tableau: ynew and k[scheme.end] = f(t + h, ynew); returns
-    (status, error norm), the norm 0 for a method without an embedded estimate."""
+def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cout, W, atol, rtol):
+    """One step of an explicit Runge-Kutta tableau: ynew and k[scheme.end] = f(t + h, ynew), the
+    multipliers of stage s in lamk[s]; returns (status, error norm), the norm 0 for a method without an
+    embedded estimate."""
     N = y.shape[0]
     A, C, last = scheme.a, scheme.c, scheme.end
     for s in range(1, scheme.stages):
@@ -79,7 +82,7 @@ def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam
             for r in range(s):
                 acc += A[s, r] * k[r, i]
             ytmp[i] = y[i] + h * acc
-        st = deriv(t + C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lam, cout, W)
+        st = deriv(t + C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lamk[s], cout, W)
         if st != 0:
             return st, 0.0
     if scheme.fsal:
@@ -92,7 +95,7 @@ def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam
             for r in range(scheme.stages):
                 acc += B[r] * k[r, i]
             ynew[i] = y[i] + h / scheme.b_den * acc
-        st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[last], lam, cout, W)
+        st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[last], lamk[last], cout, W)
         if st != 0:
             return st, 0.0
     E = scheme.e
@@ -128,11 +131,10 @@ def sensor_acc(y, f, sensor):
     if b < 0:
         return 0.0
     n = y.shape[0] // 2
-    th, w, al = y[3 * b + 2], y[n + 3 * b + 2], f[n + 3 * b + 2]
-    c, s = math.cos(th), math.sin(th)
-    px, py = c * sensor[1] - s * sensor[2], s * sensor[1] + c * sensor[2]
-    ux, uy = math.cos(th + sensor[3]), math.sin(th + sensor[3])
-    return abs((f[n + 3 * b] - al * py - w * w * px) * ux + (f[n + 3 * b + 1] + al * px - w * w * py) * uy)
+    i, j = 3 * b, n + 3 * b
+    _, _, acc = K.point_along(y[i], y[i + 1], y[i + 2], y[j], y[j + 1], y[j + 2], f[j], f[j + 1], f[j + 2],
+                              sensor[1], sensor[2], sensor[3])
+    return abs(acc)
 
 
 @njit(cache=True)
@@ -171,6 +173,74 @@ def _golden_max(j, t0, y0, f0, t1, y1, f1, speed, P, inc, v0i, yo, fo, lam, cout
             d = a + g * (b - a)
             _hermite(t0, y0, f0, t1, y1, f1, d, yo)
             _peak_values(d, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+            fd = vals[j]
+    return max(fc, fd)
+
+
+@njit(cache=True)
+def _extension(D, y, h, k, th, yo, fo):
+    """The continuous extension (coefficients D) of a step of length h from y with stages k at theta:
+    the state y + h sum_i b_i(theta) k_i into yo, its time derivative sum_i b_i'(theta) k_i into fo (the
+    velocities: the state's own). Returns nothing; b_i, b_i' of a stage that is zero are skipped."""
+    N = y.shape[0]
+    n = N // 2
+    for i in range(N):
+        yo[i] = y[i]
+        fo[i] = 0.0
+    for s in range(D.shape[0]):
+        b = 0.0
+        db = 0.0
+        p = th
+        dp = 1.0
+        for j in range(D.shape[1]):
+            b += D[s, j] * p
+            db += (j + 1) * D[s, j] * dp
+            dp = p
+            p *= th
+        if b == 0.0 and db == 0.0:
+            continue
+        hb = h * b
+        for i in range(N):
+            yo[i] += hb * k[s, i]
+        for i in range(n, N):
+            fo[i] += db * k[s, i]
+    for i in range(n):
+        fo[i] = yo[n + i]
+
+
+@njit(cache=True)
+def _extension_values(D, mdl, t0, y0, h, k, ts, yo, fo, cout, sensor, vals):
+    """The tracked quantities (as :func:`_peak_values`) at ts on a step's continuous extension: normal
+    contact forces from the force law at the interpolated state, |sensor acceleration| from its derivative."""
+    _extension(D, y0, h, k, (ts - t0) / h, yo, fo)
+    n = y0.shape[0] // 2
+    K.clearance_forces(yo[:n], yo[n:], mdl.P, mdl.inc, mdl.v0i, mdl.W, cout)
+    nc = cout.shape[0]
+    for c in range(nc):
+        vals[c] = cout[c, K.CO_FN]
+    vals[nc] = sensor_acc(yo, fo, sensor)
+
+
+@njit(cache=True)
+def _golden_max_ext(j, D, mdl, t0, y0, h, k, yo, fo, cout, sensor, vals):
+    """Largest value of tracked quantity j on a step's continuous extension (as :func:`_golden_max`)."""
+    g = 0.6180339887498949
+    a, b = t0, t0 + h
+    c, d = b - g * (b - a), a + g * (b - a)
+    _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals)
+    fc = vals[j]
+    _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals)
+    fd = vals[j]
+    for _ in range(_GOLDEN_ITERATIONS):
+        if fc > fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals)
+            fc = vals[j]
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals)
             fd = vals[j]
     return max(fc, fd)
 
@@ -253,10 +323,12 @@ def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
 
 
 @njit(cache=True)
-def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, csamp, enew, vals):
+def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, csamp, enew, vals, D, k):
     """Running peaks over the step just accepted: the tracked values at its end (evaluated again under
     Baumgarte stabilisation), and where the previous end was a local maximum near the running peak, the
-    golden-section search of the dense output of this step and (modes unchanged) the previous one."""
+    golden-section search of the dense output of this step and (modes unchanged) the previous one: the
+    continuous extension D with the stages k where D has rows (the table's own interpolant), else cubic
+    Hermite with a right-hand side per point. pk keeps the previous step's ends, f there and stages."""
     sensor, peaks, pk, pe, pst = track
     P, W, speed, inc, v0i = mdl.P, mdl.W, mdl.speed, mdl.inc, mdl.v0i
     nc = cnew.shape[0]
@@ -275,13 +347,22 @@ def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, c
         if (e > enew[j] and e > 0.0 and e >= PEAK_SEARCH_FRACTION * peaks[j]
                 and (pst[2] < 2 or e >= pe[0, j])):
             # a local maximum at t: the peak lies in this step or, modes unchanged, the previous one
-            v = _golden_max(j, t, y, f0, t_new, ynew, f1, speed, P, inc, v0i, yo, fo, lam, csamp, W, sensor, vals)
+            if D.shape[0] > 0:
+                v = _golden_max_ext(j, D, mdl, t, y, t_new - t, k, yo, fo, csamp, sensor, vals)
+            else:
+                v = _golden_max(j, t, y, f0, t_new, ynew, f1, speed, P, inc, v0i, yo, fo, lam, csamp, W, sensor,
+                                vals)
+                st.nfev += _GOLDEN_ITERATIONS + 2
             peaks[j] = max(peaks[j], v)
             if pst[2] >= 2 and pst[3] == 0.0:
-                v = _golden_max(j, pst[0], pk[0], pk[1], pst[1], pk[2], pk[3], speed, P, inc, v0i, yo, fo,
-                                lam, csamp, W, sensor, vals)
+                if D.shape[0] > 0:
+                    v = _golden_max_ext(j, D, mdl, pst[0], pk[0], pst[1] - pst[0], pk[4:], yo, fo, csamp, sensor,
+                                        vals)
+                else:
+                    v = _golden_max(j, pst[0], pk[0], pk[1], pst[1], pk[2], pk[3], speed, P, inc, v0i, yo, fo,
+                                    lam, csamp, W, sensor, vals)
+                    st.nfev += _GOLDEN_ITERATIONS + 2
                 peaks[j] = max(peaks[j], v)
-            st.nfev += 2 * _GOLDEN_ITERATIONS + 4
             st.peak_searches += 1
     for j in range(nq):
         pe[0, j] = pe[1, j]
@@ -291,9 +372,25 @@ def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, c
         pk[1, i] = f0[i]
         pk[2, i] = ynew[i]
         pk[3, i] = f1[i]
+    for r in range(D.shape[0]):
+        for i in range(y.shape[0]):
+            pk[4 + r, i] = k[r, i]
     pst[0] = t
     pst[1] = t_new
     pst[2] = min(pst[2] + 1.0, 2.0)
+
+
+@njit(cache=True, inline="always")
+def _store_sample(out, iout, yo, fo, csamp, peaks, sensor):
+    """Output sample iout: state, accelerations, contact outputs; the running peaks raised by its values."""
+    n = yo.shape[0] // 2
+    nc = csamp.shape[0]
+    out.y[iout] = yo
+    out.a[iout] = fo[n:]
+    out.c[iout] = csamp
+    for c in range(nc):
+        peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
+    peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
 
 
 @njit(cache=True)
@@ -301,8 +398,6 @@ def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, 
     """Output samples on (t, t_new] by cubic Hermite interpolation of y with the modes of the step, f and
     the contact outputs evaluated there (their peaks tracked too); returns the next sample's index."""
     N = y.shape[0]
-    n = N // 2
-    nc = csamp.shape[0]
     out_t = out.t
     while iout < out_t.shape[0] and out_t[iout] <= t_new:
         ts = out_t[iout]
@@ -315,12 +410,52 @@ def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, 
         else:
             _hermite(t, y, f0, t_new, ynew, f1, ts, yo)
         deriv(ts, yo, mdl.speed, mdl.P, 0.0, 0.0, mdl.inc, mdl.v0i, fo, out.lam[iout], csamp, mdl.W)
-        out.y[iout] = yo
-        out.a[iout] = fo[n:]
-        out.c[iout] = csamp
-        for c in range(nc):
-            peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
-        peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
+        _store_sample(out, iout, yo, fo, csamp, peaks, sensor)
+        iout += 1
+    return iout
+
+
+@njit(cache=True)
+def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, ynew, k, lamk, yo, fo, csamp):
+    """Output samples on (t, t_new] from the tableau's continuous extension (``scheme.d``) of the step
+    of length h: the state y + h sum_i b_i(theta) k_i, the accelerations and multipliers as its time
+    derivative sum_i b_i'(theta) (k_i, lamk_i) (the stages' values combined: no solve), the contact
+    outputs from the force law at the state with the step's modes (their peaks tracked too); the step's
+    end itself takes its evaluated values. Returns the next sample's index."""
+    N = y.shape[0]
+    n = N // 2
+    m = lamk.shape[1]
+    D = scheme.d
+    ns, deg = D.shape[0], D.shape[1]
+    out_t = out.t
+    end = scheme.end
+    while iout < out_t.shape[0] and out_t[iout] <= t_new:
+        ts = out_t[iout]
+        lo = out.lam[iout]
+        if ts >= t_new or ts <= t:
+            src = end if ts >= t_new else 0
+            ysrc = ynew if ts >= t_new else y
+            for i in range(N):
+                yo[i] = ysrc[i]
+                fo[i] = k[src, i]
+            for r in range(m):
+                lo[r] = lamk[src, r]
+        else:
+            th = (ts - t) / h
+            _extension(D, y, h, k, th, yo, fo)
+            for r in range(m):
+                lo[r] = 0.0
+            for s in range(ns):
+                db = 0.0
+                dp = 1.0
+                for j in range(deg):
+                    db += (j + 1) * D[s, j] * dp
+                    dp *= th
+                if db != 0.0:
+                    for r in range(m):
+                        lo[r] += db * lamk[s, r]
+        K.clearance_forces(yo[:n], yo[n:], mdl.P, mdl.inc, mdl.v0i, mdl.W, csamp)
+        _store_sample(out, iout, yo, fo, csamp, peaks, sensor)
         iout += 1
     return iout
 
@@ -393,6 +528,9 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
     yo = np.empty(N)
     fo = np.empty(N)
     lam = np.empty(out.lam.shape[1])
+    lamk = np.empty((end + 1, out.lam.shape[1]))
+    stages_out = scheme.d.shape[0] > 0 and alpha == 0.0 and beta == 0.0 and not out.evaluate
+    no_stages = np.zeros((0, scheme.d.shape[1]))
     cnew = np.empty_like(cout_old)
     csamp = np.empty_like(cout_old)
     iout = int(st.out)
@@ -406,12 +544,15 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
         _raise_peaks(peaks, pe[1])
         pst[2] = 1
+    if stages_out:  # the multipliers at the start (k[0] holds f there)
+        deriv(t, y, speed, P, alpha, beta, inc, v0i, fo, lamk[0], csamp, W)
+        st.nfev += 1
     while t < t_end:
         if out.record and irec >= out.rec.shape[0]:
             return _save(st, FULL, t, h, iout, irec, err_old)
         hh = min(h, t_end - t)
         last = hh >= t_end - t
-        status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam, cnew, W,
+        status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cnew, W,
                               control.atol, control.rtol)
         st.nfev += scheme.nfev
         if status != 0:
@@ -427,14 +568,19 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
                 return _fail(st, STEP_COLLAPSE, t, -1, math.nan)
             continue
         t_new = t_end if last else t + hh
-        status = _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st)
+        status = _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lamk[end], cnew, st)
         if status != DONE:
             return status
-        _track_peaks(mdl, track, t, y, k[0], t_new, ynew, k[end], lam, cnew, st, yo, fo, csamp, enew, vals)
-        iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
+        _track_peaks(mdl, track, t, y, k[0], t_new, ynew, k[end], lam, cnew, st, yo, fo, csamp, enew, vals,
+                     scheme.d if stages_out else no_stages, k)
+        if stages_out:
+            iout = _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, hh, t_new, ynew, k, lamk, yo,
+                                        fo, csamp)
+        else:
+            iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
         pst[3] = 0.0
         if _update_modes(cout_old, cnew, inc, v0i):
-            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[end], lam, cnew, W)
+            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[end], lamk[end], cnew, W)
             st.nfev += 1
             pst[3] = 1.0
         if out.record:
@@ -443,6 +589,8 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         for i in range(N):
             y[i] = ynew[i]
             k[0, i] = k[end, i]
+        for r in range(lamk.shape[1]):
+            lamk[0, r] = lamk[end, r]
         _copy_rows(cout_old, cnew)
         t = t_new
         nsteps += 1

@@ -120,6 +120,21 @@ def _omega(v, b):
 
 
 @njit(cache=True)
+def point_along(x, y, th, vx, vy, w, ax, ay, al, sx, sy, axis):
+    """Position, velocity and acceleration along an axis of a point fixed in a body: the one place the
+    sensor's (and any body point's) kinematics are formed. (x, y, th), (vx, vy, w), (ax, ay, al): the
+    body's coordinates and their first and second derivatives (scalars, or arrays of equal shape, one
+    value per time); (sx, sy): the point in the body; axis: the measuring axis' angle in the body."""
+    c, s = np.cos(th), np.sin(th)
+    px, py = c * sx - s * sy, s * sx + c * sy
+    ux, uy = np.cos(th + axis), np.sin(th + axis)
+    pos = (x + px) * ux + (y + py) * uy
+    vel = (vx - w * py) * ux + (vy + w * px) * uy
+    acc = (ax - al * py - w * w * px) * ux + (ay + al * px - w * w * py) * uy
+    return pos, vel, acc
+
+
+@njit(cache=True)
 def motor_angle(t, speed, profile):
     """Motor angle (rad, 0 at t = 0), speed (rad/s) and acceleration (rad/s^2) at time t (s).
 

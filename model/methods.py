@@ -16,13 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DOPRI5", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Method", "RK4Paper", "Scheme",
+__all__ = ["DOPRI5", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Kinematics", "Method", "RK4Paper", "Scheme",
            "Tableau", "get_method"]
 
 # a tableau as the compiled step reads it: ``end`` is the row of the stage array k (end + 1 rows) holding f
-# at the end of the step; expo and expo_pi the step controller's exponents (1 / (q + 1) with q the order of
-# the embedded estimate, and 1 / (q + 1) - 0.75 * 0.04 for the PI controller)
-Scheme = namedtuple("Scheme", "a c b b_den e fsal stages nfev end expo expo_pi")
+# at the end of the step; expo and expo_pi # the step controller's exponents (1 / (q + 1) with q the order of
+# the embedded estimate, and 1 / (q + 1) - 0.75 * 0.04 for the PI controller); d the continuous extension
+# (row per stage of k: coefficients of theta, theta^2, ...; no rows: none)
+Scheme = namedtuple("Scheme", "a c b b_den e fsal stages nfev end expo expo_pi d")
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,7 @@ class Tableau:
     e: tuple[float, ...] = ()
     fsal: bool = False
     error_order: int = 0
+    dense: tuple[tuple[float, ...], ...] = ()
     reference: str = ""
 
     def __post_init__(self) -> None:
@@ -57,6 +59,11 @@ class Tableau:
         if len(self.e) > stages + (0 if self.fsal else 1) or (self.e and self.error_order < 1):
             raise ValueError(f"tableau {self.name}: error weights for at most the stages and the end derivative, "
                              "and the embedded estimate's order error_order >= 1")
+        if self.dense and (len(self.dense) != stages + (0 if self.fsal else 1)
+                           or any(abs(sum(row) - w / self.b_den) > 1e-12
+                                  for row, w in zip(self.dense, (*self.b, 0.0), strict=False))):
+            raise ValueError(f"tableau {self.name}: the continuous extension needs one row per stage (and the "
+                             "end derivative) whose coefficients sum to the weights b at theta = 1")
 
     @property
     def adaptive(self) -> bool:
@@ -70,9 +77,10 @@ class Tableau:
         for s, row in enumerate(self.a):
             a[s, :len(row)] = row
         q1 = self.error_order + 1 if self.error_order else 5
+        d = np.array(self.dense, dtype=float) if self.dense else np.zeros((0, 1))
         return Scheme(a, np.array(self.c, dtype=float), np.array(self.b, dtype=float), float(self.b_den),
                       np.array(self.e, dtype=float), self.fsal, stages, stages - 1 + (0 if self.fsal else 1), end,
-                      1.0 / q1, round(1.0 / q1 - 0.75 * 0.04, 12))
+                      1.0 / q1, round(1.0 / q1 - 0.75 * 0.04, 12), d)
 
 
 DOPRI5 = Tableau(
@@ -84,7 +92,17 @@ DOPRI5 = Tableau(
        (35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84)),
     b=(35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0),
     e=(71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40),
-    fsal=True, error_order=4, reference="Dormand-Prince 5(4): Hairer, Norsett, Wanner, Solving ODE I, table II.5.2")
+    fsal=True, error_order=4,
+    # Shampine's fourth-order continuous extension (Hairer, Norsett, Wanner, sec. II.6; Shampine, Math. Comp. 46,
+    # 1986), b_i(theta) = sum_p dense[i][p] theta^(p + 1)
+    dense=((1.0, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432),
+           (0.0, 0.0, 0.0, 0.0),
+           (0.0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799),
+           (0.0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072),
+           (0.0, 127303824393 / 49829197408, -318862633887 / 49829197408, 701980252875 / 199316789632),
+           (0.0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844),
+           (0.0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423)),
+    reference="Dormand-Prince 5(4): Hairer, Norsett, Wanner, Solving ODE I, table II.5.2")
 RK4 = Tableau(
     "rk4", 4, c=(0.0, 0.5, 0.5, 1.0), a=((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)), b=(1, 2, 2, 1), b_den=6.0,
     reference="classical Runge-Kutta 4 (the paper's integrator)")
@@ -95,13 +113,14 @@ TABLEAUS = {t.name: t for t in (DOPRI5, RK4)}
 class Method:
     """An integration method: its step kernel, step control and constraint stabilisation.
 
-    tableau: the explicit Runge-Kutta tableau the compiled loop steps with; adaptive: error-controlled
+    tableau: the explicit Runge-Kutta tableau the compiled loop steps with (None: no time integration,
+    the kinematics method); adaptive: error-controlled
     step (the tableau's embedded estimate; else fixed ``step``); project: coordinate projection onto the position and velocity constraints after
     every accepted step (drift-free); baumgarte: (alpha, beta) of eq. 30.
     """
 
     name: str
-    tableau: Tableau
+    tableau: Tableau | None
     adaptive: bool
     project: bool
     baumgarte: tuple[float, float] = (0.0, 0.0)
@@ -128,13 +147,19 @@ RK4Paper = Method(
     name="rk4-paper", tableau=RK4, adaptive=False, project=False, baumgarte=(20.0, 20.0), step=1e-4,
     doc="The paper's method: classical Runge-Kutta 4, fixed step 1e-4 s, Baumgarte alpha = beta = 20.",
 )
-METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper)}
+Kinematics = Method(
+    name="kinematics", tableau=None, adaptive=False, project=True,
+    doc="No time integration: position, velocity and acceleration analysis plus inverse dynamics at each "
+        "output time (a fully driven mechanism with ideal joints only; what 'default' does for such a scene).",
+)
+METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper, Kinematics)}
 METHODS["dopri5"] = Dopri5
 
 
 def get_method(name: str) -> Method:
-    """The method registered as ``name`` ("default", "dopri5", "accurate", "rk4-paper"); ValueError if unknown."""
+    """The method registered as ``name`` ("default", "dopri5", "accurate", "rk4-paper", "kinematics");
+    ValueError if unknown."""
     try:
         return METHODS[name]
     except KeyError:
-        raise ValueError(f"unknown method {name!r}: expected one of {sorted(METHODS) + ['kinematics']}") from None
+        raise ValueError(f"unknown method {name!r}: expected one of {sorted(METHODS)}") from None

@@ -99,14 +99,9 @@ def _table(scene: Scene, times, ys, accs, couts, lams) -> pd.DataFrame:
         cols[f"theta_{joint}"] = q[:, 3 * b + 2]
     if scene.sensor is not None:
         b, (sx, sy), axis = scene.sensor
-        th, w, al = q[:, 3 * b + 2], v[:, 3 * b + 2], accs[:, 3 * b + 2]
-        c, s = np.cos(th), np.sin(th)
-        px, py = c * sx - s * sy, s * sx + c * sy  # A s
-        ux, uy = np.cos(th + axis), np.sin(th + axis)
-        cols["slider_pos"] = (q[:, 3 * b] + px) * ux + (q[:, 3 * b + 1] + py) * uy
-        cols["slider_vel"] = (v[:, 3 * b] - w * py) * ux + (v[:, 3 * b + 1] + w * px) * uy
-        cols["slider_acc"] = ((accs[:, 3 * b] - al * py - w * w * px) * ux
-                              + (accs[:, 3 * b + 1] + al * px - w * w * py) * uy)
+        body = [np.ascontiguousarray(x[:, 3 * b + i]) for x in (q, v, accs) for i in range(3)]
+        cols["slider_pos"], cols["slider_vel"], cols["slider_acc"] = K.point_along(*body, float(sx), float(sy),
+                                                                                   float(axis))
     else:
         for name in ("slider_pos", "slider_vel", "slider_acc"):
             cols[name] = np.full(times.size, np.nan)
@@ -228,12 +223,13 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
              speed: float | None = None, output_rate: float | None = None, record_contacts: bool = False,
              step: float | None = None, initial: tuple[np.ndarray, np.ndarray] | None = None,
              speed_profile: Callable[[np.ndarray], np.ndarray] | tuple[np.ndarray, np.ndarray] | None = None,
-             drift_tolerance: float = DRIFT_TOLERANCE) -> SimulationResult:
+             drift_tolerance: float = DRIFT_TOLERANCE, evaluate_samples: bool = False) -> SimulationResult:
     """Simulate ``scene`` from t = 0 (the bench's driver phases) to ``t_end``.
 
     revolutions: duration in motor revolutions when ``t_end`` (s) is None.
     method: "default" (kinematics + inverse dynamics for a fully driven ideal scene, else adaptive
-    DOPRI5 with projection), "kinematics", "dopri5", "rk4-paper", or a :class:`Method`.
+    DOPRI5 with projection), a name registered in ``methods.METHODS`` ("kinematics", "dopri5", "accurate",
+    "rk4-paper") or a :class:`Method`.
     rtol, atol: tolerances of an adaptive method (atol in m; see ``_tolerances``).
     step: fixed step (s) of a fixed-step method (rk4-paper: 1e-4).
     speed: motor speed (rad/s), default the bench's. output_rate: table samples/s (default 20 kHz).
@@ -241,6 +237,10 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     speed_profile: motor speed against time instead of a constant speed: a function speed(t) (rad/s,
     vectorised; sampled every 0.1 ms) or arrays (times s, speeds rad/s), linear in between, held after
     the last time; the drivers turn at ratio x the integrated motor angle. Needs ``t_end``.
+    evaluate_samples: each table sample's accelerations and joint reactions from a full right-hand side
+    at the interpolated state, as before issue 27 (slower); by default they come from the step's
+    continuous extension (the derivative of the DOPRI5 dense output: the stages' values combined, no
+    solve) and the contact columns from the force law at the interpolated state.
     Raises SimulationError on numerical failure (naming time, joint, quantity and state).
     """
     wall0 = time.perf_counter()
@@ -270,8 +270,9 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     out_lam = np.zeros((times.size, m))
     stats = I.new_stats()
     W = scene.work()
-    name = method if isinstance(method, str) else method.name
-    if name == "kinematics" or (name == "default" and scene.dof == 0 and nc == 0 and initial is None):
+    meth = get_method(method) if isinstance(method, str) else method
+    name = method if isinstance(method, str) else method.name  # the alias "dopri5" never means kinematics
+    if meth.tableau is None or (name == "default" and scene.dof == 0 and nc == 0 and initial is None):
         if scene.dof != 0 or nc:
             raise ValueError(f"method 'kinematics' needs a fully driven scene with ideal joints; this one "
                              f"has {scene.dof} DOF ({scene.description})")
@@ -284,7 +285,6 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         table = _table(scene, times, out_y, out_a, out_c, out_lam)
         return SimulationResult(table, _summary(scene, "kinematics", stats, table, wall0, speed), contacts, scene)
 
-    meth = get_method(name) if isinstance(method, str) else method
     if step is not None:
         meth = dataclasses.replace(meth, step=float(step))
     rtol_ = meth.rtol if rtol is None else float(rtol)
@@ -319,12 +319,12 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         b, (sx, sy), axis = scene.sensor
         sensor[:] = (b, sx, sy, axis)
     peaks = np.zeros(nc + 1)
-    pk, pe, ps = np.zeros((4, 2 * n)), np.zeros((2, nc + 1)), np.zeros(4)
+    pk, pe, ps = np.zeros((4 + scheme.end + 1, 2 * n)), np.zeros((2, nc + 1)), np.zeros(4)
     control = I.Control(meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_, 1e-13, hmax,
                         _STEPS_PER_CALL)
     track = I.Track(sensor, peaks, pk, pe, ps)
     mdl = I.Model(P, speed, alpha, beta, inc, v0i, blow, W)
-    out = I.Output(times, out_y, out_a, out_c, out_lam, rec, record_contacts)
+    out = I.Output(times, out_y, out_a, out_c, out_lam, rec, record_contacts, evaluate_samples)
     while True:
         status = I.run_loop(scheme, control, mdl, float(stats[0]["t"]), y, h, t_end, out, k, cout, stats, track)
         if status == I.FULL:
