@@ -52,8 +52,8 @@ from wearbench.validation.sensor_path import SensorPath
 from wearbench.validation.statistics import StateStatistics
 
 __all__ = ["Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval", "build_estimator",
-           "estimate_features", "estimator_key", "fit_estimator", "load_estimator", "save_estimator",
-           "shipped_estimator_path"]
+           "estimate_features", "estimator_key", "fit_estimator", "load_estimator", "predictive_band",
+           "save_estimator", "shipped_estimator_path"]
 
 NO_VALUE = "no parameter value explains it"
 
@@ -414,12 +414,37 @@ class Estimate:
     verdict: str  # "c = ... mm, N = ..." or NO_VALUE
     sensor_path: str
     notes: list[str] = field(default_factory=list)
+    inside: float = float("nan")  # fraction of the measured cycles' features inside the 90 % predictive band
     posterior: np.ndarray | None = field(default=None, repr=False)  # (gc, gn) on the model's grid
-    meta: dict = field(default_factory=dict)  # the grid's ranges: grid_c (m), grid_n (cycles)
+    band: np.ndarray | None = field(default=None, repr=False)  # (3, p) 5/50/95 % of one cycle's features
+    measured: np.ndarray | None = field(default=None, repr=False)  # (cycles, p) the session's cycle features
+    meta: dict = field(default_factory=dict)  # grid_c (m), grid_n (cycles): the grid's ranges; bins, bands
 
     def as_dict(self) -> dict:
-        out = {k: v for k, v in asdict(self).items() if k != "posterior"}
-        return out
+        return {k: v for k, v in asdict(self).items() if k not in ("posterior", "band", "measured")}
+
+    def line(self) -> str:
+        """The estimate in one line, as the demo's summary and the report's table give it."""
+        if not self.explains:
+            return NO_VALUE
+        c, n, d = self.clearance, self.cycles_run, self.depth
+        return (f"{c.median * 1e3:.3f} mm [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}], {n.median / 1e3:.0f}k cycles "
+                f"[{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k], wear {d.median * 1e6:.1f} um "
+                f"[{d.lo90 * 1e6:.1f}-{d.hi90 * 1e6:.1f}]")
+
+
+def predictive_band(model: EstimatorModel, posterior: np.ndarray, *, draws: int = 4000, seed: int = 0
+                    ) -> np.ndarray:
+    """The posterior predictive 5 %, 50 % and 95 % of one cycle's features (3, p): parameter values
+    drawn from ``posterior`` (on the model's grid), then a cycle of a bench drawn from the tolerances
+    at that value (between-bench, cycle-to-cycle, sensor path and emulator error), by sampling with a
+    fixed seed (a session gets the same band every time)."""
+    rng = np.random.default_rng(seed)
+    w = posterior.ravel() / posterior.sum()
+    means = model.grid_mean.reshape(w.size, -1)[rng.choice(w.size, size=draws, p=w)]
+    chol = linalg.cholesky(model.covariance(1.0), lower=True)
+    x = means + rng.standard_normal(means.shape) @ chol.T
+    return np.percentile(x, [5.0, 50.0, 95.0], axis=0)
 
 
 def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: str = "session") -> Estimate:
@@ -458,6 +483,10 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     if clipped:
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
     sensor = model.sensor.source if model.sensor else "none"
+    band = predictive_band(model, post)
+    inside = float(np.mean((x >= band[0]) & (x <= band[2])))
+    spec = features.spec
     return Estimate(label, n, c_int, n_int, depth_int, (float(gc[i]), float(gn[j])),
-                    cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, post,
-                    {"grid_c": [float(gc[0]), float(gc[-1])], "grid_n": [float(gn[0]), float(gn[-1])]})
+                    cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, inside, post, band, x,
+                    {"grid_c": [float(gc[0]), float(gc[-1])], "grid_n": [float(gn[0]), float(gn[-1])],
+                     "bins": spec.bins, "bands": [list(b) for b in spec.bands], "estimator": model.estimator.key})
