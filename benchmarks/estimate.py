@@ -104,6 +104,8 @@ def main() -> None:
     ap.add_argument("--design-clearances", default="0.25mm,0.35mm,0.45mm,0.55mm,0.65mm")
     ap.add_argument("--design-cycles", default="0,200000,400000,600000")
     ap.add_argument("--realisations", type=int, default=16, help="realisations per design point (16)")
+    ap.add_argument("--small", action="store_true", help="EstimatorDesign.small() (the demo's) instead of the "
+                    "--design-* options")
     ap.add_argument("--ensemble-cycles", type=int, default=8)
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
     ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
@@ -128,8 +130,9 @@ def main() -> None:
     from wearbench.validation.features import CycleFeatures, FeatureSpec
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
-    design = EstimatorDesign.parse(args.design_clearances, args.design_cycles, realisations=args.realisations,
-                                   ensemble_cycles=args.ensemble_cycles)
+    design = EstimatorDesign.small() if args.small else EstimatorDesign.parse(
+        args.design_clearances, args.design_cycles, realisations=args.realisations,
+        ensemble_cycles=args.ensemble_cycles)
     rng = np.random.default_rng(args.seed)
     lo, hi, n_max = design.clearances[0], design.clearances[-1], design.cycles[-1]
     truths = [(float(rng.uniform(lo, hi)), float(rng.uniform(0, n_max)), args.seed + k) for k in range(args.truths)]
@@ -173,8 +176,8 @@ def main() -> None:
                    for t, d in ok if d["features"].shape[0] >= n]
     t_est = (time.perf_counter() - t0) / max(1, sum(len(r) for r in rows.values()))
     print(f"\nestimator: {len(design.clearances)} clearances {[round(c * 1e3, 3) for c in design.clearances]} mm x "
-          f"{len(design.cycles)} cycles-run values {[int(c) for c in design.cycles]}, {args.realisations} realisations x "
-          f"{args.ensemble_cycles} cycles; temperature {model.temperature:.2f}; emulator error (median sd) "
+          f"{len(design.cycles)} cycles-run values {[int(c) for c in design.cycles]}, {design.settings.realisations} "
+          f"realisations x {design.settings.cycles} cycles; temperature {model.temperature:.2f}; emulator error (median sd) "
           f"{np.median(np.sqrt(model.discrepancy)):.3f}")
     print(f"build {t_build:.0f} s (wear runs + ensembles, cold cache)   truths {t_truth:.0f} s   fit {t_fit:.1f} s   "
           f"one estimate {t_est * 1e3:.0f} ms   truths failed {len(failed)}"

@@ -12,7 +12,7 @@ each five-cycle window against every state's ensemble windows, in one report. A 
 between the named states (0.45 mm, new surfaces: not a candidate), and every bench's clearance and
 wear are estimated with credible intervals beside the identification (the test bed's shipped
 estimator when its key matches, else a small design built on the compute layer and cached,
-``DEMO_DESIGN``; saved beside the report, so ``wearbench estimate --estimator`` gives the same
+``EstimatorDesign.small()``; saved beside the report, so ``wearbench estimate --estimator`` gives the same
 numbers). ``--twin`` plays the nominal model instead (the demo of earlier versions, for comparison).
 
 The demo's output folder follows the output-file policy (``bench.output_file``) with one rule of its
@@ -69,18 +69,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def demo_design():
-    """The small estimator design of the demo while no shipped estimator fits (3 x 3 points of 3
-    realisations x 4 cycles: about 2 min of CPU; ``wearbench estimator`` builds the full one)."""
-    from wearbench.validation.ensemble import EnsembleSettings
-    from wearbench.validation.estimate import EstimatorDesign
-
-    return EstimatorDesign((0.25e-3, 0.45e-3, 0.65e-3), (0.0, 200_000.0, 400_000.0),
-                           EnsembleSettings(realisations=3, cycles=4))
-
-
 def demo_estimator(bench, progress: str | None = "estimator"):
-    """The test bed's shipped estimator when its key matches, else the demo's small design (cached)."""
+    """The test bed's shipped estimator when its key matches, else ``EstimatorDesign.small()`` (cached)."""
     from wearbench.validation.estimate import (
         EstimatorDesign,
         build_estimator,
@@ -94,7 +84,7 @@ def demo_estimator(bench, progress: str | None = "estimator"):
         found = load_estimator(shipped, key=estimator_key(bench, EstimatorDesign(), bench.speed))
         if found is not None:
             return found
-    return build_estimator(bench, demo_design(), shipped=False, progress=progress)
+    return build_estimator(bench, EstimatorDesign.small(), shipped=False, progress=progress)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -75,8 +75,16 @@ class EstimatorDesign:
         if n.size < 2 or n[0] != 0 or not np.allclose(np.diff(n), n[1]) or n[1] <= 0:
             raise ValueError(f"estimator design: cycles = {self.cycles}: expected at least two values equally "
                              "spaced from 0 (one wear stage apart)")
-        object.__setattr__(self, "clearances", tuple(float(v) for v in c))
-        object.__setattr__(self, "cycles", tuple(float(v) for v in n))
+        # 12 significant digits: "0.45mm" typed (0.45 * 1e-3 = 0.00045000000000000004) keys as 0.45e-3 does
+        object.__setattr__(self, "clearances", tuple(float(f"{v:.12g}") for v in c))
+        object.__setattr__(self, "cycles", tuple(float(f"{v:.12g}") for v in n))
+
+    @classmethod
+    def small(cls) -> EstimatorDesign:
+        """A small design for a first look (the demo's while no shipped estimator fits): 3 clearances
+        0.25-0.65 mm x cycles run 0, 200,000, 400,000, 3 realisations x 4 cycles each (about 2 min of
+        CPU). Coarse: 3 x 3 points fit the emulator exactly, so its own error is not estimated."""
+        return cls((0.25e-3, 0.45e-3, 0.65e-3), (0.0, 200_000.0, 400_000.0), EnsembleSettings(realisations=3, cycles=4))
 
     @classmethod
     def parse(cls, clearances: str, cycles: str, *, realisations: int = 16,
