@@ -259,6 +259,18 @@ def _basis(u: np.ndarray, v: np.ndarray, degrees: tuple[int, int]) -> np.ndarray
     return np.stack([u ** a * v ** b for a in range(degrees[0] + 1) for b in range(degrees[1] + 1)], axis=-1)
 
 
+def _loo_error(phi: np.ndarray, means: np.ndarray) -> np.ndarray:
+    """Per feature, the emulator's error variance from predicting each design point's mean by the
+    (minimum-norm) fit to the others, each squared error divided by 1 + the prediction weights'
+    squared norm (the others' sampling error it carries)."""
+    out = np.zeros(means.shape[1])
+    for k in range(phi.shape[0]):
+        rest = np.delete(np.arange(phi.shape[0]), k)
+        w = phi[k] @ np.linalg.pinv(phi[rest])  # prediction weights on the other points' means
+        out += (means[k] - w @ means[rest]) ** 2 / (1.0 + w @ w)
+    return out / phi.shape[0]
+
+
 @dataclass
 class EstimatorModel:
     """A fitted estimator: the design's statistics, the mean emulator, and the grid."""
@@ -330,10 +342,12 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
     dof = phi.shape[0] - phi.shape[1]
     discrepancy = np.zeros(means.shape[1])
     st = fitted[names[0]]
+    sampling = np.diag(st.between + st.within / st.cycles) / st.realisations
     if dof > 0:
-        sampling = np.diag(st.between + st.within / st.cycles) / st.realisations
         resid = np.sum((means - phi @ coef) ** 2, axis=0) / dof
         discrepancy = np.clip(resid - sampling, 0.0, None)
+    else:  # an exact fit (e.g. 3 x 3 points, quadratic): each point predicted from the others instead
+        discrepancy = np.clip(_loo_error(phi, means) - sampling, 0.0, None)
     gc = np.linspace(lo, hi, grid[0])
     gn = np.linspace(0.0, d.cycles[-1], grid[1])
     gu, gv = np.meshgrid(2 * (gc - lo) / (hi - lo) - 1, 2 * gn / d.cycles[-1] - 1, indexing="ij")
