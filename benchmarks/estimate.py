@@ -43,6 +43,7 @@ def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles
     surfaces to use instead of a wear run of ``cycles_run``."""
     from pathlib import Path
 
+    from wearbench.acquisition.layout import clip_level
     from wearbench.bench.schema import WearState
     from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
     from wearbench.hardware.emulators.sensor import SensorChain
@@ -70,7 +71,7 @@ def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles
     m = chain.oversample
     samples = chain.process(run.acc)
     t, crank = run.t[m - 1::m], run.crank[m - 1::m]
-    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), range_=sensor.range)
+    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), clip_level=clip_level(sensor.range))
     return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance}
 
 
