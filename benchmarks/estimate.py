@@ -11,9 +11,10 @@ in-process to the model's acceleration (no MCAP round trip: benchmarks/identify.
 ``--at 200000 --at-truths 10`` adds truths at that many cycles run (clearance from the prior).
 ``--lives L`` adds simulated lives for ``wearbench track``: one bench per life (clearance from the
 prior, its own seed) worn with a coefficient ``--life-factor`` (1.3) times the file's, recorded
-(``--life-cycles`` cycles each) after 0, 100k, 200k, 300k and 400k cycles; the fitted factor's 90 %
-interval against the truth, and the cycles until a clearance limit the truth reaches at 500k cycles
-(its wear run goes one stage further) against the track's cycles-to-limit interval.
+(``--life-cycles`` cycles each) after 0, 100k, 200k, 300k and 400k cycles (``--life-step``); the
+fitted factor's 90 % interval against the truth, and the cycles until a clearance limit the truth
+reaches at 500k cycles (its wear run goes one step further) against the track's cycles-to-limit
+interval.
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
 wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
@@ -114,6 +115,9 @@ def main() -> None:
     ap.add_argument("--lives", type=int, default=0, help="simulated lives for track (0)")
     ap.add_argument("--life-factor", type=float, default=1.3, help="the lives' wear coefficient / the file's (1.3)")
     ap.add_argument("--life-cycles", type=int, default=20, help="cycles per session of a life (20)")
+    ap.add_argument("--life-step", type=float, default=100_000.0,
+                    help="cycles between a life's sessions (100000); the sessions' effective cycles (x the factor) "
+                    "must lie inside the design")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--cache", help="cache folder (default: a fresh one: the estimator is built cold)")
     ap.add_argument("--seed", type=int, default=20000)
@@ -158,10 +162,10 @@ def main() -> None:
         t_truth = time.perf_counter() - t0
         t0 = time.perf_counter()
         life_runs = run_tasks([Task(life_features, {"bench": bench, "clearance": c, "factor": args.life_factor,
-                                                    "step": 100_000.0, "stages": 5, "seed": s,
+                                                    "step": args.life_step, "stages": 5, "seed": s,
                                                     "cycles": args.life_cycles, "spread": args.sensor_paths},
-                                    task_key("estimate-life", c, args.life_factor, s, args.life_cycles,
-                                             args.sensor_paths), f"life {s}")
+                                    task_key("estimate-life", c, args.life_factor, args.life_step, s,
+                                             args.life_cycles, args.sensor_paths), f"life {s}")
                                for c, s in lives], progress="lives") if lives else []
         t_lives = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -225,20 +229,22 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
     from wearbench.validation.features import CycleFeatures, FeatureSpec
     from wearbench.validation.track import track_features
 
-    cycles_run = [0.0, 1e5, 2e5, 3e5, 4e5]
+    cycles_run = [k * args.life_step for k in range(5)]
     rows = []
     for (c, seed), r in zip(lives, runs, strict=True):
         if isinstance(r, TaskFailure):
             print(f"life {seed} failed: {r}")
             continue
-        limit = c + r["depth"][5]  # the truth reaches it after 500,000 cycles (its last stage)
+        limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)
         feats = [CycleFeatures(FeatureSpec(), f, np.zeros(len(f))) for f in r["features"]]
         t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit)
         m = t.cycles_to_limit
-        rows.append((c, t.factor, m, t.factor.contains(args.life_factor), m is not None and m.contains(5e5)))
+        rows.append((c, t.factor, m, t.factor.contains(args.life_factor),
+                     m is not None and m.contains(5 * args.life_step)))
         print(f"life {seed}: clearance {c * 1e3:.3f} mm, factor {t.factor.median:.2f} (90 % {t.factor.lo90:.2f}-"
               f"{t.factor.hi90:.2f}), cycles to {limit * 1e3:.4f} mm: "
-              + (f"{m.median:,.0f} (90 % {m.lo90:,.0f}-{m.hi90:,.0f})" if m else "beyond") + " (truth 500,000)")
+              + (f"{m.median:,.0f} (90 % {m.lo90:,.0f}-{m.hi90:,.0f})" if m else "beyond")
+              + f" (truth {5 * args.life_step:,.0f})")
     if rows:
         print(f"\n{len(rows)} lives ({seconds:.0f} s), wear factor {args.life_factor}: its 90 % interval holds it in "
               f"{np.mean([r[3] for r in rows]):.2f}, the cycles-to-limit interval holds the truth's in "
