@@ -15,7 +15,7 @@ import sys
 import pytest
 from wearbench.validation import load_session
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(2400)]  # the demo builds its small estimator cold
 
 CASES = ("0.3 mm new", "0.6 mm new", "0.3 mm first wear", "0.3 mm second wear")
 BENCHES = (*CASES, "0.45 mm new")  # the fifth lies between the named states: estimated, not a candidate
