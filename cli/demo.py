@@ -96,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.validation.assess import assess_sessions, write_assessment_report
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
     from wearbench.validation.estimate import save_estimator
+    from wearbench.validation.measure import estimate_assessed
 
     backend = args.backend or ("sim" if args.quick else "serial")
     if args.cycles < 6:
@@ -142,8 +143,8 @@ def run(args: argparse.Namespace) -> int:
                 r.stop("interrupted", "interrupt")
             raise
     assessed = assess_sessions([load_session(p, label=s.name) for p, s in zip(paths, states, strict=True)],
-                               ensembles=ensembles, estimator=estimator,
-                               calibration=None)  # its own emulated mounts, not a lab's
+                               ensembles=ensembles, calibration=None)  # its own emulated mounts, not a lab's
+    estimate_assessed(assessed, estimator, calibration=None)
     with output_folder(report_dir, force=force) as tmp:
         report = write_assessment_report(assessed, tmp, title=f"wearbench demo: {bench.name}, which state explains "
                                          f"each session, clearance and wear ({'twin' if args.twin else 'non-twin truths'})")

@@ -55,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.validation.ensemble import EnsembleSettings
     from wearbench.validation.estimate import EstimatorDesign, load_estimator
     from wearbench.validation.identify import IdentifyOptions
+    from wearbench.validation.measure import estimate_assessed
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the ensembles are built
@@ -62,9 +63,11 @@ def run(args: argparse.Namespace) -> int:
     settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.ensemble_cycles)
     estimator = (load_estimator(args.estimator) if args.estimator
                  else EstimatorDesign() if args.estimate else None)
+    options = IdentifyOptions(threshold=args.threshold)
     assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
-                               options=IdentifyOptions(threshold=args.threshold), estimator=estimator,
-                               **calibration_options(args), **compute_options(args))
+                               options=options, **calibration_options(args), **compute_options(args))
+    if estimator is not None:
+        estimate_assessed(assessed, estimator, options=options, **calibration_options(args), **compute_options(args))
     results = [a.identification for a in assessed]
     states = list(results[0].posterior)
     table = Table(title=f"posterior probability of each state (named at p >= {args.threshold:g})")

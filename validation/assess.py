@@ -30,7 +30,7 @@ from wearbench.validation.ensemble import (
     check_ensembles_fit,
     load_ensembles,
 )
-from wearbench.validation.estimate import Estimate, Estimator, EstimatorDesign
+from wearbench.validation.estimate import Estimate
 from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_features
 from wearbench.validation.identify import (
     Identification,
@@ -65,7 +65,7 @@ class Assessment:
     bands: BandComparison
     windows: dict[str, SessionWindows]
     measured: MeasuredCurves
-    estimate: Estimate | None = None  # clearance and wear with credible intervals, when asked for
+    estimate: Estimate | None = None  # clearance and wear with intervals (``measure.estimate_assessed``)
 
     @property
     def state(self) -> str:
@@ -163,8 +163,7 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                     window_options: WindowOptions | None = None,
                     ensembles: Mapping[str, Ensemble] | str | Path | None = None, scheduler: str | None = None,
                     workers: int | None = None, progress: str | None = "theory ensembles",
-                    calibration: str | Path | None = "auto", mount: str = "",
-                    estimator: Estimator | EstimatorDesign | None = None) -> list[Assessment]:
+                    calibration: str | Path | None = "auto", mount: str = "") -> list[Assessment]:
     """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
 
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
@@ -175,9 +174,6 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
     calibration: "auto" uses the stored calibration of each session's bench, sensor and ``mount``
     (``calibration.py``) when there is one, else the sensor-path prior; a calibration file uses that;
     None never uses one.
-    estimator: also estimate each session's clearance and wear (``measure.estimate_sessions``) with
-    this estimator, or with the one of this design (shipped when its key matches, else built on
-    the compute layer); the same sensor path as the identification.
     """
     settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
     ensembles_file = None
@@ -223,15 +219,6 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
             bands = compare_bands(mc.at(0.0), mc.peaks, ens[state])
             windows = {name: score_windows(mc, th, feats) for name, th in theories.items()}
             out[i] = Assessment(s, ident, bands, windows, mc)
-    if estimator is not None:
-        from wearbench.validation.measure import estimate_sessions  # measure imports this module
-
-        given = estimator if isinstance(estimator, Estimator) else None
-        design = estimator if isinstance(estimator, EstimatorDesign) else None
-        for a, e in zip(out, estimate_sessions(loaded, design=design, estimator=given, options=options,
-                                               calibration=calibration, mount=mount, scheduler=scheduler,
-                                               workers=workers, progress=progress and "estimator"), strict=True):
-            a.estimate = e
     return out
 
 

@@ -12,7 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from wearbench.bench.schema import WearState
-from wearbench.validation.assess import _states, commanded_speed, session_features
+from wearbench.validation.assess import Assessment, _states, commanded_speed, session_features
 from wearbench.validation.calibration import (
     Calibration,
     calibration_key,
@@ -34,7 +34,7 @@ from wearbench.validation.identify import IdentifyOptions, fit_states
 from wearbench.validation.measured import MeasuredSession, load_session
 from wearbench.validation.track import Track, track_features
 
-__all__ = ["calibrate_sessions", "estimate_sessions", "recorded_cycles_run", "track_sessions"]
+__all__ = ["calibrate_sessions", "estimate_assessed", "estimate_sessions", "recorded_cycles_run", "track_sessions"]
 
 
 def _grouped(sessions: Sequence[str | Path | MeasuredSession], needs_bench: str | None
@@ -121,6 +121,23 @@ def estimate_sessions(sessions: Sequence[str | Path | MeasuredSession], *, desig
             if cal is not None:
                 out[i].notes.append(f"sensor path: {cal.describe()}")
     return out
+
+
+def estimate_assessed(assessed: Sequence[Assessment], estimator: Estimator | EstimatorDesign, *,
+                      options: IdentifyOptions | None = None, calibration: str | Path | None = "auto",
+                      mount: str = "", scheduler: str | None = None, workers: int | None = None,
+                      progress: str | None = "estimator") -> list[Assessment]:
+    """Each assessed session's clearance and wear beside its identification (``Assessment.estimate``,
+    shown in the report): with ``estimator``, or the one of that design (as :func:`estimate_sessions`);
+    ``calibration``/``mount``: as the identification used them. Returns ``assessed``."""
+    given = estimator if isinstance(estimator, Estimator) else None
+    design = estimator if isinstance(estimator, EstimatorDesign) else None
+    found = estimate_sessions([a.session for a in assessed], design=design, estimator=given, options=options,
+                              calibration=calibration, mount=mount, scheduler=scheduler, workers=workers,
+                              progress=progress)
+    for a, e in zip(assessed, found, strict=True):
+        a.estimate = e
+    return list(assessed)
 
 
 def recorded_cycles_run(session: MeasuredSession) -> float | None:
