@@ -118,6 +118,8 @@ def main() -> None:
     ap.add_argument("--life-step", type=float, default=100_000.0,
                     help="cycles between a life's sessions (100000); the sessions' effective cycles (x the factor) "
                     "must lie inside the design")
+    ap.add_argument("--cached-only", action="store_true",
+                    help="use only the truths and lives an earlier (interrupted) run left in --cache; say how many")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--cache", help="cache folder (default: a fresh one: the estimator is built cold)")
     ap.add_argument("--seed", type=int, default=20000)
@@ -126,6 +128,7 @@ def main() -> None:
 
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.model.compute import Task, TaskFailure, compute_client, run_tasks, task_key
+    from wearbench.model.task_cache import MISSING, cache_load
     from wearbench.validation.estimate import (
         EstimatorDesign,
         build_estimator,
@@ -145,6 +148,20 @@ def main() -> None:
     at_truths = [(float(at_rng.uniform(lo, hi)), args.at, args.seed + 5000 + k) for k in range(args.at_truths)]
     life_rng = np.random.default_rng(args.seed + 2)
     lives = [(float(life_rng.uniform(0.3e-3, 0.55e-3)), args.seed + 8000 + k) for k in range(args.lives)]
+
+    def truth_key(c, n, s):
+        return task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths)
+
+    def life_key(c, s):
+        return task_key("estimate-life", c, args.life_factor, args.life_step, s, args.life_cycles, args.sensor_paths)
+
+    if args.cached_only:  # what an interrupted run finished (the draws are the same for every size)
+        asked = (len(truths), len(at_truths), len(lives))
+        truths = [t for t in truths if cache_load(truth_key(*t)) is not MISSING]
+        at_truths = [t for t in at_truths if cache_load(truth_key(*t)) is not MISSING]
+        lives = [t for t in lives if cache_load(life_key(*t)) is not MISSING]
+        print(f"cached only: {len(truths)} of {asked[0]} truths from the prior, {len(at_truths)} of {asked[1]} at "
+              f"--at, {len(lives)} of {asked[2]} lives")
     with compute_client(workers=args.workers):
         t0 = time.perf_counter()
         est = build_estimator(bench, design, progress="estimator", shipped=False)
@@ -154,7 +171,7 @@ def main() -> None:
         def run(batch, name):
             return run_tasks([Task(truth_features, {"bench": bench, "clearance": c, "cycles_run": n, "seed": s,
                                                     "cycles": args.cycles, "spread": args.sensor_paths},
-                                   task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths), f"truth {s}")
+                                   truth_key(c, n, s), f"truth {s}")
                               for c, n, s in batch], progress=name)
 
         done = run(at_truths, "truths at --at") + run(truths, "truths from the prior")  # the shorter batch first
@@ -164,8 +181,7 @@ def main() -> None:
         life_runs = run_tasks([Task(life_features, {"bench": bench, "clearance": c, "factor": args.life_factor,
                                                     "step": args.life_step, "stages": 5, "seed": s,
                                                     "cycles": args.life_cycles, "spread": args.sensor_paths},
-                                    task_key("estimate-life", c, args.life_factor, args.life_step, s,
-                                             args.life_cycles, args.sensor_paths), f"life {s}")
+                                    life_key(c, s), f"life {s}")
                                for c, s in lives], progress="lives") if lives else []
         t_lives = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -217,8 +233,13 @@ def main() -> None:
     at = [r for r in rows[args.cycles] if r[0][2] >= args.seed + 5000]
     if at:
         excl = np.mean([e.explains and e.cycles_run.lo90 > 0 and e.cycles_run.hi90 < 2 * args.at for *_, e in at])
+        held = np.mean([e.explains and e.cycles_run.contains(args.at) for *_, e in at])
+        c_held = np.mean([e.explains and e.clearance.contains(t[0]) for t, _, e in at])
         print(f"\n{len(at)} truths at {args.at:,.0f} cycles run: the 90 % interval excludes 0 and {2 * args.at:,.0f} "
-              f"in {excl:.2f}")
+              f"in {excl:.2f} (a design that ends at {n_max:,.0f} cycles excludes its end in every interval that "
+              f"does not reach it); the 90 % intervals hold the cycles run in {held:.2f}, the clearance in "
+              f"{c_held:.2f}; median cycles-run interval {np.median([e.cycles_run.lo90 for *_, e in at]):,.0f}-"
+              f"{np.median([e.cycles_run.hi90 for *_, e in at]):,.0f}")
     if lives:
         report_lives(bench, model, lives, life_runs, args, t_lives)
 
