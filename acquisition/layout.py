@@ -95,7 +95,8 @@ __all__ = [
 
 # metadata records of a session file, by name: what each holds (every value a string)
 METADATA = {
-    "session": "bench, bench_sha256, bench_path, operator, software, backend, speed_rad_s, started_at, target",
+    "session": "bench, bench_sha256, bench_path, operator, software, backend, speed_rad_s, started_at, target, "
+               "cycles_run (cycles the bench had run before the session, when given)",
     "clearance": "radial clearance (m, repr) per clearance joint as mounted",
     "wear": "wear state per clearance joint: a label or the worn-surface file",
     "calibration": "sensor names and rates, accelerometer range/axis/sensitivity/mount, encoder joint, "
@@ -148,6 +149,8 @@ def session_records(bench: Bench, plan: SessionPlan, backend: str, info: Mapping
                "software": f"wearbench {version('wearbench')}", "backend": backend,
                "speed_rad_s": repr(p.speed), "started_at": started_at}
     session["target"] = f"{p.cycles} cycles" if p.cycles is not None else f"{p.duration} s"
+    if p.cycles_run is not None:
+        session["cycles_run"] = repr(float(p.cycles_run))
     if b.path is not None:
         session["bench_path"] = str(Path(b.path).resolve())
     clearance = {j.name: repr(p.clearances.get(j.name, j.clearance.radial_clearance)) for j in b.clearance_joints}

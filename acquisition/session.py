@@ -25,6 +25,7 @@ class SessionPlan:
     clearances: dict[str, float] = field(default_factory=dict)  # m, as mounted
     wear: dict[str, str] = field(default_factory=dict)  # joint -> label or surfaces file
     operator: str = ""
+    cycles_run: float | None = None  # cycles the bench had run before this session (``wearbench track`` reads it)
     silence_timeout: float = 2.0  # s (rig clock) without a block: the device stopped answering
     state_interval: float = 0.05  # s (rig clock) between drive state polls
     max_malformed: int = 100  # malformed frames tolerated before the session stops
@@ -37,6 +38,9 @@ class SessionPlan:
         for name, value, unit in (("cycles", self.cycles, ""), ("duration", self.duration, " s")):
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} = {value!r}{unit}: expected a finite number > 0")
+        if self.cycles_run is not None and not (math.isfinite(self.cycles_run) and self.cycles_run >= 0):
+            raise ValueError(f"cycles_run = {self.cycles_run!r}: expected the cycles the bench had run, a finite "
+                             "number >= 0")
         if not (math.isfinite(self.settle) and self.settle >= 0):
             raise ValueError(f"settle = {self.settle!r} s: expected a finite number >= 0")
 

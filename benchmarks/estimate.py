@@ -9,12 +9,19 @@ mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with -
 mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %), applied
 in-process to the model's acceleration (no MCAP round trip: benchmarks/identify.py covers that).
 ``--at 200000 --at-truths 10`` adds truths at that many cycles run (clearance from the prior).
+``--lives L`` adds simulated lives for ``wearbench track``: one bench per life (clearance from the
+prior, its own seed) worn with a coefficient ``--life-factor`` (1.3) times the file's, recorded
+(``--life-cycles`` cycles each) after 0, 100k, 200k, 300k and 400k cycles (``--life-step``); the
+fitted factor's 90 % interval against the truth, and the cycles until a clearance limit the truth
+reaches at 500k cycles (its wear run goes one step further) against the track's cycles-to-limit
+interval.
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
 wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
 rank histogram (posterior CDF at the truth, 10 bins; flat when calibrated); median 90 % widths at
 5, 10 and 20 cycles; the clearance median absolute error; "no parameter value explains it" rates;
-for the --at truths, how often the 90 % cycles-run interval excludes 0 and twice the truth.
+for the --at truths, how often the 90 % cycles-run interval excludes 0 and twice the truth; for
+the lives, the coverage of the wear factor and of the cycles to the limit.
 
     .venv/bin/python benchmarks/estimate.py [--truths 100] [--cycles 20] [--realisations 16]
     .venv/bin/python benchmarks/estimate.py --design-clearances 0.25mm,0.45mm,0.65mm \\
@@ -31,10 +38,13 @@ import time
 import numpy as np
 
 
-def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles: int, spread: bool) -> dict:
-    """One truth's cycle features through the sensor chain (a compute-layer task)."""
+def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles: int, spread: bool,
+                   files: dict | None = None) -> dict:
+    """One truth's cycle features through the sensor chain (a compute-layer task); ``files``: worn
+    surfaces to use instead of a wear run of ``cycles_run``."""
     from pathlib import Path
 
+    from wearbench.acquisition.layout import clip_level
     from wearbench.bench.schema import WearState
     from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
     from wearbench.hardware.emulators.sensor import SensorChain
@@ -43,7 +53,7 @@ def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles
     from wearbench.validation.features import FeatureSpec, cycle_features
 
     joints = [j.name for j in bench.clearance_joints]
-    files, depth = {}, 0.0
+    files, depth = dict(files or {}), 0.0
     with tempfile.TemporaryDirectory() as tmp:
         if cycles_run > 0:
             run = run_stages(bench, StagePlan.from_bench(bench, stages=1, stage_cycles=cycles_run),
@@ -62,8 +72,31 @@ def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles
     m = chain.oversample
     samples = chain.process(run.acc)
     t, crank = run.t[m - 1::m], run.crank[m - 1::m]
-    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), range_=sensor.range)
+    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), clip_level=clip_level(sensor.range))
     return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance}
+
+
+def life_features(bench, clearance: float, factor: float, step: float, stages: int, seed: int, cycles: int,
+                  spread: bool) -> dict:
+    """One simulated life (a compute-layer task): the bench worn from ``clearance`` with ``factor`` x
+    the file's wear coefficient through ``stages`` stages of ``step`` cycles; a session of ``cycles``
+    through the sensor chain at 0 and after every stage but the last; the truth's depth after each."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from wearbench.model.wear_stages import StagePlan, run_stages
+
+    joints = [j.name for j in bench.clearance_joints]
+    plan = StagePlan.from_bench(bench, stages=stages, stage_cycles=step)
+    run = run_stages(bench, replace(plan, coefficient=bench.wear.coefficient * factor),
+                     clearances=dict.fromkeys(joints, clearance))
+    depth = [0.0] + [max(sum(s.max_depth) for s in st.surfaces.values()) for st in run.stages]
+    feats = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(stages):  # sessions at 0 and after stages 1 .. stages-1
+            files = {j: s.save(Path(tmp) / f"{j}_{k}.npz") for j, s in run.stages[k - 1].surfaces.items()} if k else {}
+            feats.append(truth_features(bench, clearance, 0.0, seed, cycles, spread, files=files)["features"])
+    return {"features": feats, "depth": depth}
 
 
 def main() -> None:
@@ -73,10 +106,20 @@ def main() -> None:
     ap.add_argument("--design-clearances", default="0.25mm,0.35mm,0.45mm,0.55mm,0.65mm")
     ap.add_argument("--design-cycles", default="0,200000,400000,600000")
     ap.add_argument("--realisations", type=int, default=16, help="realisations per design point (16)")
+    ap.add_argument("--small", action="store_true", help="EstimatorDesign.small() (the demo's) instead of the "
+                    "--design-* options")
     ap.add_argument("--ensemble-cycles", type=int, default=8)
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
     ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
     ap.add_argument("--at-truths", type=int, default=0, help="extra truths at --at cycles run (0)")
+    ap.add_argument("--lives", type=int, default=0, help="simulated lives for track (0)")
+    ap.add_argument("--life-factor", type=float, default=1.3, help="the lives' wear coefficient / the file's (1.3)")
+    ap.add_argument("--life-cycles", type=int, default=20, help="cycles per session of a life (20)")
+    ap.add_argument("--life-step", type=float, default=100_000.0,
+                    help="cycles between a life's sessions (100000); the sessions' effective cycles (x the factor) "
+                    "must lie inside the design")
+    ap.add_argument("--cached-only", action="store_true",
+                    help="use only the truths and lives an earlier (interrupted) run left in --cache; say how many")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--cache", help="cache folder (default: a fresh one: the estimator is built cold)")
     ap.add_argument("--seed", type=int, default=20000)
@@ -85,6 +128,7 @@ def main() -> None:
 
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
+    from wearbench.compute.task_cache import MISSING, cache_load
     from wearbench.validation.estimate import (
         EstimatorDesign,
         build_estimator,
@@ -94,22 +138,52 @@ def main() -> None:
     from wearbench.validation.features import CycleFeatures, FeatureSpec
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
-    design = EstimatorDesign.parse(args.design_clearances, args.design_cycles, realisations=args.realisations,
-                                   ensemble_cycles=args.ensemble_cycles)
+    design = EstimatorDesign.small() if args.small else EstimatorDesign.parse(
+        args.design_clearances, args.design_cycles, realisations=args.realisations,
+        ensemble_cycles=args.ensemble_cycles)
     rng = np.random.default_rng(args.seed)
     lo, hi, n_max = design.clearances[0], design.clearances[-1], design.cycles[-1]
     truths = [(float(rng.uniform(lo, hi)), float(rng.uniform(0, n_max)), args.seed + k) for k in range(args.truths)]
-    truths += [(float(rng.uniform(lo, hi)), args.at, args.seed + 5000 + k) for k in range(args.at_truths)]
+    at_rng = np.random.default_rng(args.seed + 1)  # its own stream: the same --at truths whatever --truths
+    at_truths = [(float(at_rng.uniform(lo, hi)), args.at, args.seed + 5000 + k) for k in range(args.at_truths)]
+    life_rng = np.random.default_rng(args.seed + 2)
+    lives = [(float(life_rng.uniform(0.3e-3, 0.55e-3)), args.seed + 8000 + k) for k in range(args.lives)]
+
+    def truth_key(c, n, s):
+        return task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths)
+
+    def life_key(c, s):
+        return task_key("estimate-life", c, args.life_factor, args.life_step, s, args.life_cycles, args.sensor_paths)
+
+    if args.cached_only:  # what an interrupted run finished (the draws are the same for every size)
+        asked = (len(truths), len(at_truths), len(lives))
+        truths = [t for t in truths if cache_load(truth_key(*t)) is not MISSING]
+        at_truths = [t for t in at_truths if cache_load(truth_key(*t)) is not MISSING]
+        lives = [t for t in lives if cache_load(life_key(*t)) is not MISSING]
+        print(f"cached only: {len(truths)} of {asked[0]} truths from the prior, {len(at_truths)} of {asked[1]} at "
+              f"--at, {len(lives)} of {asked[2]} lives")
     with compute_client(workers=args.workers):
         t0 = time.perf_counter()
         est = build_estimator(bench, design, progress="estimator", shipped=False)
         t_build = time.perf_counter() - t0
         t0 = time.perf_counter()
-        done = run_tasks([Task(truth_features, {"bench": bench, "clearance": c, "cycles_run": n, "seed": s,
-                                                "cycles": args.cycles, "spread": args.sensor_paths},
-                               task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths), f"truth {s}")
-                          for c, n, s in truths], progress="truths")
+
+        def run(batch, name):
+            return run_tasks([Task(truth_features, {"bench": bench, "clearance": c, "cycles_run": n, "seed": s,
+                                                    "cycles": args.cycles, "spread": args.sensor_paths},
+                                   truth_key(c, n, s), f"truth {s}")
+                              for c, n, s in batch], progress=name)
+
+        done = run(at_truths, "truths at --at") + run(truths, "truths from the prior")  # the shorter batch first
+        truths = at_truths + truths
         t_truth = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        life_runs = run_tasks([Task(life_features, {"bench": bench, "clearance": c, "factor": args.life_factor,
+                                                    "step": args.life_step, "stages": 5, "seed": s,
+                                                    "cycles": args.life_cycles, "spread": args.sensor_paths},
+                                    life_key(c, s), f"life {s}")
+                               for c, s in lives], progress="lives") if lives else []
+        t_lives = time.perf_counter() - t0
     t0 = time.perf_counter()
     model = fit_estimator(est)
     t_fit = time.perf_counter() - t0
@@ -123,8 +197,8 @@ def main() -> None:
                    for t, d in ok if d["features"].shape[0] >= n]
     t_est = (time.perf_counter() - t0) / max(1, sum(len(r) for r in rows.values()))
     print(f"\nestimator: {len(design.clearances)} clearances {[round(c * 1e3, 3) for c in design.clearances]} mm x "
-          f"{len(design.cycles)} cycles-run values {[int(c) for c in design.cycles]}, {args.realisations} realisations x "
-          f"{args.ensemble_cycles} cycles; temperature {model.temperature:.2f}; emulator error (median sd) "
+          f"{len(design.cycles)} cycles-run values {[int(c) for c in design.cycles]}, {design.settings.realisations} "
+          f"realisations x {design.settings.cycles} cycles; temperature {model.temperature:.2f}; emulator error (median sd) "
           f"{np.median(np.sqrt(model.discrepancy)):.3f}")
     print(f"build {t_build:.0f} s (wear runs + ensembles, cold cache)   truths {t_truth:.0f} s   fit {t_fit:.1f} s   "
           f"one estimate {t_est * 1e3:.0f} ms   truths failed {len(failed)}"
@@ -159,8 +233,44 @@ def main() -> None:
     at = [r for r in rows[args.cycles] if r[0][2] >= args.seed + 5000]
     if at:
         excl = np.mean([e.explains and e.cycles_run.lo90 > 0 and e.cycles_run.hi90 < 2 * args.at for *_, e in at])
+        held = np.mean([e.explains and e.cycles_run.contains(args.at) for *_, e in at])
+        c_held = np.mean([e.explains and e.clearance.contains(t[0]) for t, _, e in at])
         print(f"\n{len(at)} truths at {args.at:,.0f} cycles run: the 90 % interval excludes 0 and {2 * args.at:,.0f} "
-              f"in {excl:.2f}")
+              f"in {excl:.2f} (a design that ends at {n_max:,.0f} cycles excludes its end in every interval that "
+              f"does not reach it); the 90 % intervals hold the cycles run in {held:.2f}, the clearance in "
+              f"{c_held:.2f}; median cycles-run interval {np.median([e.cycles_run.lo90 for *_, e in at]):,.0f}-"
+              f"{np.median([e.cycles_run.hi90 for *_, e in at]):,.0f}")
+    if lives:
+        report_lives(bench, model, lives, life_runs, args, t_lives)
+
+
+def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
+    """Coverage of the track's wear factor and cycles to a limit over the simulated lives."""
+    from wearbench.compute import TaskFailure
+    from wearbench.validation.features import CycleFeatures, FeatureSpec
+    from wearbench.validation.track import track_features
+
+    cycles_run = [k * args.life_step for k in range(5)]
+    rows = []
+    for (c, seed), r in zip(lives, runs, strict=True):
+        if isinstance(r, TaskFailure):
+            print(f"life {seed} failed: {r}")
+            continue
+        limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)
+        feats = [CycleFeatures(FeatureSpec(), f, np.zeros(len(f))) for f in r["features"]]
+        t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit)
+        m = t.cycles_to_limit
+        rows.append((c, t.factor, m, t.factor.contains(args.life_factor),
+                     m is not None and m.contains(5 * args.life_step)))
+        print(f"life {seed}: clearance {c * 1e3:.3f} mm, factor {t.factor.median:.2f} (90 % {t.factor.lo90:.2f}-"
+              f"{t.factor.hi90:.2f}), cycles to {limit * 1e3:.4f} mm: "
+              + (f"{m.median:,.0f} (90 % {m.lo90:,.0f}-{m.hi90:,.0f})" if m else "beyond")
+              + f" (truth {5 * args.life_step:,.0f})")
+    if rows:
+        print(f"\n{len(rows)} lives ({seconds:.0f} s), wear factor {args.life_factor}: its 90 % interval holds it in "
+              f"{np.mean([r[3] for r in rows]):.2f}, the cycles-to-limit interval holds the truth's in "
+              f"{np.mean([r[4] for r in rows]):.2f}; median factor interval "
+              f"{np.median([r[1].lo90 for r in rows]):.2f}-{np.median([r[1].hi90 for r in rows]):.2f}")
 
 
 def rank(e, value: float, name: str, model) -> float:

@@ -8,8 +8,12 @@ A session of each is recorded through the acquisition drivers (the serial protoc
 pseudo-terminal, or the in-process device with ``--quick``). The theory of every state is an
 ensemble of realisations (shipped precomputed for this bench, or built on the compute layer), and
 each session gets the posterior probability of every state, a band comparison and a verdict for
-each five-cycle window against every state's ensemble windows, in one report. ``--twin`` plays the nominal model instead
-(the demo of earlier versions, for comparison).
+each five-cycle window against every state's ensemble windows, in one report. A fifth bench lies
+between the named states (0.45 mm, new surfaces: not a candidate), and every bench's clearance and
+wear are estimated with credible intervals beside the identification (the test bed's shipped
+estimator when its key matches, else a small design built on the compute layer and cached,
+``EstimatorDesign.small()``; saved beside the report, so ``wearbench estimate --estimator`` gives the same
+numbers). ``--twin`` plays the nominal model instead (the demo of earlier versions, for comparison).
 
 The demo's output folder follows the output-file policy (``bench.output_file``) with one rule of its
 own: the demo marks the folders it writes (``.wearbench-demo``), and a rerun into a marked folder
@@ -32,13 +36,15 @@ from wearbench.cli.options import add_force_argument
 from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
 
 BENCH = "ninebar-testbed"
+FIFTH = ("0.45 mm new", 0.45e-3)  # a bench between the named states, not a candidate: estimated, not named
 TRUTH_SEED = 2026  # truth i is drawn with TRUTH_SEED + i; the ensembles use seeds from 1
 MARK = ".wearbench-demo"  # in a folder the demo wrote: a rerun may replace its sessions and report
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "demo", help="record four bench states on the emulated nine-bar test bed and identify each one",
+        "demo", help="record the four states of the emulated nine-bar test bed and a bench between them; identify and "
+        "estimate each one",
         description="The whole toolkit on the built-in simulated bench: each of the test bed's four states "
         "(0.3 and 0.6 mm new, 0.3 mm after the first and second wear stage) is the hidden truth of a bench "
         "emulator that differs from the bench file within its tolerances; a session of each is recorded "
@@ -63,19 +69,41 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def demo_estimator(bench, progress: str | None = "estimator"):
+    """The test bed's shipped estimator when its key matches, else ``EstimatorDesign.small()`` (cached)."""
+    from wearbench.validation.estimate import (
+        EstimatorDesign,
+        build_estimator,
+        estimator_key,
+        load_estimator,
+        shipped_estimator_path,
+    )
+
+    shipped = shipped_estimator_path(bench)
+    if shipped.exists():
+        found = load_estimator(shipped, key=estimator_key(bench, EstimatorDesign(), bench.speed))
+        if found is not None:
+            return found
+    return build_estimator(bench, EstimatorDesign.small(), shipped=False, progress=progress)
+
+
 def run(args: argparse.Namespace) -> int:
     from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.bench.schema import WearState
     from wearbench.cli.progress import progress
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.validation import load_session
     from wearbench.validation.assess import assess_sessions, write_assessment_report
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.estimate import save_estimator
+    from wearbench.validation.measure import estimate_assessed
 
     backend = args.backend or ("sim" if args.quick else "serial")
     if args.cycles < 6:
         raise ValueError(f"--cycles {args.cycles}: expected at least 6 (a five-cycle window after the first index)")
     bench = load_bench(shipped_bench(BENCH))
-    states = bench.states
+    candidates = bench.states
+    states = (*candidates, WearState(FIFTH[0], {j.name: FIFTH[1] for j in bench.clearance_joints}))
     seeds = {s.name: None if args.twin else args.seed + i for i, s in enumerate(states)}
     sessions_dir, report_dir = args.out / "sessions", args.out / "report"
     paths = [sessions_dir / f"{slug(s.name)}.mcap" for s in states]
@@ -83,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
     sessions_dir.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
     with compute_client(**compute_options(args)):
-        ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), progress="theory ensembles")
+        ensembles = build_ensembles(bench, candidates, settings=EnsembleSettings(), progress="theory ensembles")
+        estimator = demo_estimator(bench)
         revolutions = truth_revolutions(args.cycles)
         tasks = [Task(prepare_truth, {"bench": bench, "state": s, "seed": seeds[s.name], "revolutions": revolutions},
                       task_key("demo-truth", bench.sha256, s.name, seeds[s.name], time.time_ns()), f"truth {s.name}")
@@ -115,11 +144,16 @@ def run(args: argparse.Namespace) -> int:
             raise
     assessed = assess_sessions([load_session(p, label=s.name) for p, s in zip(paths, states, strict=True)],
                                ensembles=ensembles, calibration=None)  # its own emulated mounts, not a lab's
+    estimate_assessed(assessed, estimator, calibration=None)
     with output_folder(report_dir, force=force) as tmp:
         report = write_assessment_report(assessed, tmp, title=f"wearbench demo: {bench.name}, which state explains "
-                                         f"each session ({'twin' if args.twin else 'non-twin truths'})")
+                                         f"each session, clearance and wear ({'twin' if args.twin else 'non-twin truths'})")
+        save_estimator(estimator, tmp / "estimator.npz")
     report = report.moved_to(report_dir)
     print(summary_text([s.name for s in states], assessed))
+    print(f"\n{estimate_text([s.name for s in states], assessed)}")
+    print(f"(the same numbers: wearbench estimate {sessions_dir}/SESSION.mcap --estimator {report_dir}/estimator.npz "
+          "--calibration none)")
     print(f"\nreport: {report.html}\nscores: {report.scores_json}\nsessions: {sessions_dir}/ "
           f"({len(states)} MCAP files)\n{len(report.figures)} figures; {time.monotonic() - start:.0f} s")
     return 0
@@ -162,5 +196,26 @@ def summary_text(truths, assessed) -> str:
         rows.append((truth, *(f"{r.posterior[s]:.3f}" for s in states), verdict,
                      *(f"{a.windows[s].consistent}/{len(a.windows[s].windows)}" for s in states), delay,
                      f"{b['peak_acc_measured_median']:.0f} / {b['peak_acc_theory_p5_p50_p95'][1]:.0f} m/s^2"))
+    return _columns(rows)
+
+
+def estimate_text(truths, assessed) -> str:
+    """Per session: its true state, the estimate's medians and 90 % intervals of clearance, cycles run
+    and wear depth, and whether a parameter value explains it, beside the identification's verdict."""
+    rows = [("true bench", "identified", "clearance mm [90 %]", "cycles run [90 %]", "wear depth um [90 %]",
+             "a value explains it")]
+    for truth, a in zip(truths, assessed, strict=True):
+        e = a.estimate
+        if e is None or not e.explains:
+            rows.append((truth, a.identification.verdict, "-", "-", "-", f"no (p {e.p_value:.2g})" if e else "-"))
+            continue
+        c, n, d = e.clearance, e.cycles_run, e.depth
+        rows.append((truth, a.identification.verdict, f"{c.median * 1e3:.3f} [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}]",
+                     f"{n.median / 1e3:.0f}k [{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k]",
+                     f"{d.median * 1e6:.1f} [{d.lo90 * 1e6:.1f}-{d.hi90 * 1e6:.1f}]", f"yes (p {e.p_value:.2g})"))
+    return _columns(rows)
+
+
+def _columns(rows) -> str:
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows)
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)

@@ -27,8 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_calibration_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write every estimate as JSON (never over an existing file "
                    "unless --force)")
-    p.add_argument("--out", metavar="DIR", help="write each session's joint posterior figure here, "
-                   "posterior_N.png (a folder with files in it only with --force)")
+    p.add_argument("--out", metavar="DIR", help="write each session's joint posterior figure, posterior_N.png, "
+                   "and its posterior predictive band against the measured cycles, predictive_N.png, here (a folder "
+                   "with files in it only with --force)")
     add_force_argument(p)
     add_compute_arguments(p)
     p.set_defaults(func=run)
@@ -57,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
                   f"  90 % {e.cycles_run.lo90:,.0f}-{e.cycles_run.hi90:,.0f}")
             print(f"  wear depth (clearance growth) {e.depth.median * 1e6:.1f} um  90 % {e.depth.lo90 * 1e6:.1f}-"
                   f"{e.depth.hi90 * 1e6:.1f} um;  clearance and wear correlated {e.correlation:+.2f}")
-        print(f"  consistency p {e.p_value:.3g}; sensor path: {e.sensor_path}")
+        print(f"  consistency p {e.p_value:.3g}; {100 * e.inside:.0f} % of the measured cycles' features inside "
+              f"the 90 % predictive band; sensor path: {e.sensor_path}")
         for note in e.notes:
             print(f"  {note}")
     if args.json:
@@ -65,12 +67,13 @@ def run(args: argparse.Namespace) -> int:
             json.dump([e.as_dict() for e in results], f, indent=1)
         print(f"results: {args.json}")
     if args.out:
-        from wearbench.validation.estimate_figure import posterior_figure
+        from wearbench.validation.estimate_figure import posterior_figure, predictive_figure
 
-        names = [f"posterior_{k + 1}.png" for k in range(len(results))]
+        names = [f"{kind}_{k + 1}.png" for k in range(len(results)) for kind in ("posterior", "predictive")]
         with output_folder(args.out, force=args.force) as tmp:
-            for name, e in zip(names, results, strict=True):
-                posterior_figure(e, tmp / name)
+            for k, e in enumerate(results):
+                posterior_figure(e, tmp / names[2 * k])
+                predictive_figure(e, tmp / names[2 * k + 1])
         for name in names:
             print(f"figure: {Path(args.out) / name}")
     return 0

@@ -30,6 +30,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
     p.add_argument("--realisations", type=positive_int, default=32, help="ensemble realisations per state (32)")
     p.add_argument("--ensemble-cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
+    p.add_argument("--estimate", action="store_true",
+                   help="also estimate each session's clearance and wear with credible intervals, as 'wearbench "
+                   "estimate' does (the bench's shipped estimator when its key matches, else its default design "
+                   "built on the compute layer and cached: slow the first time)")
+    p.add_argument("--estimator", metavar="FILE.npz", help="estimate with this estimator (saved by 'wearbench "
+                   "estimator'; implies --estimate)")
     add_calibration_arguments(p)
     add_compute_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write every result as JSON (never over an existing file "
@@ -47,15 +53,21 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import console as progress_console
     from wearbench.validation.assess import assess_sessions, write_assessment_report
     from wearbench.validation.ensemble import EnsembleSettings
+    from wearbench.validation.estimate import EstimatorDesign, load_estimator
     from wearbench.validation.identify import IdentifyOptions
+    from wearbench.validation.measure import estimate_assessed
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the ensembles are built
             check_output(path, force=args.force, option=option, folder=folder)
     settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.ensemble_cycles)
+    estimator = (load_estimator(args.estimator) if args.estimator
+                 else EstimatorDesign() if args.estimate else None)
+    options = IdentifyOptions(threshold=args.threshold)
     assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
-                               options=IdentifyOptions(threshold=args.threshold), **calibration_options(args),
-                               **compute_options(args))
+                               options=options, **calibration_options(args), **compute_options(args))
+    if estimator is not None:
+        estimate_assessed(assessed, estimator, options=options, **calibration_options(args), **compute_options(args))
     results = [a.identification for a in assessed]
     states = list(results[0].posterior)
     table = Table(title=f"posterior probability of each state (named at p >= {args.threshold:g})")
@@ -74,9 +86,14 @@ def run(args: argparse.Namespace) -> int:
     for r in results:
         for note in r.notes:
             console.print(f"{r.session}: {note}")
+    for a in assessed:
+        if a.estimate is not None:
+            console.print(f"{a.estimate.session}: estimate {a.estimate.line()} (consistency p "
+                          f"{a.estimate.p_value:.2g})", highlight=False)
     if args.json:
         with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
-            json.dump([r.as_dict() for r in results], f, indent=1)
+            json.dump([{**a.identification.as_dict(), **({"estimate": a.estimate.as_dict()} if a.estimate else {})}
+                       for a in assessed], f, indent=1)
         console.print(f"results: {args.json}")
     if args.out:
         with output_folder(args.out, force=args.force) as tmp:

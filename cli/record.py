@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -44,6 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--clearance", default="", help="mounted radial clearances, e.g. A=0.3mm,B=0.3mm")
     p.add_argument("--wear", default="", help="wear state per joint, e.g. A=new,B=stage2.npz")
     p.add_argument("--operator", default="", help="who ran the session")
+    p.add_argument("--cycles-run", metavar="N", help="cycles the bench had run before this session (e.g. 200000), "
+                   "stored in the session; 'wearbench track' reads it")
     p.add_argument("--settle", default="0.5s", help="time held at speed before recording (default 0.5s)")
     p.add_argument("--live", nargs="?", const="127.0.0.1:8765", metavar="HOST:PORT",
                    help="serve the session while it records over the Foxglove WebSocket protocol "
@@ -107,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,
-        clearances=clearances, wear=wear, operator=args.operator,
+        clearances=clearances, wear=wear, operator=args.operator, cycles_run=cycles_run_value(args.cycles_run),
         settle=positive_quantity(args.settle, "time", "--settle", bare_unit="s", allow_zero=True))
     options = {}
     for item in args.option:
@@ -164,3 +167,17 @@ def run(args: argparse.Namespace) -> int:
               "that point)", file=sys.stderr)
         return 130 if result.reason.startswith("interrupted") else 1
     return 0
+
+
+def cycles_run_value(text: str | None) -> float | None:
+    """``--cycles-run``: a whole number of cycles >= 0 (``200000``, ``2e5``, ``200_000``), or None."""
+    if text is None:
+        return None
+    try:
+        value = float(text.replace("_", "").replace(",", ""))
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise ValueError(f"--cycles-run {text!r}: expected the cycles the bench had run before this session, "
+                         "a number >= 0 (e.g. 200000)")
+    return value

@@ -21,8 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and the Archard wear coefficient (as a factor on the bench file's) fitted to all of them jointly with "
         "credible intervals, the wear depth at each, and the cycles until the clearance reaches --limit.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="sessions of one bench")
-    p.add_argument("--cycles-run", required=True, metavar="N1,N2,...",
-                   help="cycles the bench had run at each session, in the sessions' order (e.g. 0,100000,200000)")
+    p.add_argument("--cycles-run", metavar="N1,N2,...",
+                   help="cycles the bench had run at each session, in the sessions' order (e.g. 0,100000,200000); "
+                   "default: as each session records it ('wearbench record --cycles-run N')")
     p.add_argument("--limit", help="clearance limit, e.g. 0.5mm: print the cycles until the clearance reaches it")
     p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
     add_design_arguments(p)
@@ -45,13 +46,15 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.validation.measure import track_sessions
     from wearbench.validation.track import track_figure
 
-    try:
-        runs = [float(v) for v in args.cycles_run.split(",")]
-    except ValueError:
-        raise ValueError(f"--cycles-run {args.cycles_run!r}: expected numbers separated by commas") from None
-    if len(runs) != len(args.sessions):
-        raise ValueError(f"--cycles-run {args.cycles_run!r}: {len(runs)} values for {len(args.sessions)} sessions; "
-                         "expected one per session")
+    runs = None
+    if args.cycles_run is not None:
+        try:
+            runs = [float(v) for v in args.cycles_run.split(",")]
+        except ValueError:
+            raise ValueError(f"--cycles-run {args.cycles_run!r}: expected numbers separated by commas") from None
+        if len(runs) != len(args.sessions):
+            raise ValueError(f"--cycles-run {args.cycles_run!r}: {len(runs)} values for {len(args.sessions)} "
+                             "sessions; expected one per session")
     for option, path in (("--json", args.json), ("--figure", args.figure)):
         if path:  # refused before the estimator is built
             check_output(path, force=args.force, option=option)
@@ -72,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             m = t.cycles_to_limit
             print(f"clearance limit {limit * 1e3:g} mm reached after {m.median:,.0f} cycles from new "
-                  f"(90 % {m.lo90:,.0f}-{m.hi90:,.0f}); {max(0.0, m.median - max(runs)):,.0f} after the last session")
+                  f"(90 % {m.lo90:,.0f}-{m.hi90:,.0f}); {max(0.0, m.median - max(t.cycles_run)):,.0f} after the last session")
     for note in t.notes:
         print(note)
     if args.json:

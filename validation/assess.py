@@ -27,6 +27,7 @@ from wearbench.validation.ensemble import (
     check_ensembles_fit,
     load_ensembles,
 )
+from wearbench.validation.estimate import Estimate
 from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_features
 from wearbench.validation.identify import (
     Identification,
@@ -61,6 +62,7 @@ class Assessment:
     bands: BandComparison
     windows: dict[str, SessionWindows]
     measured: MeasuredCurves
+    estimate: Estimate | None = None  # clearance and wear with intervals (``measure.estimate_assessed``)
 
     @property
     def state(self) -> str:
@@ -207,5 +209,5 @@ def write_assessment_report(assessments: Sequence[Assessment], out_dir: str | Pa
     options = {"filter": "CFC 180 (the ensemble's curves)",
                "windows": f"all consecutive {st.cycles}-cycle windows of steady cycles", **asdict(st)}
     return write_report([], out_dir, title=title, threshold=threshold, options=options,
-                        identified=[IdentifiedSession(a.identification, a.bands, a.windows, a.state, a.decided)
-                                    for a in assessments])
+                        identified=[IdentifiedSession(a.identification, a.bands, a.windows, a.state, a.decided,
+                                                      a.estimate) for a in assessments])

@@ -52,8 +52,8 @@ from wearbench.validation.sensor_path import SensorPath
 from wearbench.validation.statistics import StateStatistics
 
 __all__ = ["Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval", "build_estimator",
-           "estimate_features", "estimator_key", "fit_estimator", "load_estimator", "save_estimator",
-           "shipped_estimator_path"]
+           "estimate_features", "estimator_key", "fit_estimator", "load_estimator", "predictive_band",
+           "save_estimator", "shipped_estimator_path"]
 
 NO_VALUE = "no parameter value explains it"
 
@@ -75,8 +75,16 @@ class EstimatorDesign:
         if n.size < 2 or n[0] != 0 or not np.allclose(np.diff(n), n[1]) or n[1] <= 0:
             raise ValueError(f"estimator design: cycles = {self.cycles}: expected at least two values equally "
                              "spaced from 0 (one wear stage apart)")
-        object.__setattr__(self, "clearances", tuple(float(v) for v in c))
-        object.__setattr__(self, "cycles", tuple(float(v) for v in n))
+        # 12 significant digits: "0.45mm" typed (0.45 * 1e-3 = 0.00045000000000000004) keys as 0.45e-3 does
+        object.__setattr__(self, "clearances", tuple(float(f"{v:.12g}") for v in c))
+        object.__setattr__(self, "cycles", tuple(float(f"{v:.12g}") for v in n))
+
+    @classmethod
+    def small(cls) -> EstimatorDesign:
+        """A small design for a first look (the demo's while no shipped estimator fits): 3 clearances
+        0.25-0.65 mm x cycles run 0, 200,000, 400,000, 3 realisations x 4 cycles each (about 2 min of
+        CPU). Coarse: 3 x 3 points fit the emulator exactly, so its own error is not estimated."""
+        return cls((0.25e-3, 0.45e-3, 0.65e-3), (0.0, 200_000.0, 400_000.0), EnsembleSettings(realisations=3, cycles=4))
 
     @classmethod
     def parse(cls, clearances: str, cycles: str, *, realisations: int = 16,
@@ -251,6 +259,18 @@ def _basis(u: np.ndarray, v: np.ndarray, degrees: tuple[int, int]) -> np.ndarray
     return np.stack([u ** a * v ** b for a in range(degrees[0] + 1) for b in range(degrees[1] + 1)], axis=-1)
 
 
+def _loo_error(phi: np.ndarray, means: np.ndarray) -> np.ndarray:
+    """Per feature, the emulator's error variance from predicting each design point's mean by the
+    (minimum-norm) fit to the others, each squared error divided by 1 + the prediction weights'
+    squared norm (the others' sampling error it carries)."""
+    out = np.zeros(means.shape[1])
+    for k in range(phi.shape[0]):
+        rest = np.delete(np.arange(phi.shape[0]), k)
+        w = phi[k] @ np.linalg.pinv(phi[rest])  # prediction weights on the other points' means
+        out += (means[k] - w @ means[rest]) ** 2 / (1.0 + w @ w)
+    return out / phi.shape[0]
+
+
 @dataclass
 class EstimatorModel:
     """A fitted estimator: the design's statistics, the mean emulator, and the grid."""
@@ -322,10 +342,12 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
     dof = phi.shape[0] - phi.shape[1]
     discrepancy = np.zeros(means.shape[1])
     st = fitted[names[0]]
+    sampling = np.diag(st.between + st.within / st.cycles) / st.realisations
     if dof > 0:
-        sampling = np.diag(st.between + st.within / st.cycles) / st.realisations
         resid = np.sum((means - phi @ coef) ** 2, axis=0) / dof
         discrepancy = np.clip(resid - sampling, 0.0, None)
+    else:  # an exact fit (e.g. 3 x 3 points, quadratic): each point predicted from the others instead
+        discrepancy = np.clip(_loo_error(phi, means) - sampling, 0.0, None)
     gc = np.linspace(lo, hi, grid[0])
     gn = np.linspace(0.0, d.cycles[-1], grid[1])
     gu, gv = np.meshgrid(2 * (gc - lo) / (hi - lo) - 1, 2 * gn / d.cycles[-1] - 1, indexing="ij")
@@ -414,12 +436,37 @@ class Estimate:
     verdict: str  # "c = ... mm, N = ..." or NO_VALUE
     sensor_path: str
     notes: list[str] = field(default_factory=list)
+    inside: float = float("nan")  # fraction of the measured cycles' features inside the 90 % predictive band
     posterior: np.ndarray | None = field(default=None, repr=False)  # (gc, gn) on the model's grid
-    meta: dict = field(default_factory=dict)  # the grid's ranges: grid_c (m), grid_n (cycles)
+    band: np.ndarray | None = field(default=None, repr=False)  # (3, p) 5/50/95 % of one cycle's features
+    measured: np.ndarray | None = field(default=None, repr=False)  # (cycles, p) the session's cycle features
+    meta: dict = field(default_factory=dict)  # grid_c (m), grid_n (cycles): the grid's ranges; bins, bands
 
     def as_dict(self) -> dict:
-        out = {k: v for k, v in asdict(self).items() if k != "posterior"}
-        return out
+        return {k: v for k, v in asdict(self).items() if k not in ("posterior", "band", "measured")}
+
+    def line(self) -> str:
+        """The estimate in one line, as the demo's summary and the report's table give it."""
+        if not self.explains:
+            return NO_VALUE
+        c, n, d = self.clearance, self.cycles_run, self.depth
+        return (f"{c.median * 1e3:.3f} mm [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}], {n.median / 1e3:.0f}k cycles "
+                f"[{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k], wear {d.median * 1e6:.1f} um "
+                f"[{d.lo90 * 1e6:.1f}-{d.hi90 * 1e6:.1f}]")
+
+
+def predictive_band(model: EstimatorModel, posterior: np.ndarray, *, draws: int = 4000, seed: int = 0
+                    ) -> np.ndarray:
+    """The posterior predictive 5 %, 50 % and 95 % of one cycle's features (3, p): parameter values
+    drawn from ``posterior`` (on the model's grid), then a cycle of a bench drawn from the tolerances
+    at that value (between-bench, cycle-to-cycle, sensor path and emulator error), by sampling with a
+    fixed seed (a session gets the same band every time)."""
+    rng = np.random.default_rng(seed)
+    w = posterior.ravel() / posterior.sum()
+    means = model.grid_mean.reshape(w.size, -1)[rng.choice(w.size, size=draws, p=w)]
+    chol = linalg.cholesky(model.covariance(1.0), lower=True)
+    x = means + rng.standard_normal(means.shape) @ chol.T
+    return np.percentile(x, [5.0, 50.0, 95.0], axis=0)
 
 
 def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: str = "session") -> Estimate:
@@ -458,6 +505,10 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     if clipped:
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
     sensor = model.sensor.source if model.sensor else "none"
+    band = predictive_band(model, post)
+    inside = float(np.mean((x >= band[0]) & (x <= band[2])))
+    spec = features.spec
     return Estimate(label, n, c_int, n_int, depth_int, (float(gc[i]), float(gn[j])),
-                    cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, post,
-                    {"grid_c": [float(gc[0]), float(gc[-1])], "grid_n": [float(gn[0]), float(gn[-1])]})
+                    cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, inside, post, band, x,
+                    {"grid_c": [float(gc[0]), float(gc[-1])], "grid_n": [float(gn[0]), float(gn[-1])],
+                     "bins": spec.bins, "bands": [list(b) for b in spec.bands], "estimator": model.estimator.key})

@@ -3,7 +3,9 @@
 Clearance and wear are partly confounded (a larger clearance and a worn joint both soften and
 spread the impacts), so the figure shows the joint posterior on the estimator's grid, not only the
 two marginal intervals: its 50 % and 90 % highest-density regions, the marginal medians and 90 %
-intervals, and the session's verdict. Imports matplotlib (object API, no pyplot state).
+intervals, and the session's verdict. The posterior predictive figure puts the measured cycles'
+features by crank angle in the band where a cycle of a bench at the posterior's parameter values
+lies. Imports matplotlib (object API, no pyplot state).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from wearbench.validation.estimate import Estimate, EstimatorModel
 
-__all__ = ["posterior_figure"]
+__all__ = ["posterior_figure", "predictive_figure"]
 
 
 def _hdr_levels(post: np.ndarray, masses: tuple[float, ...]) -> list[float]:
@@ -56,4 +58,35 @@ def posterior_figure(estimate: Estimate, path: str | Path, model: EstimatorModel
     ax.legend(loc="upper right", fontsize=7)
     path = Path(path)
     fig.savefig(path, dpi=110)
+    return path
+
+
+def predictive_figure(estimate: Estimate, path: str | Path) -> Path:
+    """Write the posterior predictive band (5-95 % and median of one cycle's features, per block and
+    crank-angle bin) with the session's measured cycles over it to ``path`` (PNG)."""
+    band, x = estimate.band, estimate.measured
+    if band is None or x is None:
+        raise ValueError(f"estimate {estimate.session}: no predictive band kept")
+    bins = int(estimate.meta["bins"])
+    names = ["low-passed acceleration (m/s$^2$)"] + [f"log10 energy {lo:g}-{hi:g} Hz"
+                                                      for lo, hi in estimate.meta["bands"]]
+    angle = (np.arange(bins) + 0.5) * 360.0 / bins
+    fig = Figure(figsize=(10, 2.2 + 1.6 * len(names)))
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+    for k, (ax, name) in enumerate(zip(axes, names, strict=True)):
+        cols = slice(k * bins, (k + 1) * bins)
+        ax.fill_between(angle, band[0, cols], band[2, cols], step="mid", color="tab:blue", alpha=0.25, lw=0,
+                        label="posterior predictive 5-95 % of a cycle")
+        ax.step(angle, band[1, cols], where="mid", color="tab:blue", lw=1.0, label="median")
+        for i, row in enumerate(x[:, cols]):
+            ax.step(angle, row, where="mid", color="black", lw=0.4, alpha=0.35,
+                    label="measured cycles" if i == 0 else None)
+        ax.set_ylabel(name, fontsize=8)
+    axes[0].legend(loc="upper right", fontsize=7)
+    axes[-1].set_xlim(0, 360)
+    axes[-1].set_xlabel("crank angle (deg)")
+    axes[0].set_title(f"{estimate.session}: {estimate.cycles} cycles, {100 * estimate.inside:.0f} % of the measured "
+                      f"values inside the 90 % band\n{estimate.verdict}", fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=100)
     return path

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 from wearbench.validation.bands import BandComparison
+from wearbench.validation.estimate import Estimate
 from wearbench.validation.identify import Identification
 from wearbench.validation.window_report import NOTES as WINDOW_NOTES
 from wearbench.validation.window_report import window_section
@@ -35,6 +36,13 @@ NOTES = (
     "the consistency test: the session's distance in all features, and along the directions to the other "
     "candidates, each against the same distance of held-out realisations (p >= 0.001 and 0.01)."),
     *WINDOW_NOTES,
+    ("Estimate (when asked for): the clearance shared by the clearance joints and the wear as cycles run "
+    "along the bench's own Archard trajectory, with the wear depth (the largest clearance growth of any "
+    "joint) that goes with them; posterior medians and central 90 % credible intervals from an emulator of "
+    "the ensemble statistics over a design of clearances and cycles run, with the likelihood of the "
+    "identification; 'no parameter value explains it' when the session's smallest distance over the grid "
+    "fails the consistency test (p < 0.001). The predictive band is where one cycle of a bench at the "
+    "posterior's parameter values lies (5-95 %), measured cycles over it."),
 )
 
 
@@ -48,6 +56,7 @@ class IdentifiedSession:
     windows: dict[str, SessionWindows]
     state: str
     decided: bool
+    estimate: Estimate | None = None
 
     @property
     def window_verdict(self) -> str:
@@ -105,16 +114,33 @@ def _posterior_figure(items: Sequence[IdentifiedSession], path: Path, save) -> P
     return save(fig, path)
 
 
+def _interval(i, scale: float, fmt: str) -> str:
+    return f"{i.median * scale:{fmt}} [{i.lo90 * scale:{fmt}}-{i.hi90 * scale:{fmt}}]"
+
+
+def _estimate_cells(est: Estimate | None) -> str:
+    """The estimate's cells of the first table: clearance, cycles run, wear depth, whether a value explains it."""
+    if est is None:
+        return "<td>-</td>" * 4
+    if not est.explains:
+        return f"<td colspan='3'>{html.escape(est.verdict)}</td><td>no (p {est.p_value:.2g})</td>"
+    return (f"<td>{_interval(est.clearance, 1e3, '.3f')}</td><td>{_interval(est.cycles_run, 1e-3, ',.0f')}</td>"
+            f"<td>{_interval(est.depth, 1e6, '.1f')}</td><td>yes (p {est.p_value:.2g})</td>")
+
+
 def identification_section(items: Sequence[IdentifiedSession], out: Path, slug: Callable[[str], str],
                            save: Callable[[Figure, Path], Path], img: Callable[[Path], str],
                            threshold: float) -> tuple[str, list[Path], list[dict]]:
     """HTML of the section, its figure files, and its JSON rows (one per session)."""
     e = html.escape
     states = list(items[0].identification.posterior)
+    estimated = any(it.estimate is not None for it in items)
     files = [_posterior_figure(items, out / "posteriors.png", save)]
     parts = [f"<h2>Which state explains each session (named at p &ge; {threshold:g})</h2><table><tr>"
              "<th>session</th><th>cycles</th>" + "".join(f"<th>p({e(s)})</th>" for s in states)
-             + "<th>verdict</th><th>windows against it</th><th>sensor delay (ms)</th><th>explained by</th>"
+             + "<th>verdict</th>" + ("<th>clearance (mm), median [90 %]</th><th>cycles run (thousands)</th>"
+                                     "<th>wear depth (µm)</th><th>a parameter value explains it</th>"
+                                     if estimated else "") + "<th>windows against it</th><th>sensor delay (ms)</th><th>explained by</th>"
              "<th>cycles to decide</th><th>cycles inside band</th>"
              "<th>peak |a| CFC 180 measured / theory p50 (m/s²)</th><th>notes</th></tr>"]
     rows = []
@@ -125,15 +151,29 @@ def identification_section(items: Sequence[IdentifiedSession], out: Path, slug: 
         top = max(r.posterior, key=r.posterior.get)
         parts.append(f"<tr><td>{e(r.session)}</td><td>{r.cycles}</td>"
                      + "".join(f"<td>{r.posterior[s]:.3f}</td>" for s in states)
-                     + f"<td>{e(r.verdict)}</td><td>{e(it.window_verdict)}</td><td>{_delay(it)}</td>"
+                     + f"<td>{e(r.verdict)}</td>" + (_estimate_cells(it.estimate) if estimated else "")
+                     + f"<td>{e(it.window_verdict)}</td><td>{_delay(it)}</td>"
                      f"<td>{e(', '.join(s for s in states if r.explains[s]) or 'none')}</td>"
                      f"<td>{needed}</td><td>{100 * r.inside[top]:.0f} % ({e(top)})</td>"
                      f"<td>{b['peak_acc_measured_median']:.0f} / {b['peak_acc_theory_p5_p50_p95'][1]:.0f}</td>"
                      f"<td>{e('; '.join(r.notes + [f'leaves the band of {top}: ' + ', '.join(r.leaves[top])] if r.leaves[top] else r.notes))}</td></tr>")
         rows.append({**r.as_dict(), "bands": b, "window_state": it.state, "window_verdict": it.window_verdict,
-                     "windows": {st: sw.summary() for st, sw in it.windows.items()}})
+                     "windows": {st: sw.summary() for st, sw in it.windows.items()},
+                     **({"estimate": it.estimate.as_dict()} if it.estimate is not None else {})})
     parts.append("</table>")
     parts.append(img(files[0]))
+    if estimated:
+        from wearbench.validation.estimate_figure import posterior_figure, predictive_figure
+
+        parts.append("<h2>Clearance and wear of each session</h2>")
+        for it in items:
+            if it.estimate is None:
+                continue
+            name = slug(it.identification.session)
+            for f in (posterior_figure(it.estimate, out / f"estimate_{name}.png"),
+                      predictive_figure(it.estimate, out / f"predictive_{name}.png")):
+                files.append(f)
+                parts.append(img(f))
     html_windows, window_files = window_section(items, out, slug, save, img)
     parts.append(html_windows)
     files += window_files

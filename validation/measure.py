@@ -12,7 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from wearbench.bench.schema import WearState
-from wearbench.validation.assess import _states, commanded_speed, session_features
+from wearbench.validation.assess import Assessment, _states, commanded_speed, session_features
 from wearbench.validation.calibration import (
     Calibration,
     calibration_key,
@@ -34,7 +34,7 @@ from wearbench.validation.identify import IdentifyOptions, fit_states
 from wearbench.validation.measured import MeasuredSession, load_session
 from wearbench.validation.track import Track, track_features
 
-__all__ = ["calibrate_sessions", "estimate_sessions", "track_sessions"]
+__all__ = ["calibrate_sessions", "estimate_assessed", "estimate_sessions", "recorded_cycles_run", "track_sessions"]
 
 
 def _grouped(sessions: Sequence[str | Path | MeasuredSession], needs_bench: str | None
@@ -123,16 +123,61 @@ def estimate_sessions(sessions: Sequence[str | Path | MeasuredSession], *, desig
     return out
 
 
-def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run: Sequence[float], *,
+def estimate_assessed(assessed: Sequence[Assessment], estimator: Estimator | EstimatorDesign, *,
+                      options: IdentifyOptions | None = None, calibration: str | Path | None = "auto",
+                      mount: str = "", scheduler: str | None = None, workers: int | None = None,
+                      progress: str | None = "estimator") -> list[Assessment]:
+    """Each assessed session's clearance and wear beside its identification (``Assessment.estimate``,
+    shown in the report): with ``estimator``, or the one of that design (as :func:`estimate_sessions`);
+    ``calibration``/``mount``: as the identification used them. Returns ``assessed``."""
+    given = estimator if isinstance(estimator, Estimator) else None
+    design = estimator if isinstance(estimator, EstimatorDesign) else None
+    found = estimate_sessions([a.session for a in assessed], design=design, estimator=given, options=options,
+                              calibration=calibration, mount=mount, scheduler=scheduler, workers=workers,
+                              progress=progress)
+    for a, e in zip(assessed, found, strict=True):
+        a.estimate = e
+    return list(assessed)
+
+
+def recorded_cycles_run(session: MeasuredSession) -> float | None:
+    """The cycles the bench had run before ``session`` as recorded (``wearbench record --cycles-run``)."""
+    text = session.metadata.get("session", {}).get("cycles_run")
+    try:
+        return None if text is None else float(text)
+    except ValueError:
+        raise ValueError(f"session {session.label}: metadata session.cycles_run = {text!r}: expected a number of "
+                         "cycles") from None
+
+
+def _cycles_run(loaded: Sequence[MeasuredSession], given: Sequence[float] | None) -> tuple[list[float], list[str]]:
+    """Cycles run per session: ``given`` (one per session), else as recorded; notes where they differ."""
+    recorded = [recorded_cycles_run(s) for s in loaded]
+    if given is None:
+        missing = [s.label for s, n in zip(loaded, recorded, strict=True) if n is None]
+        if missing:
+            raise ValueError(f"session {missing[0]}: no cycles run recorded in it (wearbench record --cycles-run); "
+                             "give them to track (--cycles-run N1,N2,... in the sessions' order)")
+        return [float(n) for n in recorded], []
+    if len(given) != len(loaded):
+        raise ValueError(f"cycles run: {len(given)} values for {len(loaded)} sessions; expected one per session")
+    notes = [f"{s.label}: cycles run {g:,.0f} as given, {n:,.0f} as recorded in the session"
+             for s, g, n in zip(loaded, given, recorded, strict=True) if n is not None and n != g]
+    return [float(g) for g in given], notes
+
+
+def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run: Sequence[float] | None = None, *,
                    limit: float | None = None, design: EstimatorDesign | None = None,
                    estimator: Estimator | None = None, options: IdentifyOptions | None = None,
                    calibration: str | Path | None = "auto", mount: str = "", scheduler: str | None = None,
                    workers: int | None = None, progress: str | None = "estimator") -> Track:
     """Wear over one bench's life from ``sessions`` recorded after ``cycles_run`` cycles (see
-    ``track.py``); ``limit``: a clearance limit (m). Other arguments as :func:`estimate_sessions`."""
+    ``track.py``; None: as each session records it, ``wearbench record --cycles-run``); ``limit``: a
+    clearance limit (m). Other arguments as :func:`estimate_sessions`."""
     design, options = design or EstimatorDesign(), options or IdentifyOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
     first = _one_bench(loaded, "tracking", "track")
+    cycles_run, differ = _cycles_run(loaded, cycles_run)
     est = estimator or build_estimator(first.bench, design, speed=commanded_speed(first), scheduler=scheduler,
                                        workers=workers, progress=progress)
     cal = session_calibration(first, est.spec, calibration, mount)
@@ -141,4 +186,5 @@ def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run:
                            coefficient=first.bench.wear.coefficient, limit=limit, labels=[s.label for s in loaded])
     if cal is not None:
         track.notes.append(f"sensor path: {cal.describe()}")
+    track.notes.extend(differ)
     return track

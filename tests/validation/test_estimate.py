@@ -174,3 +174,27 @@ def test_track_recovers_a_wear_coefficient_1_3_times_the_files(model, tmp_path):
     assert t.prediction[0][1].median == 0.0 and t.prediction[-1][0] > 4e5
     with pytest.raises(ValueError, match="one value per session"):
         track_features(feats, runs[:3], model, coefficient=5.2e-14)
+
+
+def test_the_predictive_band_holds_a_true_benchs_cycles_at_its_rate(model, tmp_path):
+    """The 90 % posterior predictive band of one cycle: about 90 % of a bench's measured cycle
+    features inside it when the bench follows the model; its width by sampling is the analytic
+    2 x 1.645 sd of one cycle under the model (between-bench, cycle-to-cycle, sensor path, emulator
+    error), widened only by the posterior's own spread; far fewer inside for a bench the model
+    cannot produce; the figure puts the cycles over the band."""
+    from wearbench.validation.estimate_figure import predictive_figure
+
+    rng = np.random.default_rng(8)
+    inside, widths = [], []
+    for c, n in [(0.3e-3, 1e5), (0.4e-3, 3e5), (0.5e-3, 5e5), (0.6e-3, 2e5)] * 3:
+        e = estimate_features(session(rng, c, n), model)
+        inside.append(e.inside)
+        widths.append(np.median((e.band[2] - e.band[0]) / (2 * 1.645 * np.sqrt(np.diag(model.covariance(1.0))))))
+    assert 0.85 <= np.mean(inside) <= 0.95, inside
+    assert 0.97 <= np.median(widths) <= 1.08, widths
+    s = session(rng, 0.45e-3, 3e5)
+    far = estimate_features(CycleFeatures(SPEC, s.values + 4.0 * np.sqrt(SB + SW), s.clipped), model)
+    assert far.inside < 0.3 and not far.explains
+    path = predictive_figure(e, tmp_path / "band.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert e.line().startswith(f"{e.clearance.median * 1e3:.3f} mm [") and far.line() == NO_VALUE
