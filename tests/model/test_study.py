@@ -113,6 +113,7 @@ def test_trends_answer_from_the_interval_of_each_ratio():
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # two quick studies: about 2 min on 2 idle cores, 10 min on a loaded machine
 def test_quick_study_verdicts_do_not_flip_between_seeds(tmp_path):
     """The quick study with seeds 1 and 1001 (other wear runs, other realisations, other resamples):
     every cell has an interval, every trend a verdict; no trend agrees on one seed and disagrees on
