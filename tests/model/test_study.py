@@ -143,3 +143,42 @@ def test_quick_study_verdicts_do_not_flip_between_seeds(tmp_path):
     a, b = (pd.DataFrame(s["cells"]).set_index(["case", "state", "quantity", "statistic"]) for s in (first, second))
     overlap = (a["lo"] <= b.loc[a.index, "hi"]) & (b.loc[a.index, "lo"] <= a["hi"])
     assert overlap.mean() >= 0.85, a[~overlap]
+
+
+def test_wear_run_from_the_assembled_start_is_the_plain_wear_run():
+    """``run_stages(start=...)`` given the state the model starts from anyway (assembled positions,
+    ideal velocities) wears bit for bit as without it; a realisation's start wears differently."""
+    from wearbench.model import build_scene
+    from wearbench.model.realisation import draw_realisation, realisation_start
+    from wearbench.model.wear_stages import run_stages
+
+    bench = load_bench(shipped_bench("ninebar"))
+    plan = StagePlan(stages=1, stage_cycles=1000.0, update_depth=1.0, min_updates=1, settle=0)
+    clear, speed = {"A": 0.6e-3, "B": 0.6e-3}, -5 * math.pi
+    scene = build_scene(bench, clearances=clear)
+    plain = run_stages(bench, plan, clearances=clear, speed=speed)
+    same = run_stages(bench, plan, clearances=clear, speed=speed, start=(scene.q0, scene.v_unit * speed))
+    real = draw_realisation(bench, 5)
+    other = run_stages(bench, plan, clearances=clear, speed=speed, start=realisation_start(real, scene, speed))
+    for j in clear:
+        np.testing.assert_array_equal(plain.final[j].bearing, same.final[j].bearing)
+        assert not np.array_equal(plain.final[j].bearing, other.final[j].bearing)
+
+
+def test_a_realisation_on_surfaces_in_memory_is_the_one_on_their_files(tmp_path):
+    """``simulate_state(surfaces=...)`` and a state naming the same surfaces' files give the same table."""
+    from wearbench.bench.schema import WearState
+    from wearbench.model.realisation import simulate_state
+    from wearbench.model.surfaces import JointSurfaces
+
+    bench = load_bench(shipped_bench("ninebar"))
+    n = bench.wear.regions
+    angle = np.arange(n) * 2 * math.pi / n
+    worn = {j: JointSurfaces(20e-6 * np.maximum(np.cos(angle), 0), 10e-6 * np.maximum(np.sin(angle), 0), 1e5, "w")
+            for j in ("A", "B")}
+    files = WearState("w", {}, {j: s.save(tmp_path / f"{j}.npz") for j, s in worn.items()})
+    kw = {"revolutions": 0.3, "settle": 0.2, "output_rate": 5000.0}
+    a = simulate_state(bench, WearState("w"), 3, surfaces=worn, **kw)
+    b = simulate_state(bench, files, 3, **kw)
+    pd.testing.assert_frame_equal(a.table, b.table, check_exact=True)
+    assert np.array_equal(a.acc, b.acc) and np.array_equal(a.t, a.table["t"].to_numpy())
