@@ -333,18 +333,32 @@ def _wear_rows(runs: Mapping[str, list[WearRun]], cases: Sequence[Case]) -> list
     return rows
 
 
-def _depth_statistics(wear: pd.DataFrame, n: int, rng: np.random.Generator) -> dict[tuple[str, str], dict]:
-    """{(case, state): {joint: {"value", "boot", "runs"}}}: mean max depth over the wear runs and its
-    bootstrap (runs resampled, the same runs for every joint of a case)."""
-    out: dict[tuple[str, str], dict] = {}
-    for case, rows in wear.groupby("case", sort=False):
-        w = int(rows["wear_run"].max())
-        pick = rng.integers(0, w, (n, w))
-        for (label, j), g in rows.groupby(["state", "joint"], sort=False):
-            d = g.sort_values("wear_run")["max_depth_m"].to_numpy()
-            out.setdefault((case, label), {})[j] = {"value": float(d.mean()), "boot": d[pick].mean(axis=1),
-                                                    "runs": d.tolist()}
+def _depth_runs(wear: pd.DataFrame) -> dict[tuple[str, str], dict[str, np.ndarray]]:
+    """{(case, state): {joint: max depth (m) of each wear run, in run order}}."""
+    out: dict[tuple[str, str], dict[str, np.ndarray]] = {}
+    for (case, label, j), g in wear.groupby(["case", "state", "joint"], sort=False):
+        out.setdefault((case, label), {})[j] = g.sort_values("wear_run")["max_depth_m"].to_numpy(float)
     return out
+
+
+def _t_ratio(num: np.ndarray, den: np.ndarray, paired: bool, level: float) -> tuple[float, float, float]:
+    """Ratio of geometric means over a few wear runs and its Student-t interval on the logs (paired:
+    the same runs; else Welch): with 2 or 3 runs a bootstrap cannot give an interval, t can."""
+    from scipy import stats as sps
+
+    x, y = np.log(num), np.log(den)
+    if paired:
+        d = x - y
+        diff, se, dof = d.mean(), (d.std(ddof=1) / math.sqrt(d.size) if d.size > 1 else math.inf), d.size - 1
+    else:
+        vx = x.var(ddof=1) / x.size if x.size > 1 else math.inf
+        vy = y.var(ddof=1) / y.size if y.size > 1 else math.inf
+        diff, se = x.mean() - y.mean(), math.sqrt(vx + vy)
+        dof = (vx + vy) ** 2 / (vx**2 / (x.size - 1) + vy**2 / (y.size - 1)) if 0 < se < math.inf else 1
+    if not se < math.inf or dof < 1:
+        return math.exp(diff), 0.0, math.inf
+    t = float(sps.t.ppf(0.5 * (1 + level), dof))
+    return math.exp(diff), math.exp(diff - t * se), math.exp(diff + t * se)
 
 
 def run_study(bench, out: str | Path, config: StudyConfig) -> dict:
@@ -409,7 +423,7 @@ def run_study(bench, out: str | Path, config: StudyConfig) -> dict:
     rng = np.random.default_rng([config.seed, 0xB007])
     stats = {(c.case.name, c.state): cell_statistics(c, config.bootstrap, rng) for c in cells}
     wear = pd.DataFrame(_wear_rows(runs, cases))
-    depth = _depth_statistics(wear, config.bootstrap, rng)
+    depth = _depth_runs(wear)
     tr = trends(stats, depth, config, joints)
 
     for c in cases:
@@ -525,7 +539,8 @@ def trends(stats: Mapping, depth: Mapping, config: StudyConfig, joints: Sequence
     bootstrap interval at ``config.level``, the paper's ratio); a finding agrees when every
     interval lies above 1, disagrees when any lies below 1, and is not resolved otherwise. Forces
     and accelerations compare the 95th percentiles of per-cycle maxima (the paper's "max"); depths
-    the mean max depth over the wear runs. Returns [{finding, verdict, ours (agrees?), detail,
+    the max depth of the wear runs (ratio of geometric means, Student-t interval over the runs).
+    Returns [{finding, verdict, ours (agrees?), detail,
     comparisons}]."""
     level, s = config.level, MAX_STATISTIC
     out = []
@@ -535,6 +550,10 @@ def trends(stats: Mapping, depth: Mapping, config: StudyConfig, joints: Sequence
         lo, hi = _interval(r, level)
         return {"comparison": what, "ratio": num["value"] / den["value"], "lo": lo, "hi": hi,
                 "paper_ratio": paper, "verdict": verdict(lo, hi)}
+
+    def depth_ratio(what: str, num: np.ndarray, den: np.ndarray, paired: bool, paper: float | None) -> dict:
+        r, lo, hi = _t_ratio(num, den, paired, level)
+        return {"comparison": what, "ratio": r, "lo": lo, "hi": hi, "paper_ratio": paper, "verdict": verdict(lo, hi)}
 
     def add(finding: str, comparisons: list[dict]) -> None:
         v = _combine([c["verdict"] for c in comparisons])
@@ -562,7 +581,7 @@ def trends(stats: Mapping, depth: Mapping, config: StudyConfig, joints: Sequence
         last = labels[-1]
         pd_ = pw["max_depth"]
         add(f"B wears deeper than A (after {last})",
-            [ratio(f"depth B / A after {last}", depth[(wc.name, last)]["B"], depth[(wc.name, last)]["A"],
+            [depth_ratio(f"depth B / A after {last}", depth[(wc.name, last)]["B"], depth[(wc.name, last)]["A"], True,
                    pd_["B"][-1] / pd_["A"][-1] if wc.stages == len(pd_["A"]) else None)])
     cl = sorted(config.clearance_cases, key=lambda c: c.clearance)
     pc = PAPER["clearance_study"]
@@ -582,8 +601,8 @@ def trends(stats: Mapping, depth: Mapping, config: StudyConfig, joints: Sequence
                    paper_ratio(_paper_value(b, "first wear", q), _paper_value(a, "first wear", q)))
              for a, b in itertools.pairwise(cl)])
         add(f"wear depth at {j} grows with clearance",
-            [ratio(f"{_mm(b):g} / {_mm(a):g} mm", depth[(b.name, "first wear")][j], depth[(a.name, "first wear")][j],
-                   paper_ratio(paper_depth(j, b), paper_depth(j, a))) for a, b in itertools.pairwise(cl)])
+            [depth_ratio(f"{_mm(b):g} / {_mm(a):g} mm", depth[(b.name, "first wear")][j],
+                         depth[(a.name, "first wear")][j], False, paper_ratio(paper_depth(j, b), paper_depth(j, a))) for a, b in itertools.pairwise(cl)])
     add("peak slider acceleration after wear grows with clearance",
         [ratio(f"{_mm(b):g} / {_mm(a):g} mm", stats[(b.name, 'first wear')]["acc"][s],
                stats[(a.name, 'first wear')]["acc"][s],

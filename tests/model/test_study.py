@@ -100,8 +100,9 @@ def test_trends_answer_from_the_interval_of_each_ratio():
             stats[(case.name, label)] = {"fn_A": {MAX_STATISTIC: _stat(fa, 0.02, rng)},
                                          "fn_B": {MAX_STATISTIC: _stat(fb, 0.02, rng)},
                                          "acc": {MAX_STATISTIC: _stat(100.0 * 2**k, 0.5, rng)}}
-            if k:
-                depth[(case.name, label)] = {"A": _stat(1e-5 * k, 0.02, rng), "B": _stat(2e-5 * k, 0.02, rng)}
+            if k:  # max depth of 3 wear runs
+                depth[(case.name, label)] = {"A": 1e-5 * k * (1 + 0.02 * rng.standard_normal(3)),
+                                             "B": 2e-5 * k * (1 + 0.02 * rng.standard_normal(3))}
     got = {t["finding"]: t["verdict"] for t in trends(stats, depth, cfg, ["A", "B"])}
     assert len(got) == 11
     assert got["wear raises the peak contact force at A"] == "agrees"
@@ -110,6 +111,23 @@ def test_trends_answer_from_the_interval_of_each_ratio():
     assert got["contact force at B after wear grows with clearance"] == "disagrees"  # 500 after 2000
     assert got["wear depth at A grows with clearance"] == "not resolved"  # equal depths: ratio 1
     assert got["wear raises the peak slider acceleration, second wear more than first"] == "not resolved"
+
+
+def test_depth_ratio_interval_is_students_t_over_the_wear_runs():
+    """Log depths of 3 runs with known spread: the paired interval is exp(mean +/- t(2) sd / sqrt 3) of
+    the per-run log ratios; 2 runs of one case against 2 of another give Welch's interval; one run
+    gives no interval."""
+    from wearbench.model.study import _t_ratio
+
+    b, a = np.array([2.0, 2.2, 1.8]), np.array([1.0, 1.0, 1.0])
+    d = np.log(b / a)
+    half = sps.t.ppf(0.975, 2) * d.std(ddof=1) / math.sqrt(3)
+    r, lo, hi = _t_ratio(b, a, True, 0.95)
+    assert (r, lo, hi) == pytest.approx((math.exp(d.mean()), math.exp(d.mean() - half), math.exp(d.mean() + half)))
+    welch = sps.ttest_ind(np.log([3.0, 3.3]), np.log([1.0, 1.1]), equal_var=False).confidence_interval(0.95)
+    assert _t_ratio(np.array([3.0, 3.3]), np.array([1.0, 1.1]), False, 0.95)[1:] == pytest.approx(
+        (math.exp(welch.low), math.exp(welch.high)))
+    assert verdict(*_t_ratio(np.array([3.0]), np.array([1.0]), False, 0.95)[1:]) == "not resolved"
 
 
 @pytest.mark.slow
