@@ -15,12 +15,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
+import pandas as pd
 from wearbench.bench.schema import Bench, ContactLaw, Tolerances, WearState
 from wearbench.model.scene import Scene, build_scene
 from wearbench.model.simulation import SimulationResult, simulate
 from wearbench.model.surfaces import JointSurfaces
 
-__all__ = ["Realisation", "RealisationRun", "draw_realisation", "simulate_state", "state_scene"]
+__all__ = ["Realisation", "RealisationRun", "draw_realisation", "realisation_start", "simulate_state", "state_scene"]
 
 _CUT = 3.0  # draws are cut at this many standard deviations
 
@@ -52,6 +53,7 @@ class RealisationRun:
     acc: np.ndarray          # m/s^2, slider acceleration along the sensor axis
     joint: str               # the encoder joint
     summary: dict
+    table: pd.DataFrame | None = None  # the simulation's table over the same rows (t as above)
 
 
 def _normal(rng: np.random.Generator, size=None) -> np.ndarray | float:
@@ -87,13 +89,16 @@ def draw_realisation(bench: Bench, seed: int | None, tolerances: Tolerances | No
                        start=tol.start)
 
 
-def state_scene(bench: Bench, state: WearState | None = None) -> Scene:
-    """The scene of ``bench`` in candidate ``state`` (its clearances and worn surfaces)."""
-    if state is None:
+def state_scene(bench: Bench, state: WearState | None = None,
+                surfaces: Mapping[str, JointSurfaces] | None = None) -> Scene:
+    """The scene of ``bench`` in candidate ``state`` (its clearances and worn surfaces); ``surfaces``:
+    worn surfaces in memory instead of the state's files."""
+    if state is None and surfaces is None:
         return build_scene(bench)
-    surfaces: Mapping[str, JointSurfaces] | None = (
-        {j: JointSurfaces.load(p) for j, p in state.surfaces.items()} if state.surfaces else None)
-    return build_scene(bench, clearances=dict(state.clearances) or None, surfaces=surfaces)
+    if surfaces is None and state.surfaces:
+        surfaces = {j: JointSurfaces.load(p) for j, p in state.surfaces.items()}
+    clearances = dict(state.clearances) or None if state is not None else None
+    return build_scene(bench, clearances=clearances, surfaces=surfaces or None)
 
 
 def _start_velocity(scene: Scene, speed: float, spread: float, rng: np.random.Generator) -> np.ndarray:
@@ -109,15 +114,27 @@ def _start_velocity(scene: Scene, speed: float, spread: float, rng: np.random.Ge
     return v + sigma * scale * _normal(rng, scene.n)
 
 
+def realisation_start(real: Realisation, scene: Scene, speed: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The start state (q, v) at t = 0 of realisation ``real`` in ``scene`` at motor ``speed`` (rad/s):
+    the assembled positions and a random journal velocity inside the clearances drawn from the
+    realisation's seed; None for the nominal bench (the model's own start)."""
+    if real.seed is None:
+        return None
+    rng = np.random.default_rng([int(real.seed), 0x57A7])
+    return scene.q0.copy(), _start_velocity(scene, speed, real.start, rng)
+
+
 def simulate_state(bench: Bench, state: WearState | None, seed: int | None, *, revolutions: float,
                    settle: float = 2.0, speed: float | None = None, output_rate: float | None = None,
-                   tolerances: Tolerances | None = None, **options) -> RealisationRun:
+                   tolerances: Tolerances | None = None, surfaces: Mapping[str, JointSurfaces] | None = None,
+                   **options) -> RealisationRun:
     """Simulate ``settle`` + ``revolutions`` motor revolutions of one realisation of ``bench`` in
     ``state`` and keep the last ``revolutions``.
 
     seed: None for the nominal bench started as the model starts (journals centred, ideal
     velocities); otherwise the draw of :func:`draw_realisation`. speed: commanded motor speed
     (rad/s, default the bench's); the realisation turns at ``speed_scale`` times it with its ripple.
+    surfaces: worn surfaces in memory instead of the state's files.
     options: passed to :func:`wearbench.model.simulation` (method, rtol, ...).
     """
     real = draw_realisation(bench, seed, tolerances)
@@ -128,17 +145,13 @@ def simulate_state(bench: Bench, state: WearState | None, seed: int | None, *, r
         raise ValueError(f"simulate_state: revolutions = {revolutions}, settle = {settle}: expected "
                          "revolutions > 0 and settle >= 0")
     true_speed = commanded * real.speed_scale
-    scene = state_scene(real.bench.with_speed(true_speed), state)
+    scene = state_scene(real.bench.with_speed(true_speed), state, surfaces)
     t_end = (settle + revolutions) * 2 * math.pi / abs(true_speed)
     profile = None
     if real.ripple:
         w, r, phi = true_speed, real.ripple, real.ripple_phase
         profile = (lambda t: w * (1.0 + r * np.sin(abs(w) * t + phi)))
-    initial = None
-    if seed is not None:
-        rng = np.random.default_rng([int(seed), 0x57A7])
-        initial = (scene.q0.copy(), _start_velocity(scene, float(profile(0.0)) if profile else true_speed,
-                                                     real.start, rng))
+    initial = realisation_start(real, scene, float(profile(0.0)) if profile else true_speed)
     result: SimulationResult = simulate(scene, t_end=t_end, speed=true_speed, output_rate=output_rate,
                                         initial=initial, speed_profile=profile, **options)
     table = result.table
@@ -147,6 +160,8 @@ def simulate_state(bench: Bench, state: WearState | None, seed: int | None, *, r
     crank = table[f"theta_{driver.joint}"].to_numpy()
     motor = (crank - driver.phase) / driver.ratio
     keep = t >= t_end * settle / (settle + revolutions) - 1e-12
+    kept = table[keep].reset_index(drop=True)
+    kept["t"] = t[keep] - t[keep][0]
     return RealisationRun(real, t[keep] - t[keep][0], motor[keep], crank[keep],
-                          table["slider_acc"].to_numpy()[keep], driver.joint, result.summary)
+                          table["slider_acc"].to_numpy()[keep], driver.joint, result.summary, kept)
 

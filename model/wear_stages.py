@@ -182,14 +182,17 @@ def _mean_pressure(rec, law: WearLaw) -> float:
 def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str, float] | None = None,
                speed: float | None = None, initial: Mapping[str, JointSurfaces] | None = None,
                on_stage: Callable[[Stage], None] | None = None,
-               on_update: Callable[[float, dict[str, JointSurfaces]], None] | None = None) -> WearRun:
+               on_update: Callable[[float, dict[str, JointSurfaces]], None] | None = None,
+               start: tuple[np.ndarray, np.ndarray] | None = None) -> WearRun:
     """Wear the clearance joints of ``bench`` through ``plan.stages`` stages (paper section 4.3).
 
     clearances: {joint: m} overrides; speed: motor speed (rad/s, default the bench's);
     initial: surfaces to start from (default unworn, ``bench.wear.regions`` regions).
     One continuous simulation, surfaces updated between revolutions as the module docstring says.
     ``on_update(cycles worn so far, surfaces)`` is called after every update, ``on_stage`` after
-    every stage. Raises the model's ``SimulationError`` unchanged.
+    every stage. start: (q, v) at t = 0 of the first simulated revolution instead of the assembled
+    state (a realisation's start, :func:`~wearbench.model.realisation.realisation_start`); the first
+    ``plan.settle`` revolutions are still not counted. Raises the model's ``SimulationError`` unchanged.
     """
     from wearbench.model import SimulationError, build_scene, simulate
 
@@ -212,7 +215,7 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
     run = WearRun(bench.name, speed, clear, plan, dict(current))
     period = 2 * math.pi / abs(speed)
     revs = float(plan.update_revolutions)
-    state = None
+    state, fresh = start, True  # fresh: the next simulation starts the run (settles first)
     gain, last_p = 1.0, None
     worn_before = {j: s.cycles for j, s in current.items()}
     for k in range(1, plan.stages + 1):
@@ -228,17 +231,18 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
                                       f"to go (cap {plan.depth_cap:.3g} m per update)", t=counted,
                                       quantity="wear update")
             scene = build_scene(bench, clearances=clear, surfaces=current)
-            settle = plan.settle if state is None else 0
+            settle = plan.settle if fresh else 0
             try:
                 result = simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method,
                                   record_contacts=True, output_rate=_TABLE_RATE, initial=state)
             except SimulationError as exc:
-                if state is None or exc.quantity != "initial state":
+                if fresh or exc.quantity != "initial state":
                     raise
                 state, settle = None, plan.settle  # cannot continue (driver ratios): settle afresh
                 result = simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method,
                                   record_contacts=True, output_rate=_TABLE_RATE)
             state = _continue_from(scene, getattr(result, "final", None))
+            fresh = state is None
             simulated += settle + revs
             counted += revs * period
             if first_summary is None:

@@ -1,4 +1,5 @@
-"""The paper's two parameter studies on a bench (section 5), and the staging-convergence study.
+"""The paper's two parameter studies on a bench (section 5) as ensemble statistics, and the
+staging-convergence study.
 
 - Wear study (5.1): clearance 0.6 mm, -5 pi rad/s, two wear stages; dynamics before, after first
   and after second wear.
@@ -6,8 +7,18 @@
   after wear; the table shaped like the paper's Table 3 (max contact force per joint).
 - Wear convergence: the same total cycles worn with the surface-update depth cap refined k = 1, 2, 4, ...
 
-Cases run as tasks of :mod:`wearbench.model.compute` (a local cluster by default, results cached by
-content). Imports the model contract, the wear modules and matplotlib (through
+A study quantity is not the peak of one run (one impact of a chaotic motion) but a statistic of the
+per-cycle maxima of many realisations, drawn as the identification's ensembles draw them
+(:mod:`wearbench.model.realisation`: the bench within its tolerances, a random start): the median
+and the 95th percentile of the per-cycle maxima, each with a bootstrap interval. The wear stage is
+an ensemble too: a few wear runs of each case from drawn benches and starts; the after-wear cells
+pool realisations on every run's surfaces, and the bootstrap resamples the runs first, then the
+realisations within each run, then takes all their cycles (realisations are the independent units,
+cycles of one realisation are not). Each of the paper's trends is answered from the interval of the
+ratio it is about: agrees, disagrees, or not resolved at this ensemble size.
+
+Wear runs and realisations run as tasks of :mod:`wearbench.compute` (a local cluster by default,
+results cached by content). Imports the model contract, the wear modules and matplotlib (through
 ``wear_report``/``study_plots``); no CLI code.
 """
 
@@ -17,16 +28,20 @@ import itertools
 import json
 import math
 import time
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from wearbench.bench.content import bench_key
-from wearbench.compute import Task, TaskFailure, run_tasks, task_key
+from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages
+from wearbench.studies import studies_source_digest
 
-__all__ = ["PAPER", "Case", "CaseResult", "StudyConfig", "run_case", "run_study", "staging_convergence",
-           "table3", "trends"]
+__all__ = ["PAPER", "STATISTICS", "Case", "CaseResult", "Cell", "StudyConfig", "cell_statistics",
+           "cycle_maxima", "run_study", "staging_convergence", "study_realisation", "trends", "verdict",
+           "wear_realisation"]
 
 # Published values (the paper, section 5 and Table 3), its own unknown geometry: for trends only.
 PAPER = {
@@ -44,6 +59,15 @@ PAPER = {
     },
 }
 
+# Statistics of the per-cycle maxima. "p95" answers the paper's "max": the paper reports the largest
+# value of one simulated run of a few revolutions, i.e. the top of the per-cycle maxima of a window of
+# about twenty cycles, whose expectation is the 95th percentile of the per-cycle maxima (one cycle in
+# twenty exceeds it). Unlike the maximum of a finite sample, the percentile converges as the ensemble
+# grows, so a difference between two cells is a difference of the mechanism, not of which impact a
+# run happened to catch. "median": the typical cycle.
+STATISTICS = {"median": 50.0, "p95": 95.0}
+MAX_STATISTIC = "p95"
+
 
 @dataclass(frozen=True)
 class Case:
@@ -55,8 +79,59 @@ class Case:
     stages: int
 
 
+@dataclass(frozen=True)
+class StudyConfig:
+    """Sizes and cost knobs. ``plan`` shapes each wear stage. Every (case, state) cell gets
+    ``realisations`` realisations (after wear: spread evenly over the ``wear_runs`` runs, at least
+    2 per run) of ``cycles`` crank cycles after ``settle`` dropped motor revolutions; realisation i
+    uses seed ``seed + i``, wear run w seed ``seed + 100000 + w``. ``output_rate`` (Hz): the table
+    the per-cycle maxima are taken from (None: the model's 20 kHz). ``bootstrap`` resamples give
+    intervals at ``level``."""
+
+    plan: StagePlan = field(default_factory=StagePlan)
+    realisations: int = 12
+    cycles: int = 8
+    settle: float = 2.0
+    wear_runs: int = 3
+    seed: int = 1
+    output_rate: float | None = None
+    bootstrap: int = 2000
+    level: float = 0.95
+    workers: int | None = None  # local cluster size (None: the usable cores; 0: in-process)
+    scheduler: str | None = None  # a running cluster's address (see wearbench.compute)
+    wear_case: Case = Case("wear 0.6 mm", 0.6e-3, -5 * math.pi, 2)
+    clearance_cases: tuple[Case, ...] = (Case("0.1 mm", 0.1e-3, -6 * math.pi, 1),
+                                         Case("0.3 mm", 0.3e-3, -6 * math.pi, 1),
+                                         Case("0.45 mm", 0.45e-3, -6 * math.pi, 1))
+
+    def __post_init__(self) -> None:
+        if self.wear_runs < 1 or self.realisations < 2 or self.cycles < 1:
+            raise ValueError(f"study: realisations = {self.realisations}, cycles = {self.cycles}, wear runs = "
+                             f"{self.wear_runs}: expected at least 2 realisations of at least 1 cycle and 1 wear run")
+        if not self.settle >= 0:
+            raise ValueError(f"study: settle = {self.settle} revolutions: expected >= 0")
+        if self.bootstrap < 100 or not 0.5 < self.level < 1:
+            raise ValueError(f"study: bootstrap = {self.bootstrap}, level = {self.level}: expected at least 100 "
+                             "resamples and a level between 0.5 and 1")
+
+    @property
+    def per_run(self) -> int:
+        """Realisations on each wear run's surfaces (after wear)."""
+        return max(2, math.ceil(self.realisations / self.wear_runs))
+
+    @classmethod
+    def quick(cls, plan: StagePlan, **sizes) -> StudyConfig:
+        """A cut-down study for tests: one surface update per stage, 2 wear runs per case, 4
+        realisations of 3 cycles per cell."""
+        return cls(plan=replace(plan, update_depth=1.0, min_updates=1, settle=0),
+                   **{"realisations": 4, "cycles": 3, "settle": 1.0, "wear_runs": 2, "bootstrap": 1000,
+                      "output_rate": 5_000.0, **sizes})
+
+
 @dataclass
 class CaseResult:
+    """One case for the figures: its first wear run and one realisation's table per state."""
+
     case: Case
     run: WearRun
     dynamics: dict[str, pd.DataFrame]   # state label -> result table
@@ -64,45 +139,113 @@ class CaseResult:
     wall_time: float
 
 
-@dataclass(frozen=True)
-class StudyConfig:
-    """Cost knobs. ``plan`` shapes each stage; ``dyn_revolutions`` is the length of the dynamics run
-    per worn state (Poincare maps get one point per revolution); ``output_rate`` (Hz) of its table."""
+@dataclass
+class Cell:
+    """One (case, state) of the study: per-cycle maxima ``peaks[quantity]`` shaped (wear runs,
+    realisations per run, cycles); before wear there is one group."""
 
-    plan: StagePlan = field(default_factory=StagePlan)
-    dyn_revolutions: float = 10.0
-    output_rate: float | None = None  # Hz; None: the model's default fine grid (peak slider acc)
-    workers: int | None = None  # local cluster size (None: the usable cores; 0: in-process)
-    scheduler: str | None = None  # a running cluster's address (see wearbench.model.compute)
-    wear_case: Case = Case("wear 0.6 mm", 0.6e-3, -5 * math.pi, 2)
-    clearance_cases: tuple[Case, ...] = (Case("0.1 mm", 0.1e-3, -6 * math.pi, 1),
-                                         Case("0.3 mm", 0.3e-3, -6 * math.pi, 1),
-                                         Case("0.45 mm", 0.45e-3, -6 * math.pi, 1))
-
-    @classmethod
-    def quick(cls, plan: StagePlan) -> StudyConfig:
-        """A cut-down study for tests: one surface update per stage, 1-revolution dynamics runs."""
-        return cls(plan=replace(plan, update_depth=1.0, min_updates=1, settle=0), dyn_revolutions=1.0,
-                   output_rate=5_000.0)
+    case: Case
+    state: str
+    peaks: dict[str, np.ndarray]
+    failures: list[str] = field(default_factory=list)
 
 
-def run_case(bench, case: Case, config: StudyConfig) -> CaseResult:
-    """Wear ``case`` and simulate the dynamics of every state (before, first wear, ...)."""
-    from wearbench.model import build_scene, simulate
+# ------------------------------------------------------------------------------------------------
+# tasks (run on workers)
 
-    t0 = time.perf_counter()
+
+def wear_realisation(bench, plan: StagePlan, case: Case, seed: int) -> WearRun:
+    """Wear ``case`` on the realisation of ``bench`` drawn with ``seed``: its bench within the
+    tolerances, its true motor speed and its random start (the identification's draw)."""
+    from wearbench.model import build_scene
+    from wearbench.model.realisation import draw_realisation, realisation_start
+
+    real = draw_realisation(bench, seed)
     clear = {j.name: case.clearance for j in bench.clearance_joints}
-    run = run_stages(bench, replace(config.plan, stages=case.stages), clearances=clear, speed=case.speed)
-    dynamics, summaries = {}, {}
-    for label, surfaces in run.states:
-        scene = build_scene(bench, clearances=clear, surfaces=surfaces)
-        res = simulate(scene, revolutions=config.dyn_revolutions, speed=case.speed, method=config.plan.method,
-                       output_rate=config.output_rate, record_contacts=True)
-        dynamics[label] = res.table
-        summaries[label] = dict(res.summary)
-        # peak contact force over every accepted step, not only the output grid
-        summaries[label]["peak_fn"] = {j: float(c["fn"].max()) for j, c in res.contacts.items()}
-    return CaseResult(case, run, dynamics, summaries, time.perf_counter() - t0)
+    speed = case.speed * real.speed_scale
+    scene = build_scene(real.bench.with_speed(speed), clearances=clear)
+    return run_stages(real.bench, replace(plan, stages=case.stages), clearances=clear, speed=speed,
+                      start=realisation_start(real, scene, speed))
+
+
+def cycle_maxima(motor: np.ndarray, values: Mapping[str, np.ndarray], cycles: int) -> dict[str, np.ndarray]:
+    """Maxima of each of ``values`` over each whole motor revolution (from the first sample), the
+    first ``cycles`` of them (fewer if fewer are whole)."""
+    turns = np.abs(motor - motor[0]) / (2 * math.pi)
+    n = min(int(cycles), math.floor(turns[-1] + 1e-9))
+    if n < 1:
+        raise ValueError(f"cycle maxima: {turns[-1]:.3g} motor revolutions: no whole cycle")
+    bounds = np.searchsorted(turns, np.arange(n + 1), side="left")
+    return {k: np.array([np.max(v[bounds[i]:max(bounds[i + 1], bounds[i] + 1)]) for i in range(n)])
+            for k, v in values.items()}
+
+
+def study_realisation(bench, clearances: Mapping[str, float], surfaces, seed: int, speed: float, cycles: int,
+                      settle: float, output_rate: float | None, keep_table: bool) -> dict:
+    """One realisation (seed) of ``bench`` with ``clearances`` and worn ``surfaces`` (None: new):
+    per-cycle maxima of the contact force per clearance joint (``fn_<joint>``) and of the slider's
+    |acceleration| (``acc``); with ``keep_table`` also its table and summary (for the figures)."""
+    from wearbench.bench.schema import WearState
+    from wearbench.model.realisation import simulate_state
+
+    run = simulate_state(bench, WearState("study", dict(clearances)), seed, revolutions=cycles + 0.25,
+                         settle=settle, speed=speed, output_rate=output_rate, surfaces=surfaces)
+    values = {f"fn_{j}": run.table[f"{j}_fn"].to_numpy() for j in clearances}
+    values["acc"] = np.abs(run.acc)
+    out = {"peaks": cycle_maxima(run.motor_angle, values, cycles), "wall_time_s": run.summary.get("wall_time_s")}
+    if keep_table:
+        out["table"] = run.table
+        out["summary"] = {"peak_fn": {j: float(run.table[f"{j}_fn"].max()) for j in clearances},
+                          "peak_slider_acc": float(np.abs(run.acc).max())}
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# statistics
+
+
+def _quantities(joints: Sequence[str]) -> list[str]:
+    return [*(f"fn_{j}" for j in joints), "acc"]
+
+
+def _resample(x: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n, W*M*C): ``n`` bootstrap samples of (W, M, C) data, runs then realisations resampled."""
+    w, m, _ = x.shape
+    runs = rng.integers(0, w, (n, w)) if w > 1 else np.zeros((n, 1), dtype=int)
+    reals = rng.integers(0, m, (n, w, m))
+    return x[runs[:, :, None], reals].reshape(n, -1)
+
+
+def cell_statistics(cell: Cell, n: int, rng: np.random.Generator) -> dict[str, dict[str, dict]]:
+    """{quantity: {statistic: {"value", "boot"}}}: each statistic of the pooled per-cycle maxima and
+    its ``n`` bootstrap replicates."""
+    out = {}
+    for q, x in cell.peaks.items():
+        boot = _resample(x, n, rng)
+        out[q] = {s: {"value": float(np.percentile(x, p)), "boot": np.percentile(boot, p, axis=1)}
+                  for s, p in STATISTICS.items()}
+    return out
+
+
+def _interval(boot: np.ndarray, level: float) -> tuple[float, float]:
+    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
+    return float(lo), float(hi)
+
+
+def verdict(lo: float, hi: float) -> str:
+    """The answer to "the ratio exceeds 1" from its interval [lo, hi]."""
+    return "agrees" if lo > 1 else "disagrees" if hi < 1 else "not resolved"
+
+
+def _combine(verdicts: Sequence[str]) -> str:
+    """A trend made of several comparisons agrees when all do and disagrees when any does."""
+    if "disagrees" in verdicts:
+        return "disagrees"
+    return "agrees" if all(v == "agrees" for v in verdicts) else "not resolved"
+
+
+# ------------------------------------------------------------------------------------------------
+# the study
 
 
 def _raise_failures(results: list, what: str) -> None:
@@ -124,7 +267,7 @@ def staging_convergence(bench, ks: list[float], total_cycles: float, plan: Stage
     worn volume between refinements (:func:`~wearbench.model.wear_stages.convergence`).
 
     ``known``: runs already made with this plan at refinement k (not run again). ``workers``/
-    ``scheduler``: see :func:`~wearbench.model.compute.run_tasks`.
+    ``scheduler``: see :func:`~wearbench.compute.run_tasks`.
     Writes ``out/convergence.csv`` if ``out`` is given.
     """
     stage = total_cycles / plan.stages
@@ -133,7 +276,7 @@ def staging_convergence(bench, ks: list[float], total_cycles: float, plan: Stage
     order = sorted(plans, reverse=True)  # longest first: balanced workers
     tasks = [Task(_wear_only, {"bench": bench, "plan": plans[k], "clearances": clearances, "speed": speed,
                                "initial": initial},
-                  task_key("wear-stages", bench_key(bench), plans[k], clearances, speed, initial), f"k={k:g}")
+                  task_key("wear-stages", studies_source_digest(), bench_key(bench), plans[k], clearances, speed, initial), f"k={k:g}")
              for k in order]
     if tasks:
         done = run_tasks(tasks, workers=workers, scheduler=scheduler, progress="wear convergence")
@@ -146,176 +289,384 @@ def staging_convergence(bench, ks: list[float], total_cycles: float, plan: Stage
     return rows
 
 
-def table3(results: list[CaseResult], after: str = "first wear") -> pd.DataFrame:
-    """Max contact force (N) per joint, before and after wear, per clearance: the paper's Table 3."""
-    rows = {}
-    for r in results:
-        mm = round(r.case.clearance * 1e3, 3)
-        for j in r.run.clearances:
-            rows.setdefault(f"clearance {j}", {})[(f"{mm:g} mm", "before wear")] = r.summaries["before wear"]["peak_fn"][j]
-            rows[f"clearance {j}"][(f"{mm:g} mm", "after wear")] = r.summaries[after]["peak_fn"][j]
-    df = pd.DataFrame(rows).T
-    df.columns = pd.MultiIndex.from_tuples(df.columns)
-    return df
+def _labels(case: Case) -> list[str]:
+    from wearbench.model.wear_stages import stage_label
+
+    return ["before wear", *(stage_label(k) for k in range(1, case.stages + 1))]
 
 
-def _peak_rows(results: list[CaseResult]) -> list[dict]:
-    """One row per case and state: peak slider acceleration, peak contact force and max depth per joint."""
+def _mm(case: Case) -> float:
+    return round(case.clearance * 1e3, 3)
+
+
+def _cells(groups: Mapping[tuple[str, str], list[list]], cases: Sequence[Case], joints: Sequence[str]) -> list[Cell]:
+    """Cells from results grouped by (case, state): a list per wear run of realisation results
+    (TaskFailure where one failed); runs trimmed to equal realisations and cycles."""
+    cells = []
+    for case in cases:
+        for label in _labels(case):
+            runs = groups[(case.name, label)]
+            good = [[r for r in run if not isinstance(r, TaskFailure)] for run in runs]
+            failed = [str(r) for run in runs for r in run if isinstance(r, TaskFailure)]
+            m = min(len(g) for g in good)
+            if m < 2:
+                raise RuntimeError(f"study {case.name}, {label}: fewer than 2 realisations succeeded on a "
+                                   f"surface; " + "; ".join(failed[:3]))
+            c = min(len(r["peaks"]["acc"]) for g in good for r in g)
+            peaks = {q: np.array([[r["peaks"][q][:c] for r in g[:m]] for g in good]) for q in _quantities(joints)}
+            cells.append(Cell(case, label, peaks, failed))
+    return cells
+
+
+def _wear_rows(runs: Mapping[str, list[WearRun]], cases: Sequence[Case]) -> list[dict]:
+    """One row per case, wear run, stage and joint: max depth (m) of bearing and journal and the worn
+    volume (m^3, both surfaces) up to that stage."""
     rows = []
-    for r in results:
-        states = dict(r.run.states)
-        for label, s in r.summaries.items():
-            rows.append({"case": r.case.name, "clearance_mm": r.case.clearance * 1e3, "speed_rad_s": r.case.speed,
-                         "state": label, "peak_slider_acc": s["peak_slider_acc"],
-                         **{f"peak_fn_{j}": v for j, v in s["peak_fn"].items()},
-                         **{f"max_depth_{j}": max(states[label][j].max_depth) for j in r.run.clearances}})
+    for case in cases:
+        for w, run in enumerate(runs[case.name]):
+            for k, (label, states) in enumerate(run.states[1:], start=1):
+                for j in run.clearances:
+                    bearing, journal = states[j].max_depth
+                    rows.append({"case": case.name, "clearance_mm": _mm(case), "wear_run": w + 1, "state": label,
+                                 "joint": j, "bearing_max_depth_m": bearing, "journal_max_depth_m": journal,
+                                 "max_depth_m": max(bearing, journal),
+                                 "volume_m3": float(sum(st.volume[j] for st in run.stages[:k]))})
     return rows
 
 
-def trends(wear: CaseResult, clearance: list[CaseResult]) -> list[dict]:
-    """The paper's qualitative findings (sections 5.1, 5.2) checked on our results: {finding, paper, ours,
-    detail}; ``paper`` is True for each (the paper reports them), ``ours`` whether our run shows it."""
-    out = []
-
-    def add(finding: str, ours: bool, detail: str) -> None:
-        out.append({"finding": finding, "paper": True, "ours": bool(ours), "detail": detail})
-
-    labels = [lbl for lbl, _ in wear.run.states]
-    acc = [wear.summaries[lbl]["peak_slider_acc"] for lbl in labels]
-    add("wear raises the peak slider acceleration, second wear more than first",
-        all(b > a for a, b in itertools.pairwise(acc)), f"{[round(a, 1) for a in acc]} m/s^2 over {labels}")
-    for j in wear.run.clearances:
-        fn = [wear.summaries[lbl]["peak_fn"][j] for lbl in labels]
-        add(f"wear raises the peak contact force at {j}", all(b > a for a, b in itertools.pairwise(fn)),
-            f"{[round(f) for f in fn]} N")
-    final = wear.run.final
-    depth = {j: max(final[j].max_depth) for j in final}
-    if {"A", "B"} <= set(depth):
-        add("B wears deeper than A (after second wear)", depth["B"] > depth["A"],
-            f"A {depth['A']:.3g} m, B {depth['B']:.3g} m")
-    cl = sorted(clearance, key=lambda r: r.case.clearance)
-    for j in wear.run.clearances:
-        after = [r.summaries["first wear"]["peak_fn"][j] for r in cl]
-        before = [r.summaries["before wear"]["peak_fn"][j] for r in cl]
-        add(f"contact force at {j} grows after wear at every clearance",
-            all(a > b for a, b in zip(after, before, strict=True)),
-            f"before {[round(x) for x in before]} N, after {[round(x) for x in after]} N")
-        add(f"contact force at {j} after wear grows with clearance",
-            all(b > a for a, b in itertools.pairwise(after)), f"{[round(x) for x in after]} N")
-        d = [max(r.run.final[j].max_depth) for r in cl]
-        add(f"wear depth at {j} grows with clearance", all(b > a for a, b in itertools.pairwise(d)),
-            f"{[f'{x:.3g}' for x in d]} m")
-    acc_after = [r.summaries["first wear"]["peak_slider_acc"] for r in cl]
-    add("peak slider acceleration after wear grows with clearance",
-        all(b > a for a, b in itertools.pairwise(acc_after)), f"{[round(x, 1) for x in acc_after]} m/s^2")
+def _depth_runs(wear: pd.DataFrame) -> dict[tuple[str, str], dict[str, np.ndarray]]:
+    """{(case, state): {joint: max depth (m) of each wear run, in run order}}."""
+    out: dict[tuple[str, str], dict[str, np.ndarray]] = {}
+    for (case, label, j), g in wear.groupby(["case", "state", "joint"], sort=False):
+        out.setdefault((case, label), {})[j] = g.sort_values("wear_run")["max_depth_m"].to_numpy(float)
     return out
 
 
-def run_study(bench, out: str | Path, config: StudyConfig, *, on_case=None) -> dict:
-    """Run the wear study and the clearance study (in parallel), write tables, JSON and figures.
+def _t_ratio(num: np.ndarray, den: np.ndarray, paired: bool, level: float) -> tuple[float, float, float]:
+    """Ratio of geometric means over a few wear runs and its Student-t interval on the logs (paired:
+    the same runs; else Welch): with 2 or 3 runs a bootstrap cannot give an interval, t can."""
+    from scipy import stats as sps
 
-    Writes under ``out``: ``wear/`` (surfaces, depths.csv, summary.json, figures 6-8),
-    ``clearance_<mm>/`` likewise, ``table3.csv``, ``table3.md`` (ours beside the paper's),
-    ``peaks.csv`` (peak slider acceleration, contact forces, depths per case and state),
-    ``trends.json`` and the figures 9-32 analogues under ``figures/``. Returns the summary dict.
+    x, y = np.log(num), np.log(den)
+    if paired:
+        d = x - y
+        diff, se, dof = d.mean(), (d.std(ddof=1) / math.sqrt(d.size) if d.size > 1 else math.inf), d.size - 1
+    else:
+        vx = x.var(ddof=1) / x.size if x.size > 1 else math.inf
+        vy = y.var(ddof=1) / y.size if y.size > 1 else math.inf
+        diff, se = x.mean() - y.mean(), math.sqrt(vx + vy)
+        dof = (vx + vy) ** 2 / (vx**2 / (x.size - 1) + vy**2 / (y.size - 1)) if 0 < se < math.inf else 1
+    if not se < math.inf or dof < 1:
+        return math.exp(diff), 0.0, math.inf
+    t = float(sps.t.ppf(0.5 * (1 + level), dof))
+    return math.exp(diff), math.exp(diff - t * se), math.exp(diff + t * se)
+
+
+def run_study(bench, out: str | Path, config: StudyConfig) -> dict:
+    """Run the wear study and the clearance study as ensembles, write tables, JSON and figures.
+
+    Writes under ``out``: ``wear/`` (the first wear run's surfaces, depths.csv, summary.json,
+    figures 6-8; further runs under ``wear/run<k>/``), ``clearance_<mm>/`` likewise,
+    ``peaks.csv`` (every realisation's per-cycle maxima), ``cells.csv`` (every cell's statistics
+    with intervals), ``wear_runs.csv`` (max depth and worn volume per wear run), ``table3.csv`` (the
+    Table 3 analogue, 95th percentiles), ``trends.csv``, ``table3.md`` (the report: ours beside the
+    paper's, the trends' verdicts), ``study.json`` and the figures 9-32 analogues (one realisation
+    per state) under ``figures/``. Returns the summary dict.
     """
     from wearbench.studies.study_plots import plot_case_dynamics
     from wearbench.studies.wear_report import write_run
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cases = [config.wear_case, *config.clearance_cases]
     t0 = time.perf_counter()
-    tasks = [Task(run_case, {"bench": bench, "case": c, "config": config},
-                  task_key("study-case", bench_key(bench), c, replace(config, workers=None, scheduler=None)),
-                  c.name) for c in cases]
+    cases = [config.wear_case, *config.clearance_cases]
+    joints = [j.name for j in bench.clearance_joints]
+    physics = (studies_source_digest(), bench_key(bench), asdict(bench.tolerances))
+    sizes = {"cycles": config.cycles, "settle": config.settle, "output_rate": config.output_rate}
 
-    def finished(i: int, r) -> None:
-        if on_case is not None and not isinstance(r, TaskFailure):
-            on_case(r)
+    def realisation(case: Case, surfaces, seed: int, keep: bool, label: str) -> Task:
+        clear = {j: case.clearance for j in joints}
+        kwargs = {"bench": bench, "clearances": clear, "surfaces": surfaces, "seed": seed, "speed": case.speed,
+                  **sizes, "keep_table": keep}
+        return Task(study_realisation, kwargs, task_key("study-realisation", *physics, clear, surfaces, seed,
+                                                        round(case.speed, 9), sizes, keep), label)
 
-    done = run_tasks(tasks, workers=config.workers, scheduler=config.scheduler, on_result=finished)
-    _raise_failures(done, f"study of {bench.name}")
-    results: dict[str, CaseResult] = {c.name: r for c, r in zip(cases, done, strict=True)}
-    wear = results[config.wear_case.name]
-    clear = [results[c.name] for c in config.clearance_cases]
-    write_run(wear.run, out / "wear")
-    for r in clear:
-        write_run(r.run, out / f"clearance_{r.case.clearance * 1e3:g}mm")
+    wear_tasks = [Task(wear_realisation, {"bench": bench, "plan": config.plan, "case": c,
+                                          "seed": config.seed + 100_000 + w},
+                       task_key("study-wear", *physics, config.plan, c, config.seed + 100_000 + w),
+                       f"{c.name} wear run {w + 1}") for c in cases for w in range(config.wear_runs)]
+    new_tasks = [realisation(c, None, config.seed + i, i == 0, f"{c.name} before wear #{i}")
+                 for c in cases for i in range(config.realisations)]
+    groups: dict[tuple[str, str], list[list]] = {}
+    with compute_client(config.scheduler, config.workers):
+        done = run_tasks(wear_tasks + new_tasks, progress="study: wear runs, new surfaces")
+        _raise_failures(done[:len(wear_tasks)], f"study of {bench.name}: wear runs")
+        runs = {c.name: done[i * config.wear_runs:(i + 1) * config.wear_runs] for i, c in enumerate(cases)}
+        new = done[len(wear_tasks):]
+        for i, c in enumerate(cases):
+            groups[(c.name, "before wear")] = [new[i * config.realisations:(i + 1) * config.realisations]]
+        worn_tasks, owners = [], []
+        for c in cases:
+            for w, run in enumerate(runs[c.name]):
+                for label, surfaces in run.states[1:]:
+                    for i in range(config.per_run):
+                        worn_tasks.append(realisation(c, surfaces, config.seed + w * config.per_run + i,
+                                                      w == 0 and i == 0, f"{c.name} {label} run {w + 1} #{i}"))
+                        owners.append((c.name, label, w))
+        worn = run_tasks(worn_tasks, progress="study: worn surfaces")
+    for (case, label, w), r in zip(owners, worn, strict=True):
+        runs_of = groups.setdefault((case, label), [])
+        while len(runs_of) <= w:
+            runs_of.append([])
+        runs_of[w].append(r)
+    cells = _cells(groups, cases, joints)
+
+    rng = np.random.default_rng([config.seed, 0xB007])
+    stats = {(c.case.name, c.state): cell_statistics(c, config.bootstrap, rng) for c in cells}
+    wear = pd.DataFrame(_wear_rows(runs, cases))
+    depth = _depth_runs(wear)
+    tr = trends(stats, depth, config, joints)
+
+    for c in cases:
+        folder = out / ("wear" if c is config.wear_case else f"clearance_{c.clearance * 1e3:g}mm")
+        for w, run in enumerate(runs[c.name]):
+            write_run(run, folder if w == 0 else folder / f"run{w + 1}", plots=w == 0)
     figures = out / "figures"
     figures.mkdir(exist_ok=True)
-    plot_case_dynamics(wear, bench, figures)
-    for r in clear:
-        plot_case_dynamics(r, bench, figures, clearance_study=True, suffix=f"_{r.case.clearance * 1e3:g}mm")
-    t3 = table3(clear)
+    kept = {}
+    for (case, label), runs_of in groups.items():
+        first = runs_of[0][0]
+        if not isinstance(first, TaskFailure):
+            kept[(case, label)] = first
+    for c in cases:
+        if all((c.name, label) in kept for label in _labels(c)):
+            result = CaseResult(c, runs[c.name][0], {lbl: kept[(c.name, lbl)]["table"] for lbl in _labels(c)},
+                                {lbl: kept[(c.name, lbl)]["summary"] for lbl in _labels(c)}, 0.0)
+            if c is config.wear_case:
+                plot_case_dynamics(result, bench, figures)
+            else:
+                plot_case_dynamics(result, bench, figures, clearance_study=True, suffix=f"_{c.clearance * 1e3:g}mm")
+
+    peak_rows = []
+    for cell in cells:
+        w_, m_, c_ = cell.peaks["acc"].shape
+        for w in range(w_):
+            for i in range(m_):
+                for k in range(c_):
+                    peak_rows.append({"case": cell.case.name, "clearance_mm": _mm(cell.case), "state": cell.state,
+                                      "wear_run": w + 1 if cell.state != "before wear" else 0, "realisation": i,
+                                      "cycle": k, **{q: float(cell.peaks[q][w, i, k]) for q in cell.peaks}})
+    pd.DataFrame(peak_rows).to_csv(out / "peaks.csv", index=False)
+    cell_rows = _cell_rows(cells, stats, config.level, config.wear_case)
+    pd.DataFrame(cell_rows).to_csv(out / "cells.csv", index=False)
+    wear.to_csv(out / "wear_runs.csv", index=False)
+    t3 = table3(cell_rows)
     t3.to_csv(out / "table3.csv")
-    peaks = pd.DataFrame(_peak_rows([wear, *clear]))
-    peaks.to_csv(out / "peaks.csv", index=False)
-    tr = trends(wear, clear)
-    (out / "table3.md").write_text(table3_markdown(t3, clear) + "\n\n" + wear_markdown(wear) + "\n\n"
-                                   + trends_markdown(tr) + "\n")
+    pd.DataFrame([{k: v for k, v in t.items() if k != "comparisons"} for t in tr]).to_csv(out / "trends.csv",
+                                                                                        index=False)
+    counts = {v: sum(t["verdict"] == v for t in tr) for v in ("agrees", "disagrees", "not resolved")}
+    task_s = {"wear_runs": round(sum(st.wall_time for rs in runs.values() for r in rs for st in r.stages), 1),
+              "realisations": round(sum(float(r.get("wall_time_s") or 0.0) for rs in groups.values() for g in rs
+                                        for r in g if not isinstance(r, TaskFailure)), 1)}
     summary = {
-        "bench": bench.name, "wall_time_s": round(time.perf_counter() - t0, 1),
+        "bench": bench.name, "wall_time_s": round(time.perf_counter() - t0, 1), "task_time_s": task_s,
+        "sizes": {"realisations": config.realisations, "per_wear_run": config.per_run, "cycles": config.cycles,
+                  "settle": config.settle, "wear_runs": config.wear_runs, "seed": config.seed,
+                  "bootstrap": config.bootstrap, "level": config.level,
+                  "output_rate_hz": config.output_rate or 20_000.0},
         "plan": {"stage_cycles": config.plan.stage_cycles, "update_depth_m": config.plan.depth_cap,
-                 "settle": config.plan.settle, "dyn_revolutions": config.dyn_revolutions},
-        "table3": {r: {f"{a} {b}": float(v) for (a, b), v in t3.loc[r].items()} for r in t3.index},
-        "peaks": peaks.to_dict(orient="records"), "trends": tr,
-        "case_wall_time_s": {n: round(r.wall_time, 1) for n, r in results.items()},
+                 "settle": config.plan.settle},
+        "max_statistic": MAX_STATISTIC, "trend_counts": counts, "trends": tr, "cells": cell_rows,
+        "wear_runs": wear.to_dict(orient="records"),
+        "failures": {f"{c.case.name} {c.state}": c.failures for c in cells if c.failures},
     }
+    (out / "table3.md").write_text(report_markdown(summary, config) + "\n")
     (out / "study.json").write_text(json.dumps(summary, indent=2, default=float) + "\n")
     return summary
 
 
-def table3_markdown(t3: pd.DataFrame, clear: list[CaseResult]) -> str:
-    """Our Table 3 beside the paper's (max contact force, N; ours / paper)."""
-    paper = PAPER["clearance_study"]["peak_fn"]
-    cols = list(t3.columns)
-    head = "| joint | " + " | ".join(f"{c} {s}" for c, s in cols) + " |"
-    lines = ["Max contact force (N), ours / paper (paper Table 3, -6 pi rad/s)", "", head,
-             "|---" * (len(cols) + 1) + "|"]
-    for row in t3.index:
-        j = row.split()[-1]
-        cells = []
-        for c, s in cols:
-            mm = float(c.split()[0])
-            p = paper.get(j, {}).get(mm)
-            pv = "" if p is None else f" / {p[0 if s == 'before wear' else 1]:g}"
-            cells.append(f"{t3.loc[row, (c, s)]:.0f}{pv}")
-        lines.append(f"| {j} | " + " | ".join(cells) + " |")
-    acc = PAPER["clearance_study"]["peak_slider_acc"]
-    lines += ["", "Peak slider acceleration (m/s^2), ours / paper", "", "| clearance | before wear | after wear |",
-              "|---|---|---|"]
-    for r in sorted(clear, key=lambda r: r.case.clearance):
-        mm = round(r.case.clearance * 1e3, 3)
-        p = acc.get(mm, (float("nan"), float("nan")))
-        lines.append(f"| {mm:g} mm | {r.summaries['before wear']['peak_slider_acc']:.0f} / {p[0]:g} | "
-                     f"{r.summaries['first wear']['peak_slider_acc']:.0f} / {p[1]:g} |")
+def _cell_rows(cells: Sequence[Cell], stats: Mapping, level: float, wear_case: Case) -> list[dict]:
+    """One row per cell, quantity and statistic: value, interval and the paper's "max" where it has one."""
+    rows = []
+    for cell in cells:
+        w, m, c = cell.peaks["acc"].shape
+        for q, by_stat in stats[(cell.case.name, cell.state)].items():
+            for s, v in by_stat.items():
+                lo, hi = _interval(v["boot"], level)
+                rows.append({"study": "wear" if cell.case == wear_case else "clearance",
+                             "case": cell.case.name, "clearance_mm": _mm(cell.case), "speed_rad_s": cell.case.speed,
+                             "state": cell.state, "quantity": q, "statistic": s, "value": v["value"], "lo": lo,
+                             "hi": hi, "paper_max": _paper_value(cell.case, cell.state, q),
+                             "wear_runs": w if cell.state != "before wear" else 0, "realisations": w * m,
+                             "cycles": w * m * c, "failures": len(cell.failures)})
+    return rows
+
+
+def _paper_value(case: Case, state: str, quantity: str) -> float | None:
+    """The paper's published maximum for this cell, if it has one (same clearance, speed and state)."""
+    labels = ["before wear", "first wear", "second wear"]
+    if state not in labels:
+        return None
+    k = labels.index(state)
+    mm, pi_speed = _mm(case), round(case.speed / math.pi, 6)
+    if mm == 0.6 and pi_speed == -5:
+        p = PAPER["wear_study"]
+        return p["peak_slider_acc"][k] if quantity == "acc" else p["peak_fn"].get(quantity[3:], [None] * 3)[k]
+    if pi_speed == -6 and k < 2:
+        p = PAPER["clearance_study"]
+        table = p["peak_slider_acc"] if quantity == "acc" else p["peak_fn"].get(quantity[3:], {})
+        return table[mm][k] if mm in table else None
+    return None
+
+
+def table3(cell_rows: Sequence[dict]) -> pd.DataFrame:
+    """The paper's Table 3 analogue: max contact force (N, the 95th percentile of per-cycle maxima) per
+    joint, before and after wear, per clearance of the clearance study (wear cases at -6 pi rad/s)."""
+    rows: dict[str, dict] = {}
+    for r in cell_rows:
+        if r["statistic"] != MAX_STATISTIC or not r["quantity"].startswith("fn_") or r["study"] != "clearance":
+            continue
+        state = "before wear" if r["state"] == "before wear" else "after wear"
+        rows.setdefault(f"clearance {r['quantity'][3:]}", {})[(f"{r['clearance_mm']:g} mm", state)] = r["value"]
+    df = pd.DataFrame(rows).T
+    df.columns = pd.MultiIndex.from_tuples(df.columns)
+    return df
+
+
+def trends(stats: Mapping, depth: Mapping, config: StudyConfig, joints: Sequence[str]) -> list[dict]:
+    """The paper's qualitative findings (sections 5.1, 5.2) as tests on the ensemble statistics.
+
+    Each finding is one or more ratios that the paper has above 1 (ours: the point ratio, its
+    bootstrap interval at ``config.level``, the paper's ratio); a finding agrees when every
+    interval lies above 1, disagrees when any lies below 1, and is not resolved otherwise. Forces
+    and accelerations compare the 95th percentiles of per-cycle maxima (the paper's "max"); depths
+    the max depth of the wear runs (ratio of geometric means, Student-t interval over the runs).
+    Returns [{finding, verdict, ours (agrees?), detail,
+    comparisons}]."""
+    level, s = config.level, MAX_STATISTIC
+    out = []
+
+    def ratio(what: str, num: dict, den: dict, paper: float | None) -> dict:
+        r = num["boot"] / den["boot"]
+        lo, hi = _interval(r, level)
+        return {"comparison": what, "ratio": num["value"] / den["value"], "lo": lo, "hi": hi,
+                "paper_ratio": paper, "verdict": verdict(lo, hi)}
+
+    def depth_ratio(what: str, num: np.ndarray, den: np.ndarray, paired: bool, paper: float | None) -> dict:
+        r, lo, hi = _t_ratio(num, den, paired, level)
+        return {"comparison": what, "ratio": r, "lo": lo, "hi": hi, "paper_ratio": paper, "verdict": verdict(lo, hi)}
+
+    def add(finding: str, comparisons: list[dict]) -> None:
+        v = _combine([c["verdict"] for c in comparisons])
+        detail = "; ".join(f"{c['comparison']} {c['ratio']:.2f} [{c['lo']:.2f}, {c['hi']:.2f}]"
+                           + (f" (paper {c['paper_ratio']:.2f})" if c["paper_ratio"] else "") for c in comparisons)
+        out.append({"finding": finding, "paper": True, "verdict": v, "ours": v == "agrees", "detail": detail,
+                    "comparisons": comparisons})
+
+    def paper_ratio(a: float | None, b: float | None) -> float | None:
+        return a / b if a and b else None
+
+    wc = config.wear_case
+    labels = _labels(wc)
+    pw = PAPER["wear_study"]
+    pairs = list(itertools.pairwise(labels))
+    add("wear raises the peak slider acceleration, second wear more than first",
+        [ratio(f"{b} / {a}", stats[(wc.name, b)]["acc"][s], stats[(wc.name, a)]["acc"][s],
+               paper_ratio(_paper_value(wc, b, "acc"), _paper_value(wc, a, "acc"))) for a, b in pairs])
+    for j in joints:
+        q = f"fn_{j}"
+        add(f"wear raises the peak contact force at {j}",
+            [ratio(f"{b} / {a}", stats[(wc.name, b)][q][s], stats[(wc.name, a)][q][s],
+                   paper_ratio(_paper_value(wc, b, q), _paper_value(wc, a, q))) for a, b in pairs])
+    if {"A", "B"} <= set(joints):
+        last = labels[-1]
+        pd_ = pw["max_depth"]
+        add(f"B wears deeper than A (after {last})",
+            [depth_ratio(f"depth B / A after {last}", depth[(wc.name, last)]["B"], depth[(wc.name, last)]["A"], True,
+                   pd_["B"][-1] / pd_["A"][-1] if wc.stages == len(pd_["A"]) else None)])
+    cl = sorted(config.clearance_cases, key=lambda c: c.clearance)
+    pc = PAPER["clearance_study"]
+
+    def paper_depth(j: str, c: Case) -> float | None:
+        return pc["max_depth"].get(j, {}).get(_mm(c)) if round(c.speed / math.pi, 6) == -6 else None
+
+    for j in joints:
+        q = f"fn_{j}"
+        add(f"contact force at {j} grows after wear at every clearance",
+            [ratio(f"{_mm(c):g} mm after / before", stats[(c.name, 'first wear')][q][s],
+                   stats[(c.name, 'before wear')][q][s],
+                   paper_ratio(_paper_value(c, "first wear", q), _paper_value(c, "before wear", q))) for c in cl])
+        add(f"contact force at {j} after wear grows with clearance",
+            [ratio(f"{_mm(b):g} / {_mm(a):g} mm", stats[(b.name, 'first wear')][q][s],
+                   stats[(a.name, 'first wear')][q][s],
+                   paper_ratio(_paper_value(b, "first wear", q), _paper_value(a, "first wear", q)))
+             for a, b in itertools.pairwise(cl)])
+        add(f"wear depth at {j} grows with clearance",
+            [depth_ratio(f"{_mm(b):g} / {_mm(a):g} mm", depth[(b.name, "first wear")][j],
+                         depth[(a.name, "first wear")][j], False, paper_ratio(paper_depth(j, b), paper_depth(j, a))) for a, b in itertools.pairwise(cl)])
+    add("peak slider acceleration after wear grows with clearance",
+        [ratio(f"{_mm(b):g} / {_mm(a):g} mm", stats[(b.name, 'first wear')]["acc"][s],
+               stats[(a.name, 'first wear')]["acc"][s],
+               paper_ratio(_paper_value(b, "first wear", "acc"), _paper_value(a, "first wear", "acc")))
+         for a, b in itertools.pairwise(cl)])
+    return out
+
+
+def _cell(v: float, lo: float, hi: float, paper: float | None, digits: int = 0) -> str:
+    f = f"{{:.{digits}f}}"
+    text = f"{f.format(v)} [{f.format(lo)}, {f.format(hi)}]"
+    return text + (f" / {paper:g}" if paper else "")
+
+
+def report_markdown(summary: dict, config: StudyConfig) -> str:
+    """The study's report: Table 3 analogue and wear study with intervals beside the paper's values,
+    the spread of the wear runs, and the verdict on each of the paper's trends."""
+    rows = pd.DataFrame(summary["cells"])
+    sz = summary["sizes"]
+    pct = f"{100 * config.level:g} %"
+    lines = [(f"Study of {summary['bench']}: {sz['realisations']} realisations per state (after wear {sz['per_wear_run']} "
+             f"on each of {sz['wear_runs']} wear runs) x {sz['cycles']} cycles, seed {sz['seed']}, {sz['bootstrap']} "
+             f"bootstrap resamples. Cells: 95th percentile of per-cycle maxima (p95, the paper's \"max\") and "
+             f"median, each [{pct} bootstrap interval] / the paper's max."), ""]
+    clear = rows[rows["study"] == "clearance"]
+    cases = list(dict.fromkeys(clear["case"]))
+    for stat in ("p95", "median"):
+        for q, what in [(q, f"contact force {q[3:]} (N)") for q in sorted(set(clear["quantity"])) if q != "acc"] + [
+                ("acc", "slider |acceleration| (m/s^2)")]:
+            sub = clear[(clear["quantity"] == q) & (clear["statistic"] == stat)]
+            lines += [f"Clearance study, {what}, {stat} of per-cycle maxima", "",
+                      "| clearance | before wear | after wear |", "|---|---|---|"]
+            for case in cases:
+                r = sub[sub["case"] == case]
+                cells = [_cell(x.value, x.lo, x.hi, x.paper_max if stat == MAX_STATISTIC else None)
+                         for x in r.itertuples()]
+                lines.append(f"| {case} | " + " | ".join(cells) + " |")
+            lines.append("")
+    wear = rows[(rows["study"] == "wear") & (rows["statistic"] == MAX_STATISTIC)]
+    qs = list(dict.fromkeys(wear["quantity"]))
+    lines += [(f"Wear study ({config.wear_case.name}, {config.wear_case.speed / math.pi:g} pi rad/s), p95 of per-cycle "
+              "maxima [interval] / paper"), "", "| state | " + " | ".join(
+                  "slider acc (m/s^2)" if q == "acc" else f"force {q[3:]} (N)" for q in qs) + " |",
+              "|---" * (len(qs) + 1) + "|"]
+    for state in dict.fromkeys(wear["state"]):
+        r = wear[wear["state"] == state].set_index("quantity")
+        lines.append(f"| {state} | " + " | ".join(_cell(r.loc[q, "value"], r.loc[q, "lo"], r.loc[q, "hi"],
+                                                         r.loc[q, "paper_max"]) for q in qs) + " |")
+    wr = pd.DataFrame(summary["wear_runs"])
+    lines += ["", (f"Wear runs ({sz['wear_runs']} per case, each from its own drawn bench and start): max depth (um) "
+              "and worn volume (mm^3) per joint, mean and [min, max] over the runs"), "",
+              "| case | state | joint | max depth (um) | worn volume (mm^3) |", "|---|---|---|---|---|"]
+    for (case, state, joint), g in wr.groupby(["case", "state", "joint"], sort=False):
+        d, v = g["max_depth_m"] * 1e6, g["volume_m3"] * 1e9
+        lines.append(f"| {case} | {state} | {joint} | {d.mean():.1f} [{d.min():.1f}, {d.max():.1f}] | "
+                     f"{v.mean():.1f} [{v.min():.1f}, {v.max():.1f}] |")
+    c = summary["trend_counts"]
+    lines += ["", (f"The paper's findings on our bench ({pct} intervals of the ratios; a finding agrees when every "
+              f"interval lies above 1, disagrees when one lies below 1): {c['agrees']} agree, {c['disagrees']} "
+              f"disagree, {c['not resolved']} not resolved at this size"), "",
+              "| finding | verdict | ours: ratio [interval] (paper's ratio) |", "|---|---|---|"]
+    lines += [f"| {t['finding']} | {t['verdict']} | {t['detail']} |" for t in summary["trends"]]
+    if summary["failures"]:
+        lines += ["", "Failed realisations (left out): " + "; ".join(
+            f"{k}: {len(v)}" for k, v in summary["failures"].items())]
     return "\n".join(lines)
-
-
-def wear_markdown(wear: CaseResult) -> str:
-    """Wear study (0.6 mm, -5 pi): peaks and depths per state, ours / paper."""
-    p = PAPER["wear_study"]
-    lines = ["Wear study (0.6 mm, -5 pi rad/s), ours / paper", "",
-             "| state | peak slider acc (m/s^2) | " + " | ".join(f"peak F {j} (N) | max depth {j} (m)"
-                                                       for j in wear.run.clearances) + " |",
-             "|---" * (2 + 2 * len(wear.run.clearances)) + "|"]
-    for i, (label, states) in enumerate(wear.run.states):
-        s = wear.summaries[label]
-        cells = [label, f"{s['peak_slider_acc']:.0f} / {p['peak_slider_acc'][i]:g}" if i < 3 else
-                 f"{s['peak_slider_acc']:.0f}"]
-        for j in wear.run.clearances:
-            pf = p["peak_fn"].get(j, [None] * 3)
-            cells.append(f"{s['peak_fn'][j]:.0f}" + (f" / {pf[i]:g}" if i < 3 and pf[i] else ""))
-            pd_ = p["max_depth"].get(j, [None, None])
-            depth = max(states[j].max_depth)
-            cells.append(f"{depth:.3g}" + (f" / {pd_[i - 1]:.3g}" if 1 <= i <= 2 and pd_[i - 1] else ""))
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
-
-
-def trends_markdown(tr: list[dict]) -> str:
-    lines = ["Paper's findings on our bench", "", "| finding | agrees | ours |", "|---|---|---|"]
-    lines += [f"| {t['finding']} | {'yes' if t['ours'] else 'no'} | {t['detail']} |" for t in tr]
-    return "\n".join(lines)
-

@@ -1,4 +1,4 @@
-"""Figures of a study case, one line per worn state, drawn with :mod:`wearbench.model.plots`: the
+"""Figures of a study case, one line per worn state, drawn with :mod:`wearbench.studies.plots`: the
 paper's figures 9-17 (wear study) and 22-32 (clearance study) analogues: slider outputs, contact
 forces, journal centre trajectories, Poincare sections (one point per crank revolution) and phase
 portraits.

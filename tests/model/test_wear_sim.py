@@ -1,5 +1,5 @@
 """Wear on the real model: unworn surfaces change nothing, sharp steps do not break the integrator,
-a simulated stage conserves the Archard volume; the `wear` and `study` commands write their files."""
+a simulated stage conserves the Archard volume; the `wear` command writes its files (`study`: test_study.py)."""
 
 from __future__ import annotations
 
@@ -194,20 +194,6 @@ def test_wear_command_bad_clearance_is_one_line(tmp_path, capsys):
     code = main(["wear", str(shipped_bench("ninebar")), "--clearance", "Z=0.6mm", "--out", str(tmp_path)])
     assert code == 2
     assert "no clearance joint 'Z'" in capsys.readouterr().err
-
-
-@pytest.mark.slow
-def test_study_quick_writes_table3_and_figures(tmp_path):
-    out = tmp_path / "study"
-    assert main(["study", str(shipped_bench("ninebar")), "--quick", "--out", str(out)]) == 0
-    t3 = pd.read_csv(out / "table3.csv", header=[0, 1], index_col=0)
-    assert list(t3.index) == ["clearance A", "clearance B"]
-    assert t3.shape == (2, 6) and (t3.to_numpy() > 0).all()
-    study = json.loads((out / "study.json").read_text())
-    assert {t["finding"] for t in study["trends"]}
-    assert (out / "figures" / "fig09-11_slider.png").exists()
-    assert (out / "figures" / "fig29-30_poincare_0.45mm.png").exists()
-    assert (out / "wear" / "surfaces" / "A_2.npz").exists()
 
 
 def test_journal_spinning_on_its_bearing_under_gravity_wears_as_closed_form_archard():
