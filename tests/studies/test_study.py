@@ -12,6 +12,7 @@ import pytest
 from scipy import stats as sps
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
+from wearbench.model.wear_stages import StagePlan
 from wearbench.studies.study import (
     MAX_STATISTIC,
     STATISTICS,
@@ -24,7 +25,6 @@ from wearbench.studies.study import (
     trends,
     verdict,
 )
-from wearbench.model.wear_stages import StagePlan
 
 
 def test_cycle_maxima_are_the_maxima_of_each_whole_motor_revolution():
