@@ -21,7 +21,8 @@ from wearbench.acquisition.layout import clip_level, recorded_clip_level
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
-from wearbench.validation.calibration import session_calibration
+from wearbench.validation.calibrated import calibrated_models
+from wearbench.validation.calibration import Calibration, session_calibration
 from wearbench.validation.compare import motor_speed
 from wearbench.validation.ensemble import (
     Ensemble,
@@ -39,7 +40,6 @@ from wearbench.validation.identify import (
     identify_features,
 )
 from wearbench.validation.measured import MeasuredSession, load_session
-from wearbench.validation.sensor_path import SensorPath
 from wearbench.validation.windows import (
     MeasuredCurves,
     SessionWindows,
@@ -127,25 +127,28 @@ def _states(bench, candidates) -> tuple[WearState, ...]:
 def _source_digest() -> str:
     """Digest of the validation code a calibration depends on (a change of it is a cache miss)."""
     here = Path(__file__).parent
-    text = b"".join((here / f"{m}.py").read_bytes() for m in ("identify", "statistics", "sensor_path", "windows", "features"))
+    text = b"".join((here / f"{m}.py").read_bytes()
+                    for m in ("identify", "calibrated", "statistics", "sensor_path", "windows", "features"))
     return hashlib.sha256(text).hexdigest()
 
 
 def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, window_options: WindowOptions,
-                   crank_speed: float, sensor: SensorPath | None = None) -> tuple[StateModels, dict[str, WindowTheory]]:
-    """The fitted state statistics (``identify.fit_states``, with the bench's calibrated ``sensor``
-    path or the options' default) and every state's window theory (their held-out nulls): the costly
-    part of judging a session, computed once per ensembles' content, options, sensor path and code,
-    and kept in the result cache (``$WEARBENCH_CACHE``)."""
+                   crank_speed: float, calibration: Calibration | None = None
+                   ) -> tuple[StateModels, dict[str, WindowTheory]]:
+    """The fitted state statistics (``identify.fit_states`` with the options' sensor path, or relative
+    to the bench's ``calibration``, ``calibrated.calibrated_models``) and every state's window theory
+    (their held-out nulls): the costly part of judging a session, computed once per ensembles'
+    content, options, calibration and code, and kept in the result cache (``$WEARBENCH_CACHE``)."""
     from wearbench.model.task_cache import MISSING, cache_load, cache_store, task_key
 
     key = task_key("window-calibration", _source_digest(),
                    {n: (e.features, e.curves, e.speed) for n, e in ensembles.items()}, asdict(options),
-                   asdict(window_options), round(float(crank_speed), 9), asdict(sensor) if sensor else None)
+                   asdict(window_options), round(float(crank_speed), 9), asdict(calibration) if calibration else None)
     hit = cache_load(key)
     if hit is not MISSING:
         return hit
-    models = fit_states(ensembles, options, window_cycles=window_options.cycles, sensor=sensor)
+    models = (calibrated_models(ensembles, calibration, options, window_cycles=window_options.cycles) if calibration
+              else fit_states(ensembles, options, window_cycles=window_options.cycles))
     theories = {name: window_theory(e, crank_speed=crank_speed, models=models, options=window_options)
                 for name, e in ensembles.items()}
     try:
@@ -204,7 +207,7 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
             cal = session_calibration(s, st.features, calibration, mount)
             tag = cal.key if cal else ""
             if tag not in judged:
-                judged[tag] = judging_models(ens, options, window_options, crank, cal.path if cal else None)
+                judged[tag] = judging_models(ens, options, window_options, crank, cal)
             models, theories = judged[tag]
             arrays = _arrays(s)
             feats = session_features(s, st.features, arrays)
