@@ -54,12 +54,16 @@ def _paired(features: Mapping[str, np.ndarray], known: str) -> tuple[np.ndarray,
     centred = [(f - f.mean(axis=1, keepdims=True)).reshape(-1, f.shape[-1]) for f in features.values()]
     m, c, _ = features[known].shape
     within = shrunk_covariance(np.concatenate(centred)) * (m * c - 1) / (m * (c - 1))
-    means, cov = {}, {}
+    means, cov = {}, []
     for s, f in features.items():
         diff = f.mean(axis=1) - features[known].mean(axis=1)  # realisation i is the same bench in every state
         means[s] = diff.mean(axis=0)
-        cov[s] = np.zeros_like(within) if s == known else _psd(shrunk_covariance(diff) - 2.0 * within / c)
-    return within, means, cov
+        if s != known:
+            cov.append(_psd(shrunk_covariance(diff) - 2.0 * within / c))
+    # pooled over the states, the known one included (as the candidates' covariances are pooled): a
+    # state of its own, tighter covariance would win every session near the calibration by its determinant
+    pooled = np.mean(cov, axis=0) if cov else np.zeros_like(within)
+    return within, means, {s: pooled for s in features}
 
 
 @dataclass(frozen=True)
