@@ -23,7 +23,9 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
 for the likelihood with the sensor-path prior (the default), with the path taken as exact (earlier
 versions) and, with --calibrate, with each bench calibrated on one session of a known state (0.3 mm
 new; 0.6 mm new for the 0.3 mm new truths, so calibration and test never share a state), same bench
-and mount.
+and mount: once with the calibration's band gains only, once relative to the calibration session
+(``validation/calibrated.py``, what identify does with a calibration); --brief adds the held-out
+candidates judged relative to the calibration.
 """
 
 from __future__ import annotations
