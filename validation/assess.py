@@ -21,7 +21,6 @@ from wearbench.acquisition.layout import clip_level, recorded_clip_level
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
-from wearbench.validation.calibrated import calibrated_models
 from wearbench.validation.calibration import Calibration, session_calibration
 from wearbench.validation.compare import motor_speed
 from wearbench.validation.ensemble import (
@@ -135,8 +134,8 @@ def _source_digest() -> str:
 def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, window_options: WindowOptions,
                    crank_speed: float, calibration: Calibration | None = None
                    ) -> tuple[StateModels, dict[str, WindowTheory]]:
-    """The fitted state statistics (``identify.fit_states`` with the options' sensor path, or relative
-    to the bench's ``calibration``, ``calibrated.calibrated_models``) and every state's window theory
+    """The fitted state statistics (``identify.fit_states`` with the options' sensor path, or the bench's
+    ``calibration``'s fitted path) and every state's window theory
     (their held-out nulls): the costly part of judging a session, computed once per ensembles'
     content, options, calibration and code, and kept in the result cache (``$WEARBENCH_CACHE``)."""
     from wearbench.model.task_cache import MISSING, cache_load, cache_store, task_key
@@ -147,8 +146,8 @@ def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, 
     hit = cache_load(key)
     if hit is not MISSING:
         return hit
-    models = (calibrated_models(ensembles, calibration, options, window_cycles=window_options.cycles) if calibration
-              else fit_states(ensembles, options, window_cycles=window_options.cycles))
+    models = fit_states(ensembles, options, window_cycles=window_options.cycles,
+                        sensor=calibration.path if calibration else None)
     theories = {name: window_theory(e, crank_speed=crank_speed, models=models, options=window_options)
                 for name, e in ensembles.items()}
     try:
