@@ -33,9 +33,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "impact-band gains with their uncertainty, and keep the sessions' mean cycle features, which hold the "
         "bench's own offsets (its tolerances, its whole sensor path, a mount mode inside an impact band "
         "included). The result is stored under a key of the bench, the accelerometer's recorded calibration "
-        "and --mount; later 'identify' of that bench judges sessions relative to these (every state as the "
-        "calibration moved by the theory's difference between the states), 'estimate' uses the fitted path; "
-        "both say so.")
+        "and --mount; later 'identify' and 'estimate' of that bench use the fitted path instead of the "
+        "unmeasured mount's prior and say so.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="sessions of the bench in the known state")
     p.add_argument("--state", required=True, help="the known state: a [[state]] name of the bench (or --candidates)")
     p.add_argument("--candidates", metavar="STATES.toml", help="file of [[state]] tables (default: the bench's)")
@@ -61,11 +60,10 @@ def run(args: argparse.Namespace) -> int:
     print(cal.describe())
     sd = cal.path.theta_cov.diagonal() ** 0.5
     print(f"uncertainty (1 sd): gain {sd[0]:.3f}, bands " + ", ".join(f"{10 * v:.1f} dB" for v in sd[1:]))
-    print(f"bench offsets: the mean features of {cal.cycles} cycles, against which later sessions are identified")
+    print(f"bench offsets: the mean features of {cal.cycles} cycles are stored too (validation.calibrated)")
     if cal.p_value < 0.001:
         print(f"warning: with the fitted band gains the sessions are still far from {args.state!r} "
               f"(p {cal.p_value:.2g}): is the bench really in that state? (A mount mode inside an impact band "
-              "or a bench at the edge of its tolerances does this too; identification relative to these "
-              "sessions allows for both.)")
+              "or a bench at the edge of its tolerances does this too.)")
     print(f"calibration: {path}")
     return 0
