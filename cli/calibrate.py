@@ -27,7 +27,7 @@ def calibration_options(args: argparse.Namespace) -> dict:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "calibrate", help="fit the bench's sensor path and tolerance offsets from sessions of a known state",
+        "calibrate", help="fit the bench's sensor path (and keep its offsets) from sessions of a known state",
         description="Compare sessions recorded in a state the lab knows (right after assembly: new joints, known "
         "clearance) with that state's theory ensemble: fit the sensor path's low-frequency gain and "
         "impact-band gains with their uncertainty, and keep the sessions' mean cycle features, which hold the "
