@@ -23,7 +23,9 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
 for the likelihood with the sensor-path prior (the default), with the path taken as exact (earlier
 versions) and, with --calibrate, with each bench calibrated on one session of a known state (0.3 mm
 new; 0.6 mm new for the 0.3 mm new truths, so calibration and test never share a state), same bench
-and mount.
+and mount: once with the calibration's band gains only, once relative to the calibration session
+(``validation/calibrated.py``, what identify does with a calibration); --brief adds the held-out
+candidates judged relative to the calibration.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ def main() -> None:
     from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.validation import CompareOptions, load_session, rank_theories
     from wearbench.validation.assess import assess_sessions, session_features
+    from wearbench.validation.calibrated import RelativeStatistics
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
     from wearbench.validation.features import FeatureSpec
     from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
@@ -124,10 +127,16 @@ def main() -> None:
         cals = [calibrate_sessions([p], s.name, ensembles=ensembles) for p, (s, _) in zip(cal_paths, calibrations,
                                                                                             strict=True)]
         t_cal = (time.perf_counter() - t0) / len(cals)
-        variants["calibrated on one session of a known state"] = [fit_states(ensembles, options, sensor=c.path)
-                                                                 for c in cals]
+        variants["calibrated on one session of a known state: its sensor path only"] = [
+            fit_states(ensembles, options, sensor=c.path) for c in cals]
+        t0 = time.process_time()
+        relative = {k: RelativeStatistics.fit(ensembles, k, options) for k in {c.state for c in cals}}
+        t_rel = (time.process_time() - t0) / len(relative)
+        variants["calibrated on one session of a known state (the default: relative to it)"] = [
+            relative[c.state].models(np.asarray(c.features), c.cycles, c.describe()) for c in cals]
         print(f"\ncalibration: {t_cal:.1f} s per 20-cycle session (ensembles loaded); sessions still far from the "
-              f"known state after the fit (p < 0.001): {sum(c.p_value < 0.001 for c in cals)} of {len(cals)}")
+              f"known state after the fit (p < 0.001): {sum(c.p_value < 0.001 for c in cals)} of {len(cals)}; "
+              f"the paired state differences and nulls relative to a known state: {t_rel:.1f} s CPU, once per state")
     if args.sensor_paths:
         from wearbench.hardware.emulators.config import emulator_config
 
@@ -147,6 +156,9 @@ def main() -> None:
         for path in ("prior", "none"):
             print(f"\n[sensor path: {path}]", end="")
             held_out(ensembles, feats, truth_names, names, replace(options, sensor_path=path))
+        if calibrations:
+            print("\n[calibrated on one session of a known state, relative to it]", end="")
+            held_out(ensembles, feats, truth_names, names, options, cals)
         return
     reliability, final = kept
     print("\nreliability (all cycle counts): p_top bin, count, mean p_top, observed accuracy")
@@ -216,14 +228,23 @@ def main() -> None:
           f"[{time.perf_counter() - t0:.0f} s]")
 
 
-def held_out(ensembles, feats, truth_names, names, options) -> None:
-    """Each state removed from the candidates in turn: how its sessions are judged (full sessions)."""
+def held_out(ensembles, feats, truth_names, names, options, calibrations=None) -> None:
+    """Each state removed from the candidates in turn: how its sessions are judged (full sessions;
+    ``calibrations``: each session's bench calibration, relative to which it is judged)."""
+    from wearbench.validation.calibrated import RelativeStatistics
     from wearbench.validation.identify import fit_states, identify_features
 
     print("\nheld-out candidate (the true state removed from the candidates), full sessions:")
     for s in names:
-        held = fit_states({k: v for k, v in ensembles.items() if k != s}, options)
-        rs = [identify_features(f, held) for f, t in zip(feats, truth_names, strict=True) if t == s]
+        rest = {k: v for k, v in ensembles.items() if k != s}
+        rows = [(f, calibrations[i] if calibrations else None) for i, (f, t) in enumerate(zip(feats, truth_names,
+                                                                                             strict=True)) if t == s]
+        if calibrations:
+            relative = {k: RelativeStatistics.fit(rest, k, options) for k in {c.state for _, c in rows}}
+            rs = [identify_features(f, relative[c.state].models(np.asarray(c.features), c.cycles)) for f, c in rows]
+        else:
+            held = fit_states(rest, options)
+            rs = [identify_features(f, held) for f, _ in rows]
         named = np.mean([r.verdict not in ("undecided", "none of the candidates") for r in rs])
         print(f"  truth {s:20s} named a wrong state with p >= {options.threshold}: {named:.2f}   "
               f"'none of the candidates': {np.mean([r.verdict == 'none of the candidates' for r in rs]):.2f}   "

@@ -27,12 +27,14 @@ def calibration_options(args: argparse.Namespace) -> dict:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "calibrate", help="fit the bench's sensor path (mount, sensitivity) from sessions of a known state",
+        "calibrate", help="fit the bench's sensor path (and keep its offsets) from sessions of a known state",
         description="Compare sessions recorded in a state the lab knows (right after assembly: new joints, known "
-        "clearance) with that state's theory ensemble and fit the sensor path's low-frequency gain and "
-        "impact-band gains with their uncertainty. The result is stored under a key of the bench, the "
-        "accelerometer's recorded calibration and --mount; later 'identify' and 'estimate' of that bench use "
-        "it instead of the unmeasured mount's prior and say so.")
+        "clearance) with that state's theory ensemble: fit the sensor path's low-frequency gain and "
+        "impact-band gains with their uncertainty, and keep the sessions' mean cycle features, which hold the "
+        "bench's own offsets (its tolerances, its whole sensor path, a mount mode inside an impact band "
+        "included). The result is stored under a key of the bench, the accelerometer's recorded calibration "
+        "and --mount; later 'identify' and 'estimate' of that bench use the fitted path instead of the "
+        "unmeasured mount's prior and say so.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="sessions of the bench in the known state")
     p.add_argument("--state", required=True, help="the known state: a [[state]] name of the bench (or --candidates)")
     p.add_argument("--candidates", metavar="STATES.toml", help="file of [[state]] tables (default: the bench's)")
@@ -58,8 +60,10 @@ def run(args: argparse.Namespace) -> int:
     print(cal.describe())
     sd = cal.path.theta_cov.diagonal() ** 0.5
     print(f"uncertainty (1 sd): gain {sd[0]:.3f}, bands " + ", ".join(f"{10 * v:.1f} dB" for v in sd[1:]))
+    print(f"bench offsets: the mean features of {cal.cycles} cycles are stored too (validation.calibrated)")
     if cal.p_value < 0.001:
-        print(f"warning: with the fitted path the sessions are still far from {args.state!r} (p {cal.p_value:.2g}): "
-              "is the bench really in that state?")
+        print(f"warning: with the fitted band gains the sessions are still far from {args.state!r} "
+              f"(p {cal.p_value:.2g}): is the bench really in that state? (A mount mode inside an impact band "
+              "or a bench at the edge of its tolerances does this too.)")
     print(f"calibration: {path}")
     return 0

@@ -18,7 +18,7 @@ from pathlib import Path
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
-from wearbench.validation.calibration import session_calibration
+from wearbench.validation.calibration import Calibration, session_calibration
 from wearbench.validation.compare import motor_speed
 from wearbench.validation.ensemble import (
     Ensemble,
@@ -37,7 +37,6 @@ from wearbench.validation.identify import (
     identify_features,
 )
 from wearbench.validation.measured import MeasuredSession, load_session
-from wearbench.validation.sensor_path import SensorPath
 from wearbench.validation.windows import (
     MeasuredCurves,
     SessionWindows,
@@ -104,25 +103,28 @@ def _states(bench, candidates) -> tuple[WearState, ...]:
 def _source_digest() -> str:
     """Digest of the validation code a calibration depends on (a change of it is a cache miss)."""
     here = Path(__file__).parent
-    text = b"".join((here / f"{m}.py").read_bytes() for m in ("identify", "statistics", "sensor_path", "windows", "features"))
+    text = b"".join((here / f"{m}.py").read_bytes()
+                    for m in ("identify", "calibrated", "statistics", "sensor_path", "windows", "features"))
     return hashlib.sha256(text).hexdigest()
 
 
 def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, window_options: WindowOptions,
-                   crank_speed: float, sensor: SensorPath | None = None) -> tuple[StateModels, dict[str, WindowTheory]]:
-    """The fitted state statistics (``identify.fit_states``, with the bench's calibrated ``sensor``
-    path or the options' default) and every state's window theory (their held-out nulls): the costly
-    part of judging a session, computed once per ensembles' content, options, sensor path and code,
-    and kept in the result cache (``$WEARBENCH_CACHE``)."""
+                   crank_speed: float, calibration: Calibration | None = None
+                   ) -> tuple[StateModels, dict[str, WindowTheory]]:
+    """The fitted state statistics (``identify.fit_states`` with the options' sensor path, or the bench's
+    ``calibration``'s fitted path) and every state's window theory
+    (their held-out nulls): the costly part of judging a session, computed once per ensembles'
+    content, options, calibration and code, and kept in the result cache (``$WEARBENCH_CACHE``)."""
     from wearbench.compute.task_cache import MISSING, cache_load, cache_store, task_key
 
     key = task_key("window-calibration", _source_digest(),
                    {n: (e.features, e.curves, e.speed) for n, e in ensembles.items()}, asdict(options),
-                   asdict(window_options), round(float(crank_speed), 9), asdict(sensor) if sensor else None)
+                   asdict(window_options), round(float(crank_speed), 9), asdict(calibration) if calibration else None)
     hit = cache_load(key)
     if hit is not MISSING:
         return hit
-    models = fit_states(ensembles, options, window_cycles=window_options.cycles, sensor=sensor)
+    models = fit_states(ensembles, options, window_cycles=window_options.cycles,
+                        sensor=calibration.path if calibration else None)
     theories = {name: window_theory(e, crank_speed=crank_speed, models=models, options=window_options)
                 for name, e in ensembles.items()}
     try:
@@ -181,7 +183,7 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
             cal = session_calibration(s, st.features, calibration, mount)
             tag = cal.key if cal else ""
             if tag not in judged:
-                judged[tag] = judging_models(ens, options, window_options, crank, cal.path if cal else None)
+                judged[tag] = judging_models(ens, options, window_options, crank, cal)
             models, theories = judged[tag]
             feats = session_features(s, st.features)
             ident = identify_features(feats, models, label=s.label)

@@ -71,6 +71,7 @@ class Calibration:
     path: SensorPath
     p_value: float  # consistency of the calibration sessions with the known state once the path is fitted
     created: str
+    features: tuple[float, ...] = ()  # the sessions' mean cycle features (the spec's, all): ``calibrated.py``
 
     def describe(self) -> str:
         g = self.path.gains_db()
@@ -81,12 +82,13 @@ class Calibration:
     def as_dict(self) -> dict:
         return {"key": self.key, "bench": self.bench, "state": self.state, "sessions": list(self.sessions),
                 "cycles": self.cycles, "mount": self.mount, "path": self.path.as_dict(), "p_value": self.p_value,
-                "created": self.created}
+                "created": self.created, "features": list(self.features)}
 
     @classmethod
     def from_dict(cls, d: dict) -> Calibration:
         return cls(d["key"], d["bench"], d["state"], tuple(d["sessions"]), int(d["cycles"]), d.get("mount", ""),
-                   SensorPath.from_dict(d["path"]), float(d["p_value"]), d["created"])
+                   SensorPath.from_dict(d["path"]), float(d["p_value"]), d["created"],
+                   tuple(float(v) for v in d.get("features", ())))
 
 
 def fit_calibration(features: Sequence[CycleFeatures], models_exact, state: str, *, key: str, bench: str,
@@ -110,8 +112,11 @@ def fit_calibration(features: Sequence[CycleFeatures], models_exact, state: str,
     resid = xbar - st.mean - design_matrix(spec, st.mean) @ path.theta_mean
     shape, scale = models_exact.null[state]
     p = float(stats.gamma.sf(float(resid @ np.linalg.solve(st.covariance(n), resid)), shape, scale=scale))
+    full = np.full(spec.size, np.nan)
+    full[models_exact.columns] = xbar
     return Calibration(key, bench, state, tuple(labels), n, mount, path, p,
-                       time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()) + " UTC")
+                       time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()) + " UTC",
+                       tuple(float(v) for v in full) if np.isfinite(full).all() else ())
 
 
 def calibration_path(key: str, directory: str | Path | None = None) -> Path:

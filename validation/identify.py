@@ -93,6 +93,7 @@ class StateModels:
     window_cycles: int = 5
     spec: FeatureSpec = field(default_factory=FeatureSpec)
     sensor: SensorPath | None = None  # the sensor path marginalised (None: taken as exact)
+    reference: str = ""  # a calibration the states are relative to (``calibrated.py``), "" for none
 
 
 @dataclass
@@ -170,6 +171,17 @@ def default_sensor(spec: FeatureSpec, options: IdentifyOptions) -> SensorPath | 
     return SensorPath.prior(spec) if options.sensor_path == "prior" else None
 
 
+def temper(lls: np.ndarray, truth: np.ndarray) -> float:
+    """The temperature minimising the log loss of held-out sessions: ``lls`` (sessions, states) their
+    log likelihoods, ``truth`` (sessions,) the index of each one's state."""
+
+    def log_loss(log_t: float) -> float:
+        z = lls / np.exp(log_t)
+        return float(-np.mean(z[np.arange(len(truth)), truth] - special.logsumexp(z, axis=1)))
+
+    return float(np.exp(optimize.minimize_scalar(log_loss, bounds=(0.0, np.log(1e4)), method="bounded").x))
+
+
 def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = IdentifyOptions(), *,
                columns: slice = slice(None), window_cycles: int = 5,
                sensor: SensorPath | None = None) -> StateModels:
@@ -209,16 +221,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         window_null[s] = np.asarray(wn).reshape(-1, 2)
         null[s] = _gamma(d2)
         null_direction[s] = _gamma(t2) if others else (1.0, 1.0)  # one candidate: distance 0, p 1
-    lls_a, truth_a = np.asarray(lls), np.asarray(truth)
-
-    def log_loss(log_t: float) -> float:
-        z = lls_a / np.exp(log_t)
-        return float(-np.mean(z[np.arange(len(truth_a)), truth_a] - special.logsumexp(z, axis=1)))
-
-    temperature = 1.0
-    if len(names) > 1:
-        best = optimize.minimize_scalar(log_loss, bounds=(0.0, np.log(1e4)), method="bounded")
-        temperature = float(np.exp(best.x))
+    temperature = temper(np.asarray(lls), np.asarray(truth)) if len(names) > 1 else 1.0
     limit, lo, hi = {}, {}, {}
     for s, f in features.items():
         flat = f.reshape(-1, f.shape[-1])
@@ -313,7 +316,7 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         notes.append(diagnosis["summary"])
     return Identification(label, n, {s: float(p) for s, p in zip(names, post, strict=True)}, verdict,
                           float(post[top]), consistent, explains, p_value, p_direction, needed, inside, leaves,
-                          clipped, notes, models.sensor.source if models.sensor else "none", diagnosis)
+                          clipped, notes, models.reference or (models.sensor.source if models.sensor else "none"), diagnosis)
 
 
 def diagnose(xbar: np.ndarray, n: int, models: StateModels, state: str) -> dict:

@@ -1,0 +1,85 @@
+"""Identification relative to a calibration session of the same bench (``calibrated.py``): a sensor
+path that reshapes a band across crank angles (a mode inside it) and a bench's own tolerance offsets
+make an uncalibrated session "none of the candidates"; judged relative to one session of a known
+state on the same bench and mount, it is named right. Synthetic paired ensembles (realisation i is the same drawn bench in every state, as the
+ensembles' seeds make it)."""
+
+import numpy as np
+import pytest
+from wearbench.validation.calibrated import RelativeStatistics, calibrated_models, fit_calibrated
+from wearbench.validation.calibration import Calibration
+from wearbench.validation.ensemble import Ensemble, EnsembleSettings
+from wearbench.validation.features import CycleFeatures, FeatureSpec
+from wearbench.validation.identify import NONE, IdentifyOptions, fit_states, identify_features
+from wearbench.validation.sensor_path import SensorPath
+
+SPEC = FeatureSpec()
+P = SPEC.size
+SB, SV, SW = 0.09, 0.004, 0.25  # bench offset shared by the states, its state-specific part, cycle noise
+RNG = np.random.default_rng(31)
+MEANS = {"A": np.zeros(P), "B": RNG.normal(0.0, 0.12, P), "C": RNG.normal(0.0, 0.12, P)}
+# a mode inside the 400-1000 Hz band: a different gain at every crank angle, the same in every state
+MODE = np.zeros(P)
+MODE[3 * SPEC.bins:] = 0.6 + 0.5 * np.sin(np.arange(SPEC.bins))
+
+
+def bench(rng):
+    return rng.normal(0.0, np.sqrt(SB), P)
+
+
+def cycles(rng, mean, offset, n):
+    return mean + offset + rng.normal(0.0, np.sqrt(SV), P) + rng.normal(0.0, np.sqrt(SW), (n, P))
+
+
+@pytest.fixture(scope="module")
+def ensembles():
+    rng = np.random.default_rng(1)
+    offsets = [bench(rng) for _ in range(24)]
+    out = {}
+    for s, m in MEANS.items():
+        f = np.stack([cycles(rng, m, b, 8) for b in offsets])
+        out[s] = Ensemble(s, EnsembleSettings(realisations=24, cycles=8), f, np.zeros((24, 8, 4)),
+                          np.zeros((24, 8)), 2 * np.pi)
+    return out
+
+
+def session(x):
+    return CycleFeatures(SPEC, x, np.zeros(x.shape[0]))
+
+
+@pytest.fixture(scope="module")
+def relative(ensembles):
+    return RelativeStatistics.fit(ensembles, "A")
+
+
+def test_calibrated_bench_is_named_right_where_the_uncalibrated_verdict_was_none(ensembles, relative):
+    rng = np.random.default_rng(2)
+    prior = fit_states(ensembles, IdentifyOptions())
+    named_uncal, named_cal, none_uncal = 0, 0, 0
+    for _ in range(6):
+        offset = 2.0 * bench(rng) + MODE  # a bench at the edge of its tolerances, on a carriage with a mode
+        cal = cycles(rng, MEANS["A"], offset, 20)
+        models = relative.models(cal.mean(axis=0), 20, reference="test calibration")
+        for truth in ("B", "C"):
+            x = session(cycles(rng, MEANS[truth], offset, 20))
+            before, after = identify_features(x, prior), identify_features(x, models)
+            none_uncal += before.verdict == NONE
+            named_uncal += before.verdict == truth
+            named_cal += after.verdict == truth
+            assert after.verdict in (truth, "undecided"), (truth, after.posterior, after.p_value, after.p_direction)
+            assert after.sensor_path == "test calibration"
+    assert none_uncal >= 10 and named_uncal == 0
+    assert named_cal >= 9  # measured 10 of 12 (the others undecided)
+
+
+def test_models_of_a_calibration_without_features_or_unpaired_ensembles_fall_back_to_its_path(ensembles):
+    path = SensorPath.prior(SPEC)
+    cal = Calibration("k" * 64, "b", "A", ("s",), 20, "", path, 0.5, "now")
+    assert calibrated_models(ensembles, cal).reference.endswith("its sensor path only")
+    with_features = Calibration("k" * 64, "b", "A", ("s",), 20, "", path, 0.5, "now", tuple(np.zeros(P)))
+    assert not calibrated_models(ensembles, with_features).reference.endswith("only")
+    short = {**ensembles, "C": Ensemble("C", ensembles["C"].settings, ensembles["C"].features[:20],
+                                        ensembles["C"].curves[:20], ensembles["C"].peaks[:20], 2 * np.pi)}
+    with pytest.raises(ValueError, match="paired"):
+        fit_calibrated(short, "A", np.zeros(P), 20)
+    assert calibrated_models(short, with_features).reference.endswith("its sensor path only")
