@@ -28,6 +28,7 @@ from wearbench.validation.compare import (
     TheoryRanking,
     compare_session,
 )
+from wearbench.validation.cycles import crank_turns
 from wearbench.validation.identify_report import NOTES as IDENTIFY_NOTES
 from wearbench.validation.identify_report import IdentifiedSession, identification_section
 from wearbench.validation.measured import MeasuredSession
@@ -162,9 +163,9 @@ def _by_angle(c: SessionComparison, path: Path) -> Path:
     s = c.session
     enc = s.encoder
     angle = np.interp(w.time + w.t_start, enc["time"].to_numpy(float), enc["angle"].to_numpy(float))
-    turns = s.direction * (angle - s.start_angle) / (2 * np.pi)
-    cycle = np.floor(turns - np.floor(turns[0] + 1e-6))
-    deg = 360.0 * (turns - np.floor(turns))
+    crank = crank_turns(angle, start_angle=s.start_angle)
+    cycle = crank.cycle
+    deg = np.degrees(crank.progress - crank.direction * s.start_angle) % 360.0
     fig, ax = _figure(figsize=(10, 3.8))
     for k in np.unique(cycle):
         m = cycle == k
