@@ -46,10 +46,14 @@ def test_seven_of_eight_non_twin_sessions_get_their_state_first(case):
     tops = [max(a.identification.posterior, key=a.identification.posterior.get) for a in assessed]
     right = sum(top == s.name for top, (s, _) in zip(tops, truths, strict=True))
     assert right >= 7, list(zip([s.name for s, _ in truths], tops))
+    verdicts = [(s.name, a.identification.verdict) for a, (s, _) in zip(assessed, truths, strict=True)]
     for a, (s, _) in zip(assessed, truths, strict=True):
         r = a.identification
         assert r.cycles >= CYCLES - 2 and abs(sum(r.posterior.values()) - 1) < 1e-9
-        assert r.verdict in (s.name, UNDECIDED), (s.name, r.verdict, r.posterior)  # never confidently wrong
+        assert r.verdict in (s.name, UNDECIDED, NONE), (s.name, r.verdict, r.posterior)  # never a wrong state
+    # "none of the candidates" for the true state: the consistency test's false alarms (0.03 of
+    # 20-cycle sessions in benchmarks/identify.py; these are 10 cycles): at most one of eight
+    assert sum(v == NONE for _, v in verdicts) <= 1, verdicts
 
 
 def test_a_state_that_is_not_a_candidate_is_not_named_with_high_probability(case):
