@@ -126,3 +126,48 @@ def test_mechanism_that_does_not_assemble(tmp_path):
     with pytest.raises(BenchError) as info:
         build_scene(bench)
     assert str(path) in str(info.value) and "assembl" in str(info.value)
+
+
+TESTBED = shipped_bench("ninebar-testbed")
+
+# mistakes in the test bed's [sensor.chain]: (old, new) -> (key fragment, value fragment, expectation fragment)
+CHAIN_MISTAKES = {
+    "cutoff without unit": (('filter_cutoff = "3 kHz"', "filter_cutoff = 3000"), "sensor[0].chain.filter_cutoff",
+                            "3000", "no unit"),
+    "unknown filter": (('filter = "butterworth"', 'filter = "chebyshev"'), "sensor[0].chain.filter", "chebyshev",
+                       "expected one of"),
+    "order missing": (("filter_order = 8\n", ""), "sensor[0].chain.filter_order", "None", "missing required"),
+    "both filter and its delay": (('filter_cutoff = "3 kHz"', 'filter_cutoff = "3 kHz"\nfilter_delay = "0.27 ms"'),
+                                  "sensor[0].chain.filter_delay", "0.27 ms", "not both"),
+    "latency in Hz": (('latency = "0 ms"', 'latency = "0 Hz"'), "sensor[0].chain.latency", "0 Hz",
+                      "not a time unit"),
+    "no uncertainty": (('uncertainty = "0.05 ms"', ""), "sensor[0].chain.uncertainty", "None",
+                       "missing required"),
+    "typo": (('clock_drift = "20 ppm"', 'clock_drif = "20 ppm"'), "sensor[0].chain.clock_drif", "20 ppm",
+             "unknown key"),
+    "drift too large": (('clock_drift = "20 ppm"', 'clock_drift = "2000 ppm"'), "sensor[0].chain.clock_drift",
+                        "2000 ppm", "within +/-1000 ppm"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CHAIN_MISTAKES))
+def test_broken_sensor_chain_statement_gives_one_clear_error(case, tmp_path):
+    (old, new), key, value, expected = CHAIN_MISTAKES[case]
+    text = TESTBED.read_text()
+    assert old in text, old
+    path = tmp_path / "broken.toml"
+    path.write_text(text.replace(old, new, 1).replace('"worn/', f'"{TESTBED.parent}/worn/'))
+    with pytest.raises(BenchError) as info:
+        load_bench(path)
+    err = info.value
+    assert str(path) in str(err)
+    assert key == err.key, (err.key, str(err))
+    assert value in repr(err.value) or value == str(err.value), (err.value, str(err))
+    assert expected in err.expected, str(err)
+
+
+def test_the_test_beds_chain_statement_is_read_in_si():
+    chain = load_bench(TESTBED).sensor("accelerometer").chain
+    assert (chain.filter, chain.filter_order, chain.filter_cutoff) == ("butterworth", 8, 3000.0)
+    assert chain.clock_drift == pytest.approx(20e-6) and chain.uncertainty == pytest.approx(5e-5)
+    assert load_bench(NINEBAR).sensor("accelerometer").chain is None  # no statement: none invented
