@@ -77,7 +77,9 @@ def _measured_delays(bench, config: EmulatorConfig, rate: float, seconds: float,
     for t0 in at:
         sel = np.abs(t - t0) <= 0.5
         tt, xx = t[sel] + start, x[sel]
-        cost = lambda tau: float(np.mean((xx - table.at(W * (tt - tau) - W * ramp / 2)) ** 2))  # noqa: E731
+        def cost(tau: float, tt=tt, xx=xx) -> float:
+            return float(np.mean((xx - table.at(W * (tt - tau) - W * ramp / 2)) ** 2))
+
         out.append(minimize_scalar(cost, bounds=(-2e-3, 4e-3), method="bounded", options={"xatol": 1e-8}).x)
     return out
 
