@@ -92,9 +92,8 @@ def _assess(args: argparse.Namespace, options, sessions) -> int:
         line = f"{r.session}: {r.verdict} (" + ", ".join(f"{s} {p:.3f}" for s, p in r.posterior.items()) + "); "
         if a.decided:
             own = a.windows[a.state]
-            delay = sorted(w.delay_s for w in own.windows)
             line += f"windows against {a.state}: {own.label}" + (
-                f", sensor delay {1e3 * delay[len(delay) // 2]:.2f} ms" if delay else "")
+                f"; sensor delay {own.delay.describe()}" if own.delay else "")
         else:
             line += "windows: cannot decide which state to judge them against"
         print(line)
