@@ -224,3 +224,13 @@ def test_calibration_is_computed_once_per_ensembles_content(ensembles, monkeypat
     other = {k: Ensemble(e.state, e.settings, e.features, e.curves * 1.01, e.peaks, e.speed) for k, e in ensembles.items()}
     with pytest.raises(AssertionError, match="fitted again"):
         assess.assess_sessions([s], ensembles=other, progress=None)
+
+
+def test_stream_start_counts_the_blocks_before_the_first_recorded_one():
+    from wearbench.validation.assess import stream_start
+
+    t, angle, acc = generate("soft", 7100, 3.5)
+    keep = slice(600, None)  # the first three 200-sample blocks were not recorded
+    frame = pd.DataFrame({"time": t[keep], "acc": acc[keep], "sequence": np.arange(t.size)[keep] // 200})
+    s = MeasuredSession("late start", frame, pd.DataFrame({"time": t[::5], "angle": angle[::5]}))
+    assert stream_start(s) == pytest.approx(t[0], abs=1e-9)
