@@ -13,8 +13,8 @@ where the CFC 180 windows carry their content) plus its sample clock's drift sin
 
 The delay is found three ways on the same sessions: from the signal alone (the statement removed);
 with the bench's ``[sensor.chain]`` statement, its latency set to the truth's ``accel_delay`` as a
-tap test would quote it (to 0.01 ms); and with a wrong statement (that latency 0.5 ms too large),
-whose residual should sit at its bound and be flagged.
+tap test would quote it (to 0.01 ms); and with wrong statements (that latency 0.5 or 1.5 ms too
+large), whose residual should sit at its bound and be flagged.
 
 Prints, for every window of every session against every state's ensemble (default shipped
 ensembles when their key matches, else built): the consistent rate against the true state, the
@@ -135,7 +135,8 @@ def delay_rates(bench, truths, ensembles, options) -> None:
     chain = bench.sensor("accelerometer").chain
     ways = {"signal alone (no statement)": lambda d: None,
             "stated (tap-test latency to 0.01 ms)": lambda d: replace(chain, latency=round(d, 5)),
-            "wrong statement (latency +0.5 ms)": lambda d: replace(chain, latency=round(d, 5) + 5e-4)}
+            "wrong statement (latency +0.5 ms)": lambda d: replace(chain, latency=round(d, 5) + 5e-4),
+            "wrong statement (latency +1.5 ms)": lambda d: replace(chain, latency=round(d, 5) + 1.5e-3)}
     print(f"\nsensor delay, true = accel_delay (0-{max(t[2] for t in truths) * 1e3:.2f} ms) + the emulator chain's group "
           f"delay + its clock drift since the stream began; statement: {chain}")
     print(f"{'delay from':40s} {'within 0.2 ms':>13s} {'error p5/p50/p95 ms':>22s} {'residual at bound':>18s} "
