@@ -71,7 +71,7 @@ class WindowOptions:
     alpha: float = 0.05          # false-alarm rate of the verdict (per window)
     statistic: str = "features"  # the verdict's statistic, one of STATISTICS
     max_delay: float = 2e-3      # s, without a statement the sensor chain's delay is fitted in [0, max_delay]
-    delay_floor: float = 5e-4    # s, how far a fit on the signal alone scatters per session (README)
+    delay_floor: float = 7.5e-4  # s, how far a fit on the signal alone scatters: p95 of its error (README)
     delay_step: float = 2.5e-5   # s, grid of the delay search (then refined by a parabola)
     delay_lowpass: float = 10.0  # Hz, the delay is fitted on both signals low-passed here (README: why)
     iso_realisations: int = 3    # realisations each window is rated against (ISO/TS 18571)
