@@ -169,3 +169,12 @@ def test_the_test_beds_chain_statement_is_read_in_si():
     assert (chain.filter, chain.filter_order, chain.filter_cutoff) == ("butterworth", 8, 3000.0)
     assert chain.clock_drift == pytest.approx(20e-6) and chain.uncertainty == pytest.approx(5e-5)
     assert load_bench(NINEBAR).sensor("accelerometer").chain is None  # no statement: none invented
+
+
+def test_bench_show_gives_the_stated_chain_delay(capsys):
+    from wearbench.cli import main
+
+    assert main(["bench", "show", "ninebar-testbed"]) == 0
+    out = capsys.readouterr().out
+    # 1 / (2 pi 3 kHz sin(pi/16)) = 0.272 ms for the 8th-order Butterworth
+    assert "its chain, as stated: stated 0.272 ms" in out and "20 ppm clock drift" in out
