@@ -341,6 +341,7 @@ class WindowVerdict:
     times: np.ndarray = field(repr=False)      # (cycles, grid) s from the window's start
     realisation: int = 0             # the realisation shown beside it (median ISO rating of the pool)
     realisation_window: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)  # its window
+    delay_stated_s: float | None = None  # the bench's statement at the window (None: from the signal alone)
 
     @property
     def p(self) -> float:
@@ -353,7 +354,9 @@ class WindowVerdict:
 
     def as_dict(self) -> dict:
         return {"state": self.state, "start_cycle": self.start_cycle, "t_start": self.t_start, "t_end": self.t_end,
-                "delay_s": self.delay_s, "consistent": self.consistent, "p": self.p, "departs": self.departs,
+                "delay_s": self.delay_s, "delay_stated_s": self.delay_stated_s,
+                "delay_residual_s": None if self.delay_stated_s is None else self.delay_s - self.delay_stated_s,
+                "consistent": self.consistent, "p": self.p, "departs": self.departs,
                 "percentile": self.percentile, "statistics": self.statistics, "p_values": self.p_values,
                 "iso": self.iso, "iso_percentile": self.iso_percentile, "realisation_shown": self.realisation}
 
@@ -519,5 +522,6 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
                                  values, p, sub,
                                  float(100.0 * np.mean(theory.null_iso <= sub["rating"])), percentile,
                                  opts.statistic, consistent, departs, x,
-                                 measured.times[cyc] - t0, shown, theory.windows[shown, 0]))
+                                 measured.times[cyc] - t0, shown, theory.windows[shown, 0],
+                                 float(measured.stated(stated, cyc).mean()) if stated is not None else None))
     return SessionWindows(theory.state, opts, out, theory.band, fit)
