@@ -3,7 +3,7 @@
 Every cache of computed physics (ensembles, emulator tables, study and sweep tasks) keys a bench on
 :func:`bench_key`: everything the model's motion depends on, and the tolerances its draws come from;
 not the bench's name, file, text, description, hardware, emulator or compute settings, the motor's
-limits or what a sensor records (range, sensitivity, rate). Files (worn surfaces) count by the
+limits or what a sensor records (range, sensitivity, rate, the stated chain). Files (worn surfaces) count by the
 SHA-256 of what they hold, floats exactly.
 """
 
@@ -23,7 +23,7 @@ __all__ = ["NOT_PHYSICS", "bench_key", "canonical", "file_digest"]
 
 # fields of the bench's dataclasses left out of its content (see the module docstring)
 NOT_PHYSICS = frozenset({"name", "path", "source", "sha256", "description", "emulator", "hardware", "states",
-                         "motor", "tolerances", "scheduler", "range", "sensitivity", "sample_rate"})
+                         "motor", "tolerances", "scheduler", "range", "sensitivity", "sample_rate", "chain"})
 
 
 def file_digest(path: str | Path) -> str:

@@ -31,6 +31,7 @@ from wearbench.bench.schema import (
     Material,
     Motor,
     Sensor,
+    SensorChainStatement,
     Tolerances,
     WearSettings,
     WearState,
@@ -271,7 +272,7 @@ def _sensor(r: _Reader, i: int, data: dict, bodies: dict[str, Body], joints: dic
     r.table(data, key)
     kind = r.text(data, key, "kind", choices=("accelerometer", "encoder"))
     if kind == "accelerometer":
-        r.keys(data, key, {"name", "kind", "body", "point", "axis", "range", "sample_rate"}, {"sensitivity"})
+        r.keys(data, key, {"name", "kind", "body", "point", "axis", "range", "sample_rate"}, {"sensitivity", "chain"})
         body = r.text(data, key, "body", choices=tuple(bodies))
         point = r.text(data, key, "point", choices=tuple(bodies[body].points))
         return Sensor(
@@ -281,6 +282,7 @@ def _sensor(r: _Reader, i: int, data: dict, bodies: dict[str, Body], joints: dic
             sample_rate=r.quantity(data, key, "sample_rate", "frequency", positive=True),
             sensitivity=(r.quantity(data, key, "sensitivity", "sensitivity", positive=True)
                          if "sensitivity" in data else None),
+            chain=_chain(r, f"{key}.chain", data["chain"]) if "chain" in data else None,
         )
     r.keys(data, key, {"name", "kind", "joint", "counts_per_rev", "sample_rate"})
     joint = r.text(data, key, "joint", choices=tuple(j for j, v in joints.items() if v.kind == "revolute"))
@@ -289,6 +291,44 @@ def _sensor(r: _Reader, i: int, data: dict, bodies: dict[str, Body], joints: dic
         counts_per_rev=int(r.number(data, key, "counts_per_rev", low=1, integer=True)),
         sample_rate=r.quantity(data, key, "sample_rate", "frequency", positive=True),
     )
+
+
+def _either(r: _Reader, data: dict, key: str, stated: str, parts: tuple[str, ...]) -> None:
+    """A chain stage is stated either by its response (``parts``) or by its delay (``stated``)."""
+    if stated in data and any(p in data for p in parts):
+        raise r.fail(f"{key}.{stated}", data[stated], f"expected either {stated} or {'/'.join(parts)}, not both "
+                     "(the stage's stated delay, or its response from which the host computes the delay)")
+
+
+def _chain(r: _Reader, key: str, data: Any) -> SensorChainStatement:
+    """``[sensor.chain]``: what the lab states of the accelerometer's chain (bench.schema.SensorChainStatement)."""
+    r.table(data, key)
+    r.keys(data, key, {"uncertainty"}, {"filter", "filter_order", "filter_cutoff", "filter_delay", "resonance",
+                                        "damping", "sensor_delay", "latency", "clock_drift"})
+    _either(r, data, key, "filter_delay", ("filter", "filter_order", "filter_cutoff"))
+    _either(r, data, key, "sensor_delay", ("resonance", "damping"))
+    kind = r.text(data, key, "filter", choices=("butterworth", "bessel", "none"), default="none")
+    order, cutoff = 0, 0.0
+    if kind != "none":
+        order = int(r.number(data, key, "filter_order", low=1, high=16, integer=True))
+        cutoff = r.quantity(data, key, "filter_cutoff", "frequency", positive=True)
+    else:
+        for k in ("filter_order", "filter_cutoff"):
+            if k in data:
+                raise r.fail(f"{key}.{k}", data[k], "expected a filter type with it (filter = 'butterworth' | 'bessel')")
+    resonance = r.quantity(data, key, "resonance", "frequency", positive=True, default=0.0)
+    if "damping" in data and not resonance:
+        raise r.fail(f"{key}.damping", data["damping"], "expected a resonance with it (resonance = '25 kHz')")
+    drift = r.quantity(data, key, "clock_drift", "drift", default=0.0)
+    if abs(drift) > 1e-3:
+        raise r.fail(f"{key}.clock_drift", data["clock_drift"], "expected a sample-clock drift within +/-1000 ppm")
+    return SensorChainStatement(
+        filter=kind, filter_order=order, filter_cutoff=cutoff,
+        filter_delay=r.quantity(data, key, "filter_delay", "time", nonnegative=True) if "filter_delay" in data else None,
+        resonance=resonance, damping=r.number(data, key, "damping", low=0.0, high=1.0, open_low=True, default=0.05),
+        sensor_delay=r.quantity(data, key, "sensor_delay", "time", nonnegative=True) if "sensor_delay" in data else None,
+        latency=r.quantity(data, key, "latency", "time", default=0.0), clock_drift=drift,
+        uncertainty=r.quantity(data, key, "uncertainty", "time", nonnegative=True))
 
 
 def _hardware(r: _Reader, data: dict) -> Hardware:

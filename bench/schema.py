@@ -25,6 +25,7 @@ __all__ = [
     "Material",
     "Motor",
     "Sensor",
+    "SensorChainStatement",
     "Tolerances",
     "WearSettings",
     "WearState",
@@ -108,6 +109,30 @@ class Driver:
 
 
 @dataclass(frozen=True)
+class SensorChainStatement:
+    """What a lab states of an accelerometer's chain between the mechanism and its timestamps (the
+    ``[sensor.chain]`` table of the sensor; host side: datasheets, calibration sheet, a tap test).
+
+    The DAQ's anti-alias filter as ``filter`` (type), ``filter_order`` and ``filter_cutoff`` (Hz,
+    -3 dB), or its datasheet group delay ``filter_delay`` (s); the sensor's mounted resonance
+    (``resonance`` Hz, ``damping``) or its stated delay ``sensor_delay`` (s); ``latency``: the rest
+    of the accelerometer's timestamps behind the encoder's (s, e.g. measured by a tap test);
+    ``clock_drift``: the DAQ's sample clock against the encoder's (fraction, + = fast: its samples
+    fall ever later behind their stamps); ``uncertainty`` (s) of the whole stated delay."""
+
+    filter: str = "none"             # "butterworth" | "bessel" | "none"
+    filter_order: int = 0
+    filter_cutoff: float = 0.0       # Hz
+    filter_delay: float | None = None  # s, the datasheet's group delay instead of type/order/cutoff
+    resonance: float = 0.0           # Hz, 0 = none stated
+    damping: float = 0.05
+    sensor_delay: float | None = None  # s, the sensor's stated delay instead of its resonance
+    latency: float = 0.0             # s
+    clock_drift: float = 0.0         # fraction
+    uncertainty: float = 1e-4        # s
+
+
+@dataclass(frozen=True)
 class Sensor:
     name: str
     kind: str  # "accelerometer" | "encoder"
@@ -119,6 +144,7 @@ class Sensor:
     sensitivity: float | None = None  # V per m/s^2
     joint: str | None = None
     counts_per_rev: int | None = None
+    chain: SensorChainStatement | None = None  # accelerometer: the lab's statement of its chain
 
 
 @dataclass(frozen=True)

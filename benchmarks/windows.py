@@ -6,18 +6,28 @@ Truths are made as in ``benchmarks/identify.py`` (its helpers, ``wearbench.testi
 with its own seed (never an ensemble draw: those use seeds 1..M), through the test bed's sensor chain
 (stud-mounted resonance, 8th-order anti-alias filter, noise, 16-bit ADC), recorded through the sim
 backend to MCAP. Each truth's accelerometer is also late behind the encoder by its own
-``accel_delay``, drawn uniform in [0, --delay-max]; the true sensor delay is that plus the chain's
-group delay at 100 Hz (the filters' delay where the CFC 180 windows carry their content).
+``accel_delay``, drawn uniform in [0, --delay-max]; the true sensor delay of a window is that plus
+the emulator's chain's group delay (its digital filters as it runs them, averaged over 1-100 Hz,
+where the CFC 180 windows carry their content) plus its sample clock's drift since the stream began
+(at the window's middle): all read from the emulator's side, never from the bench's statement.
+
+The delay is found three ways on the same sessions: from the signal alone (the statement removed);
+with the bench's ``[sensor.chain]`` statement, its latency set to the truth's ``accel_delay`` as a
+tap test would quote it (to 0.01 ms); and with wrong statements (that latency 0.5 or 1.5 ms too
+large), whose residual should sit at its bound and be flagged.
 
 Prints, for every window of every session against every state's ensemble (default shipped
 ensembles when their key matches, else built): the consistent rate against the true state, the
 inconsistent rate against each wrong state, the KS test of the true state's window percentiles
-against uniform, the fitted-delay error, the scores' separation (which statistic was chosen and
-why) and the time to score a 20-cycle session's windows against 4 cached ensembles.
+against uniform, the delay's error the three ways (within 0.2 ms, p5/p50/p95, how often the
+residual sits at its bound and the statement is flagged as disagreeing), the scores' separation
+(which statistic was chosen and why) and the time to score a 20-cycle session's windows against 4
+cached ensembles.
 
-    .venv/bin/python benchmarks/windows.py [--draws 5] [--cycles 20] [--sessions DIR]
+    .venv/bin/python benchmarks/windows.py [--draws 5] [--cycles 20] [--sessions DIR] [--delay-only]
 
-``--sessions DIR`` keeps the recorded sessions there and reuses them on the next run.
+``--sessions DIR`` keeps the recorded sessions there and reuses them on the next run (the truths
+take about a minute of CPU each the first time).
 """
 
 from __future__ import annotations
@@ -31,9 +41,10 @@ from pathlib import Path
 import numpy as np
 
 
-def true_sensor_delay(bench, accel_delay: float) -> float:
-    """The truth's accelerometer delay behind the encoder (s): ``accel_delay`` plus the group delay
-    of the emulator's sensor chain (mounting resonance and anti-alias filter) at 100 Hz."""
+def true_sensor_delay(bench, accel_delay: float) -> tuple[float, float]:
+    """The truth's accelerometer delay behind the encoder at the stream's start (s: ``accel_delay``
+    plus the group delay of the emulator's sensor chain, its mounting resonance and anti-alias filter
+    as it runs them, averaged over 1-100 Hz) and its sample clock's drift (fraction)."""
     from scipy import signal as sps
     from wearbench.hardware.emulators.config import emulator_config
     from wearbench.hardware.emulators.sensor import SensorChain
@@ -41,10 +52,11 @@ def true_sensor_delay(bench, accel_delay: float) -> float:
     cfg = emulator_config(bench, bench.states[0], 1)
     acc = bench.sensor("accelerometer")
     chain = SensorChain(cfg.accelerometer, acc.sample_rate, acc.range, np.random.default_rng(0))
+    drift = cfg.accelerometer.drift
     if chain.sos is None:
-        return accel_delay
-    _, gd = sps.group_delay(sps.sos2tf(chain.sos), w=[100.0], fs=chain.internal_rate)
-    return accel_delay + float(gd[0]) / chain.internal_rate
+        return accel_delay, drift
+    _, gd = sps.group_delay(sps.sos2tf(chain.sos), w=np.linspace(1.0, 100.0, 64), fs=chain.internal_rate)
+    return accel_delay + float(np.mean(gd)) / chain.internal_rate, drift
 
 
 def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, float]]:
@@ -72,7 +84,7 @@ def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, fl
             # one cycle more than analysed: cycles are cut at crank angle 0, the partial ends dropped
             record_state(bench, s, seed, path, backend="sim", cycles=args.cycles + 1, revolutions=revolutions,
                          table=table)
-    return [(s.name, path, true_sensor_delay(bench, delay)) for s, _, _, delay, path in truths]
+    return [(s.name, path, delay) for s, _, _, delay, path in truths]
 
 
 def main() -> None:
@@ -85,6 +97,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None, help="compute workers (default: the machine's cores)")
     ap.add_argument("--record-only", action="store_true", help="record the truths and stop")
     ap.add_argument("--alpha", type=float, default=0.05, help="false-alarm rate of the verdict (0.05)")
+    ap.add_argument("--delay-only", action="store_true", help="print only the sensor delay table")
     args = ap.parse_args()
     os.environ.setdefault("WEARBENCH_CACHE", tempfile.mkdtemp(prefix="wearbench-windows-"))
 
@@ -105,6 +118,51 @@ def _clearance(name: str) -> str:
     return name.split(" mm")[0]
 
 
+def _with_chain(session, chain):
+    """``session`` with its bench's accelerometer chain statement replaced (None: removed)."""
+    from dataclasses import replace
+
+    b = session.bench
+    session.bench = replace(b, sensors=tuple(replace(x, chain=chain) if x.kind == "accelerometer" else x
+                                             for x in b.sensors))
+    return session
+
+
+def delay_rates(bench, truths, ensembles, options) -> None:
+    """The delay found three ways (module docstring) against the emulator's true delay per window."""
+    from dataclasses import replace
+
+    from wearbench.validation.assess import assess_sessions, stream_start
+    from wearbench.validation.measured import load_session
+
+    chain = bench.sensor("accelerometer").chain
+    ways = {"signal alone (no statement)": lambda d: None,
+            "stated (tap-test latency to 0.01 ms)": lambda d: replace(chain, latency=round(d, 5)),
+            "wrong statement (latency +0.5 ms)": lambda d: replace(chain, latency=round(d, 5) + 5e-4),
+            "wrong statement (latency +1.5 ms)": lambda d: replace(chain, latency=round(d, 5) + 1.5e-3)}
+    print(f"\nsensor delay, true = accel_delay (0-{max(t[2] for t in truths) * 1e3:.2f} ms) + the emulator chain's group "
+          f"delay + its clock drift since the stream began; statement: {chain}")
+    print(f"{'delay from':40s} {'within 0.2 ms':>13s} {'error p5/p50/p95 ms':>22s} {'residual at bound':>18s} "
+          f"{'flagged disagrees':>18s}")
+    for label, statement in ways.items():
+        sessions = [_with_chain(load_session(p, label=f"{name} #{p.stem}"), statement(d)) for name, p, d in truths]
+        assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, progress=None)
+        err, bound, flag = [], [], []
+        for (truth, _, accel_delay), s, a in zip(truths, sessions, assessed, strict=True):
+            sw = a.windows[truth]
+            constant, drift = true_sensor_delay(bench, accel_delay)
+            start = stream_start(s)
+            for w in sw.windows:
+                true = constant + drift / (1 + drift) * (0.5 * (w.t_start + w.t_end) - start)
+                err.append(w.delay_s - true)
+            bound.append(sw.delay.at_bound)
+            flag.append(sw.delay.disagrees)
+        err = np.asarray(err)
+        p5, p50, p95 = np.percentile(err, [5, 50, 95]) * 1e3
+        print(f"{label:40s} {np.mean(np.abs(err) <= 0.2e-3):13.2f} {p5:+7.3f}/{p50:+.3f}/{p95:+.3f} "
+              f"{np.mean(bound):18.2f} {np.mean(flag):18.2f}   ({err.size} windows, {len(bound)} sessions)")
+
+
 def report(bench, states, truths, args) -> None:
     """Score every window of every session against every state; print the tables."""
     from scipy import stats
@@ -116,7 +174,14 @@ def report(bench, states, truths, args) -> None:
     names = [s.name for s in states]
     ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), progress=None)
     options = WindowOptions(alpha=args.alpha)
-    sessions = [load_session(p, label=f"{name} #{p.stem}") for name, p, _ in truths]
+    if args.delay_only:
+        delay_rates(bench, truths, ensembles, options)
+        return
+    from dataclasses import replace
+
+    chain = bench.sensor("accelerometer").chain  # each session with its truth's tap-tested latency stated
+    sessions = [_with_chain(load_session(p, label=f"{name} #{p.stem}"), replace(chain, latency=round(d, 5)))
+                for name, p, d in truths]
     timings = []  # the calibration (fit, window nulls) is computed the first time, then cached
     for _ in range(2):
         t0, c0 = time.perf_counter(), time.process_time()
@@ -163,11 +228,7 @@ def report(bench, states, truths, args) -> None:
     print(f"\ntrue state's window percentiles among held-out realisation windows: KS p = "
           f"{stats.kstest(pct, 'uniform').pvalue:.3f} ({len(pct)} windows; deciles "
           + " ".join(f"{np.mean((pct >= lo) & (pct < lo + 0.1)):.2f}" for lo in np.arange(0, 1, 0.1)) + ")")
-    err = np.array([r[2].delay_s - r[3] for r in right])
-    print(f"\nsensor delay (true: accel_delay + the chain's group delay at 100 Hz, "
-          f"{min(r[3] for r in right) * 1e3:.2f}-{max(r[3] for r in right) * 1e3:.2f} ms): fitted within 0.2 ms in "
-          f"{np.mean(np.abs(err) <= 0.2e-3):.2f} of the windows; error median {np.median(err) * 1e3:+.3f} ms, "
-          f"p5/p95 {np.percentile(err, 5) * 1e3:+.3f}/{np.percentile(err, 95) * 1e3:+.3f} ms")
+    delay_rates(bench, truths, ensembles, options)
     iso = np.array([r[2].iso["rating"] for r in right])
     iso_w = np.array([r[2].iso["rating"] for r in other_clearance + other_wear])
     print(f"\nISO/TS 18571 against single realisations: true state {np.median(iso):.3f} (median), wrong states "

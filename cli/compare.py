@@ -42,8 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-shift", type=nonnegative_number, default=0.2, metavar="CYCLES",
                    help="residual time-shift search, fraction of a crank cycle, < 0.5 (default 0.2)")
     p.add_argument("--max-delay", default="2ms", metavar="TIME",
-                   help="the sensor chain's delay (accelerometer behind the encoder) is fitted up to this "
-                        "(default 2ms)")
+                   help="without a [sensor.chain] statement in the bench, the sensor chain's delay (accelerometer "
+                        "behind the encoder) is fitted from the signal up to this (default 2ms)")
     p.add_argument("--candidates", metavar="STATES.toml|bench",
                    help="identify each session among candidate states ([[state]] tables of a file, or 'bench' "
                         "for those of the session's bench file, the default when it has any and no --theory is "
@@ -92,9 +92,8 @@ def _assess(args: argparse.Namespace, options, sessions) -> int:
         line = f"{r.session}: {r.verdict} (" + ", ".join(f"{s} {p:.3f}" for s, p in r.posterior.items()) + "); "
         if a.decided:
             own = a.windows[a.state]
-            delay = sorted(w.delay_s for w in own.windows)
             line += f"windows against {a.state}: {own.label}" + (
-                f", sensor delay {1e3 * delay[len(delay) // 2]:.2f} ms" if delay else "")
+                f"; sensor delay {own.delay.describe()}" if own.delay else "")
         else:
             line += "windows: cannot decide which state to judge them against"
         print(line)

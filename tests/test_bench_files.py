@@ -96,6 +96,10 @@ def test_broken_bench_gives_one_clear_error(case, tmp_path):
     (old, new), key, value, expected = MISTAKES[case]
     path = tmp_path / "broken.toml"
     path.write_text(_broken(old, new))
+    _assert_one_clear_error(path, key, value, expected)
+
+
+def _assert_one_clear_error(path, key: str, value: str, expected: str) -> None:
     with pytest.raises(BenchError) as info:
         load_bench(path)
     err = info.value
@@ -126,3 +130,51 @@ def test_mechanism_that_does_not_assemble(tmp_path):
     with pytest.raises(BenchError) as info:
         build_scene(bench)
     assert str(path) in str(info.value) and "assembl" in str(info.value)
+
+
+TESTBED = shipped_bench("ninebar-testbed")
+
+# mistakes in the test bed's [sensor.chain]: (old, new) -> (key fragment, value fragment, expectation fragment)
+CHAIN_MISTAKES = {
+    "cutoff without unit": (('filter_cutoff = "3 kHz"', "filter_cutoff = 3000"), "sensor[0].chain.filter_cutoff",
+                            "3000", "no unit"),
+    "unknown filter": (('filter = "butterworth"', 'filter = "chebyshev"'), "sensor[0].chain.filter", "chebyshev",
+                       "expected one of"),
+    "order missing": (("filter_order = 8\n", ""), "sensor[0].chain.filter_order", "None", "missing required"),
+    "both filter and its delay": (('filter_cutoff = "3 kHz"', 'filter_cutoff = "3 kHz"\nfilter_delay = "0.27 ms"'),
+                                  "sensor[0].chain.filter_delay", "0.27 ms", "not both"),
+    "latency in Hz": (('latency = "0 ms"', 'latency = "0 Hz"'), "sensor[0].chain.latency", "0 Hz",
+                      "not a time unit"),
+    "no uncertainty": (('uncertainty = "0.05 ms"', ""), "sensor[0].chain.uncertainty", "None",
+                       "missing required"),
+    "typo": (('clock_drift = "20 ppm"', 'clock_drif = "20 ppm"'), "sensor[0].chain.clock_drif", "20 ppm",
+             "unknown key"),
+    "drift too large": (('clock_drift = "20 ppm"', 'clock_drift = "2000 ppm"'), "sensor[0].chain.clock_drift",
+                        "2000 ppm", "within +/-1000 ppm"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CHAIN_MISTAKES))
+def test_broken_sensor_chain_statement_gives_one_clear_error(case, tmp_path):
+    (old, new), key, value, expected = CHAIN_MISTAKES[case]
+    text = TESTBED.read_text()
+    assert old in text, old
+    path = tmp_path / "broken.toml"
+    path.write_text(text.replace(old, new, 1).replace('"worn/', f'"{TESTBED.parent}/worn/'))
+    _assert_one_clear_error(path, key, value, expected)
+
+
+def test_the_test_beds_chain_statement_is_read_in_si():
+    chain = load_bench(TESTBED).sensor("accelerometer").chain
+    assert (chain.filter, chain.filter_order, chain.filter_cutoff) == ("butterworth", 8, 3000.0)
+    assert chain.clock_drift == pytest.approx(20e-6) and chain.uncertainty == pytest.approx(5e-5)
+    assert load_bench(NINEBAR).sensor("accelerometer").chain is None  # no statement: none invented
+
+
+def test_bench_show_gives_the_stated_chain_delay(capsys):
+    from wearbench.cli import main
+
+    assert main(["bench", "show", "ninebar-testbed"]) == 0
+    out = capsys.readouterr().out
+    # 1 / (2 pi 3 kHz sin(pi/16)) = 0.272 ms for the 8th-order Butterworth
+    assert "its chain, as stated: stated 0.272 ms" in out and "20 ppm clock drift" in out

@@ -15,10 +15,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import numpy as np
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
 from wearbench.validation.calibration import Calibration, session_calibration
+from wearbench.validation.chain_delay import StatedDelay, stated_delay
 from wearbench.validation.compare import motor_speed
 from wearbench.validation.ensemble import (
     Ensemble,
@@ -47,7 +49,8 @@ from wearbench.validation.windows import (
     window_theory,
 )
 
-__all__ = ["Assessment", "assess_sessions", "judging_models", "session_features"]
+__all__ = ["Assessment", "assess_sessions", "judging_models", "session_features", "session_stated_delay",
+           "stream_start"]
 
 
 @dataclass
@@ -79,6 +82,30 @@ def session_features(session: MeasuredSession, spec: FeatureSpec | None = None) 
     """Cycle features of a measured session, from its samples, sample rate and clip level (the
     recorder's rule at the range the session recorded in its calibration)."""
     return cycle_features(*session.samples, spec or FeatureSpec(), clip_level=session.clip_level, fs=session.fs)
+
+
+def session_stated_delay(session: MeasuredSession, band: tuple[float, float] = (1.0, 100.0)) -> StatedDelay | None:
+    """The accelerometer delay the session's bench states (its ``[sensor.chain]``), its filters' group
+    delay averaged over ``band`` (Hz); None without a statement."""
+    if session.bench is None:
+        return None
+    try:
+        chain = session.bench.sensor("accelerometer").chain
+    except KeyError:
+        return None
+    return stated_delay(chain, band) if chain is not None else None
+
+
+def stream_start(session: MeasuredSession) -> float:
+    """When the session's accelerometer stream began (s): its first sample, less the blocks before it
+    (sequence numbers count blocks from the stream's start)."""
+    acc = session.acceleration
+    t0 = float(acc["time"].iloc[0])
+    if "sequence" not in acc.columns:
+        return t0
+    seq = acc["sequence"].to_numpy()
+    block = int(np.count_nonzero(seq == seq[0]))
+    return t0 - int(seq[0]) * block / session.fs
 
 
 def commanded_speed(session: MeasuredSession) -> float:
@@ -191,9 +218,10 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                 ident.notes.append(f"sensor path: {cal.describe()}")
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
             mc = measured_curves(*s.samples, grid=st.grid, filter_spec=st.curve_filter,
-                                 lowpass=window_options.delay_lowpass, fs=s.fs)
+                                 lowpass=window_options.delay_lowpass, fs=s.fs, stream_start=stream_start(s))
             bands = compare_bands(mc.at(0.0), mc.peaks, ens[state])
-            windows = {name: score_windows(mc, th, feats) for name, th in theories.items()}
+            stated = session_stated_delay(s)
+            windows = {name: score_windows(mc, th, feats, stated) for name, th in theories.items()}
             out[i] = Assessment(s, ident, bands, windows, mc)
     return out
 

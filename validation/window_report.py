@@ -24,7 +24,11 @@ NOTES = (
     ("Windows: each five-cycle window of steady cycles (cut at crank angle 0 of the encoder, CFC 180, "
      "0.5 deg crank-angle grid) is compared with the ensemble's own five-cycle windows of each state, "
      "impacts included, aligned by the encoder's crank angle. The accelerometer's delay behind the encoder "
-     "(the sensor chain) is fitted per window within 0 to max_delay and reported."),
+     "(the sensor chain) is the bench's statement ([sensor.chain]: the DAQ filter's and the sensor's group delay, "
+     "the latency, the clock drift since the stream began) plus one fitted residual per session within the "
+     "statement's uncertainty, reported as 'stated X ms + fitted residual Y ms' (a residual at its bound is "
+     "flagged); without a statement it is fitted from the signal alone, once per session within 0 to max_delay, "
+     "and a fit on the acceleration scatters by about the floor named with it (benchmarks/delay_floor.py)."),
     ("Window verdict: consistent when the window's cycle features (low-passed curve and impact energies in "
      "20 deg bins, as the identification uses them) lie no further from the state, in all features and "
      "along the directions to the other candidates, than the same windows of held-out realisations at the "
@@ -137,6 +141,10 @@ def window_section(items: Sequence, out: Path, slug: Callable[[str], str], save:
         if not any(sw.windows for sw in it.windows.values()):
             parts.append(f"<p class='note'>{html.escape(name)}: no run of steady cycles long enough for a window</p>")
             continue
+        own = it.windows.get(getattr(it, "state", None)) or next(iter(it.windows.values()))
+        if own.delay is not None:
+            parts.append(f"<p class='note'>{html.escape(name)}: sensor delay against {html.escape(own.state)}: "
+                         f"{html.escape(own.delay.describe())}</p>")
         parts.append(window_table(name, it.windows))
         f = windows_side_by_side(name, it.windows, out / f"windows_{slug(name)}.png", save)
         files.append(f)

@@ -6,12 +6,18 @@ the band (5-95 % per crank angle over the realisations' cycles), single realisat
 statistics of held-out realisations, which calibrate the verdict.
 
 Alignment: the encoder's crank angle aligns the two; what is left is the sensor chain's delay (the
-accelerometer late behind the encoder: anti-alias filter, mounting, DAQ), one for the session. It is
-fitted on all the session's windows at once, limited to ``0 <= delay <= max_delay``, by minimising
-the mean squared standardised deviation from the realisations' per-angle mean, both low-passed at
-``delay_lowpass`` (the measured signal re-sampled at the crank's times plus the delay, from the
-full-rate record), and reported. Below 10 Hz the impacts' chaos leaks least into the fit; the
-realisations' own spread still limits it to about +/- 1 ms per window (README).
+accelerometer late behind the encoder: anti-alias filter, mounting, DAQ). Where the bench states its
+chain (``[sensor.chain]``, ``chain_delay.StatedDelay``), each cycle is read at the stated delay (its
+filters' group delay, latency, and the clock drift since the stream began), and one residual for the
+session is fitted on top, limited to the statement's uncertainty; a residual at its bound is flagged,
+and called a disagreement when the signal alone puts the delay further from the statement than the
+uncertainty plus ``delay_floor`` (how far a fit on the signal scatters per session). Without a
+statement the delay is fitted from the signal alone, one for the session, on all its windows at
+once, limited to ``0 <= delay <= max_delay``. Either fit minimises the mean squared standardised
+deviation from the realisations' per-angle mean, both low-passed at ``delay_lowpass`` (the measured
+signal re-sampled at the crank's times plus the delay, from the full-rate record). Below 10 Hz the
+impacts' chaos leaks least into the fit; the bench's tolerances and the chaos still shift its curve by
+as much as the delay (``benchmarks/delay_floor.py``), so the signal alone does not place it to 0.2 ms.
 
 Scores of a window against a state (see README "How sessions are scored" for the measurement behind
 the choice of the verdict's statistic):
@@ -31,7 +37,7 @@ the crank angles where an inconsistent window departs are those of the features 
 Bonferroni limit of the state's spread, and the 10 deg bins where more of it lies outside the band
 than in any held-out realisation window.
 
-Imports validation.ensemble, features, filters, metrics, cycles, identify (angle ranges).
+Imports validation.ensemble, features, filters, metrics, cycles, chain_delay, identify (angle ranges).
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from scipy import signal, stats
+from wearbench.validation.chain_delay import StatedDelay
 from wearbench.validation.cycles import WindowSpec, choose_windows, crank_turns
 from wearbench.validation.ensemble import Ensemble
 from wearbench.validation.features import CycleFeatures, FeatureSpec, sample_rate
@@ -48,8 +55,8 @@ from wearbench.validation.filters import apply_filter, parse_filter
 from wearbench.validation.identify import StateModels, _ranges, direction_distance2, feature_ranges
 from wearbench.validation.metrics import iso18571
 
-__all__ = ["STATISTICS", "MeasuredCurves", "SessionWindows", "WindowOptions", "WindowTheory", "WindowVerdict",
-           "measured_curves", "score_windows", "window_theory"]
+__all__ = ["STATISTICS", "DelayFit", "MeasuredCurves", "SessionWindows", "WindowOptions", "WindowTheory", "WindowVerdict",
+           "fit_delay", "measured_curves", "score_windows", "window_theory"]
 
 TWO_PI = 2.0 * np.pi
 BINS = 36  # 10 deg bins for the energy distance and the departure angles
@@ -63,7 +70,8 @@ class WindowOptions:
     cycles: int = 5
     alpha: float = 0.05          # false-alarm rate of the verdict (per window)
     statistic: str = "features"  # the verdict's statistic, one of STATISTICS
-    max_delay: float = 2e-3      # s, the sensor chain's delay is fitted in [0, max_delay]
+    max_delay: float = 2e-3      # s, without a statement the sensor chain's delay is fitted in [0, max_delay]
+    delay_floor: float = 7.5e-4  # s, how far a fit on the signal alone scatters: p95 of its error (README)
     delay_step: float = 2.5e-5   # s, grid of the delay search (then refined by a parabola)
     delay_lowpass: float = 10.0  # Hz, the delay is fitted on both signals low-passed here (README: why)
     iso_realisations: int = 3    # realisations each window is rated against (ISO/TS 18571)
@@ -92,25 +100,37 @@ class MeasuredCurves:
     steady: np.ndarray     # (cycles,) bool: cycle speed within 2 % of the median
     peaks: np.ndarray      # (cycles,) peak |filtered| in each cycle (m/s^2)
     slow: np.ndarray       # (samples,) m/s^2, the same low-passed at ``WindowOptions.delay_lowpass``
+    stream_start: float = 0.0  # s, when the accelerometer's stream began (its clock drift counts from there)
 
-    def at(self, delay: float, cycles: slice | np.ndarray = slice(None), *, slow: bool = False) -> np.ndarray:
-        """The cycles' curves with the accelerometer read ``delay`` s later than the crank angle
-        (``slow``: of the low-passed signal the delay is fitted on)."""
-        return np.interp(self.times[cycles] + delay, self.t, self.slow if slow else self.filtered)
+    def at(self, delay: float | np.ndarray, cycles: slice | np.ndarray = slice(None), *,
+           slow: bool = False) -> np.ndarray:
+        """The cycles' curves with the accelerometer read ``delay`` s (one, or one per cycle) later
+        than the crank angle (``slow``: of the low-passed signal the delay is fitted on)."""
+        delay = np.asarray(delay, dtype=float)
+        return np.interp(self.times[cycles] + (delay[:, None] if delay.ndim else delay), self.t,
+                         self.slow if slow else self.filtered)
+
+    def stated(self, stated: StatedDelay, cycles: slice | np.ndarray = slice(None)) -> np.ndarray:
+        """The stated delay of each of the cycles (s), at the cycle's middle."""
+        mid = 0.5 * (self.times[cycles, 0] + self.times[cycles, -1])
+        return np.asarray(stated.at(mid - self.stream_start), dtype=float)
 
 
 def measured_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int, filter_spec: str,
-                    speed_tolerance: float = 0.02, lowpass: float = 10.0, fs: float | None = None) -> MeasuredCurves:
+                    speed_tolerance: float = 0.02, lowpass: float = 10.0, fs: float | None = None,
+                    stream_start: float | None = None) -> MeasuredCurves:
     """``MeasuredCurves`` of a record (times t, absolute crank angle at t, acceleration), filtered as
     ``validation.features.cycle_curves`` filters the ensemble's (bias over whole cycles removed), and
     low-passed at ``lowpass`` Hz for the delay fit. fs: the sample rate (Hz; a measured session's
-    ``fs``, default ``features.sample_rate`` of ``t``)."""
+    ``fs``, default ``features.sample_rate`` of ``t``); stream_start: when the accelerometer's stream
+    began (s; default the first sample)."""
     t, acc = np.asarray(t, dtype=float), np.asarray(acc, dtype=float)
     turns = crank_turns(angle)
     u, cycle, k0, k1 = turns.progress, turns.cycle, turns.first, turns.last
     fs = sample_rate(t) if fs is None else fs
+    start = float(t[0]) if stream_start is None else float(stream_start)
     if k1 < k0:
-        return MeasuredCurves(t, acc, np.zeros((0, grid)), np.zeros(0, dtype=bool), np.zeros(0), acc)
+        return MeasuredCurves(t, acc, np.zeros((0, grid)), np.zeros(0, dtype=bool), np.zeros(0), acc, start)
     whole = (cycle >= k0) & (cycle <= k1)
     filtered = apply_filter(acc - acc[whole].mean(), fs, parse_filter(filter_spec, remove_bias=False))
     marks = np.arange(k0, k1 + 1)[:, None] * TWO_PI + np.arange(grid + 1)[None, :] * (TWO_PI / grid)
@@ -119,7 +139,7 @@ def measured_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: 
     med = np.median(duration)
     peaks = np.array([np.max(np.abs(filtered[cycle == k]), initial=0.0) for k in range(k0, k1 + 1)])
     return MeasuredCurves(t, filtered, times[:, :-1], np.abs(duration - med) <= speed_tolerance * med, peaks,
-                          _lowpass(filtered, fs, lowpass))
+                          _lowpass(filtered, fs, lowpass), start)
 
 
 def _binned(x: np.ndarray) -> np.ndarray:
@@ -308,7 +328,7 @@ class WindowVerdict:
     start_cycle: int
     t_start: float
     t_end: float
-    delay_s: float
+    delay_s: float                   # the accelerometer read this late behind the crank angle (window mean)
     statistics: dict[str, float]
     p_values: dict[str, float]
     iso: dict[str, float]            # mean ISO/TS 18571 rating and sub-scores against realisations
@@ -321,6 +341,7 @@ class WindowVerdict:
     times: np.ndarray = field(repr=False)      # (cycles, grid) s from the window's start
     realisation: int = 0             # the realisation shown beside it (median ISO rating of the pool)
     realisation_window: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)  # its window
+    delay_stated_s: float | None = None  # the bench's statement at the window (None: from the signal alone)
 
     @property
     def p(self) -> float:
@@ -333,7 +354,9 @@ class WindowVerdict:
 
     def as_dict(self) -> dict:
         return {"state": self.state, "start_cycle": self.start_cycle, "t_start": self.t_start, "t_end": self.t_end,
-                "delay_s": self.delay_s, "consistent": self.consistent, "p": self.p, "departs": self.departs,
+                "delay_s": self.delay_s, "delay_stated_s": self.delay_stated_s,
+                "delay_residual_s": None if self.delay_stated_s is None else self.delay_s - self.delay_stated_s,
+                "consistent": self.consistent, "p": self.p, "departs": self.departs,
                 "percentile": self.percentile, "statistics": self.statistics, "p_values": self.p_values,
                 "iso": self.iso, "iso_percentile": self.iso_percentile, "realisation_shown": self.realisation}
 
@@ -346,6 +369,7 @@ class SessionWindows:
     options: WindowOptions
     windows: list[WindowVerdict]
     band: tuple[np.ndarray, np.ndarray, np.ndarray]
+    delay: DelayFit | None = None  # how the session's delay was found (None: no window)
 
     @property
     def consistent(self) -> int:
@@ -364,34 +388,95 @@ class SessionWindows:
         return {"state": self.state, "windows": len(self.windows), "consistent_windows": self.consistent,
                 "verdict": self.label, "statistic": self.options.statistic, "alpha": self.options.alpha,
                 "delay_s_median": float(np.median([w.delay_s for w in self.windows])) if self.windows else None,
+                "delay": self.delay.as_dict() if self.delay else None,
                 "window_details": [w.as_dict() for w in self.windows]}
 
 
-def _fit_delay(m: MeasuredCurves, cycles: np.ndarray, ref: _Reference, options: WindowOptions) -> float:
-    """Delay in [0, max_delay] minimising the window's mean squared standardised deviation from the
-    realisations, both low-passed at ``delay_lowpass`` (below the impacts' chaos)."""
-    if options.max_delay == 0:
-        return 0.0
-    taus = np.arange(0.0, options.max_delay + 0.5 * options.delay_step, options.delay_step)
-    cost = np.array([np.mean(((m.at(tau, cycles, slow=True) - ref.slow_mean) / ref.slow_sd) ** 2) for tau in taus])
+def _fit_shift(m: MeasuredCurves, cycles: np.ndarray, ref: _Reference, base: np.ndarray | float, lo: float,
+               hi: float, step: float) -> tuple[float, bool]:
+    """(shift in [lo, hi] on top of ``base`` (per cycle), whether it sits at a bound) minimising the
+    cycles' mean squared standardised deviation from the realisations, both low-passed at
+    ``delay_lowpass`` (below the impacts' chaos)."""
+    if hi <= lo:
+        return float(lo), False
+    n = max(2, int(np.ceil((hi - lo) / step)))
+    taus = np.linspace(lo, hi, n + 1)
+    cost = np.array([np.mean(((m.at(base + tau, cycles, slow=True) - ref.slow_mean) / ref.slow_sd) ** 2)
+                     for tau in taus])
     i = int(np.argmin(cost))
     if 0 < i < taus.size - 1:
         a, b, c = cost[i - 1: i + 2]
         den = a - 2 * b + c
         if den > 0:
-            return float(taus[i] + 0.5 * options.delay_step * (a - c) / den)
-    return float(taus[i])
+            return float(taus[i] + 0.5 * (taus[1] - taus[0]) * (a - c) / den), False
+    return float(taus[i]), True
+
+
+@dataclass(frozen=True)
+class DelayFit:
+    """The session's accelerometer delay behind the encoder against one state's theory: from the
+    signal alone (``stated`` None), or the bench's statement plus a fitted residual within its
+    uncertainty (``at_bound``: the residual sits at it; ``disagrees``: and the signal alone puts the
+    delay further from the statement than the uncertainty plus the signal's floor)."""
+
+    signal_alone: float                 # s, the fit on the signal alone in [0, max_delay]
+    floor: float                        # s, how far that scatters per session (WindowOptions.delay_floor)
+    stated: StatedDelay | None = None
+    stated_mean: float = 0.0            # s, the statement over the session's windows' cycles
+    residual: float = 0.0               # s, fitted on top of the statement
+    at_bound: bool = False
+    disagrees: bool = False
+
+    @property
+    def delay(self) -> float:
+        """The session's delay (s): the statement's mean plus the residual, or the signal's fit."""
+        return self.stated_mean + self.residual if self.stated else self.signal_alone
+
+    def describe(self) -> str:
+        if self.stated is None:
+            return (f"fitted from the signal alone: {self.signal_alone * 1e3:.2f} ms (no [sensor.chain] statement; "
+                    f"a fit on the acceleration scatters by about +/- {self.floor * 1e3:.1f} ms per session)")
+        text = (f"stated {self.stated_mean * 1e3:.3f} ms + fitted residual {self.residual * 1e3:+.3f} ms "
+                f"(within +/- {self.stated.uncertainty * 1e3:.3f} ms)")
+        if self.at_bound:
+            text += f"; the residual is at its bound, the signal alone puts the delay at {self.signal_alone * 1e3:.2f} ms"
+            text += (": the statement disagrees with the signal beyond its floor" if self.disagrees else
+                     f" (within the signal's floor of +/- {self.floor * 1e3:.1f} ms)")
+        return text
+
+    def as_dict(self) -> dict:
+        out = {"source": "stated" if self.stated else "signal", "delay_s": self.delay,
+               "signal_alone_s": self.signal_alone, "signal_floor_s": self.floor, "text": self.describe()}
+        if self.stated:
+            out.update(stated_s=self.stated_mean, residual_s=self.residual, at_bound=self.at_bound,
+                       disagrees=self.disagrees, statement=self.stated.as_dict())
+        return out
+
+
+def fit_delay(m: MeasuredCurves, cycles: np.ndarray, ref: _Reference, options: WindowOptions,
+              stated: StatedDelay | None = None) -> DelayFit:
+    """The session's delay on ``cycles`` against ``ref`` (see the module docstring)."""
+    alone, _ = _fit_shift(m, cycles, ref, 0.0, 0.0, options.max_delay, options.delay_step)
+    if stated is None:
+        return DelayFit(alone, options.delay_floor)
+    base = m.stated(stated, cycles)
+    u = stated.uncertainty
+    residual, at_bound = _fit_shift(m, cycles, ref, base, -u, u, min(options.delay_step, u / 4 if u else 1.0))
+    mean = float(base.mean())
+    far = abs(alone - mean) > u + options.delay_floor
+    return DelayFit(alone, options.delay_floor, stated, mean, residual, at_bound and u > 0, at_bound and far)
 
 
 def _p_value(null: np.ndarray, value: float) -> float:
     return float((1 + np.sum(null >= value)) / (1 + null.size))
 
 
-def score_windows(measured: MeasuredCurves, theory: WindowTheory,
-                  features: CycleFeatures | None = None) -> SessionWindows:
+def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: CycleFeatures | None = None,
+                  stated: StatedDelay | None = None) -> SessionWindows:
     """Every window of consecutive steady cycles of ``measured`` against ``theory`` (one state);
     ``features``: the same record's cycle features (``features.cycle_features``, same cycles), needed
-    for the ``features`` statistic."""
+    for the ``features`` statistic; ``stated``: the bench's stated sensor-chain delay (None: the delay
+    is fitted from the signal alone)."""
     opts, grid, n = theory.options, theory.grid, theory.options.cycles
     if measured.times.shape[1] != grid:
         raise ValueError(f"windows: measured curves on {measured.times.shape[1]} points per cycle, the ensemble's "
@@ -406,11 +491,12 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory,
     table = pd.DataFrame({"steady": measured.steady})
     out = []
     starts = choose_windows(table, WindowSpec("all", cycles=n))
-    # one delay per session: the sensor chain's, fitted on all its windows' cycles at once
-    delay = _fit_delay(measured, np.concatenate([np.arange(s, s + n) for s in starts]), theory.reference,
-                       opts) if starts else 0.0
+    # the sensor chain's delay: stated plus one residual, or one from the signal, on all windows at once
+    fit = fit_delay(measured, np.concatenate([np.arange(s, s + n) for s in starts]), theory.reference, opts,
+                    stated) if starts else None
     for s in starts:
         cyc = slice(s, s + n)
+        delay = measured.stated(stated, cyc) + fit.residual if stated is not None else np.full(n, fit.delay)
         x = measured.at(delay, cyc)
         values, sub, bins = theory.statistics(x, theory.reference, theory.iso_pool)
         p = {k: _p_value(theory.null[k], v) for k, v in values.items()}
@@ -432,8 +518,10 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory,
             100.0 * np.mean(null < v))
         shown = int(theory.iso_pool[np.argsort(sub.pop("ratings"))[len(theory.iso_pool) // 2]])
         t0 = float(measured.times[s, 0])
-        out.append(WindowVerdict(theory.state, s, t0, float(measured.times[s + n - 1, -1]), delay, values, p, sub,
+        out.append(WindowVerdict(theory.state, s, t0, float(measured.times[s + n - 1, -1]), float(delay.mean()),
+                                 values, p, sub,
                                  float(100.0 * np.mean(theory.null_iso <= sub["rating"])), percentile,
                                  opts.statistic, consistent, departs, x,
-                                 measured.times[cyc] - t0, shown, theory.windows[shown, 0]))
-    return SessionWindows(theory.state, opts, out, theory.band)
+                                 measured.times[cyc] - t0, shown, theory.windows[shown, 0],
+                                 float(measured.stated(stated, cyc).mean()) if stated is not None else None))
+    return SessionWindows(theory.state, opts, out, theory.band, fit)

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from wearbench.validation.assess import assess_sessions, write_assessment_report
+from wearbench.validation.chain_delay import StatedDelay
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.features import cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
@@ -92,6 +93,58 @@ def test_delay_is_found_within_a_fifth_of_a_millisecond(assessed):
     delays = [w.delay_s for a in assessed for w in a.windows[a.session.label.split(" #")[0]].windows]
     assert len(delays) == 6 * 4
     assert np.mean(np.abs(np.array(delays) - DELAY) < 0.2e-3) >= 0.9, delays
+
+
+def test_without_a_statement_the_delay_is_said_to_come_from_the_signal_alone(assessed):
+    fit = assessed[0].windows[assessed[0].state].delay
+    assert fit.stated is None and fit.delay == fit.signal_alone
+    assert fit.describe().startswith("fitted from the signal alone")
+
+
+DRIFT = 100e-6  # a sample clock 100 ppm fast: the delay grows by 1.35 ms over the 13.5 s session
+
+
+@pytest.fixture(scope="module")
+def drifting(ensembles):
+    """A "soft" session whose accelerometer is 0.3 ms late at its start and DRIFT later per second,
+    its curves, features and the "soft" state's window theory."""
+    t, angle, _ = generate("soft", 7000, 13.5)
+    truth = 0.3e-3 + DRIFT * t
+    _, _, acc = generate("soft", 7000, 13.5, delay=truth, noise=0.05)
+    mc = measured_curves(t, angle, acc, grid=SETTINGS.grid, filter_spec=SETTINGS.curve_filter)
+    f = cycle_features(t, angle, acc, SETTINGS.features)
+    theory = window_theory(ensembles["soft"], crank_speed=OMEGA, models=fit_states(ensembles, window_cycles=5))
+    return mc, f, theory
+
+
+def test_a_stated_delay_with_its_drift_aligns_every_window(drifting):
+    mc, f, theory = drifting
+    stated = StatedDelay(filter=0.2e-3, sensor=0.0, latency=0.1e-3, clock_drift=DRIFT, uncertainty=0.05e-3,
+                         band=(1.0, 100.0))
+    sw = score_windows(mc, theory, f, stated)
+    assert len(sw.windows) == 2
+    for w in sw.windows:  # each window at its own delay: the statement at its middle, plus the residual
+        assert w.delay_s == pytest.approx(0.3e-3 + DRIFT * 0.5 * (w.t_start + w.t_end), abs=0.06e-3)
+    fit = sw.delay
+    assert abs(fit.residual) <= 0.05e-3 and not fit.disagrees
+    for w in sw.windows:  # scores.json: "stated X + fitted residual Y" per window
+        d = w.as_dict()
+        assert d["delay_stated_s"] == pytest.approx(0.3e-3 + DRIFT * 0.5 * (w.t_start + w.t_end), abs=2e-6)
+        assert d["delay_residual_s"] == pytest.approx(fit.residual)
+    assert fit.describe().startswith("stated ") and "fitted residual" in fit.describe()
+    assert sw.summary()["delay"]["source"] == "stated"
+    # the signal alone, one delay for the session, misses the windows' drift by far more
+    alone = score_windows(mc, theory, f)
+    assert max(abs(w.delay_s - (0.3e-3 + DRIFT * 0.5 * (w.t_start + w.t_end))) for w in alone.windows) > 0.2e-3
+
+
+def test_a_wrong_statement_holds_its_residual_at_the_bound_and_is_flagged(drifting):
+    mc, f, theory = drifting
+    wrong = StatedDelay(filter=0.2e-3, sensor=0.0, latency=1.6e-3, clock_drift=DRIFT, uncertainty=0.05e-3,
+                        band=(1.0, 100.0))  # 1.5 ms too late: a tap test misread
+    fit = score_windows(mc, theory, f, wrong).delay
+    assert fit.at_bound and fit.residual == pytest.approx(-0.05e-3) and fit.disagrees
+    assert "disagrees" in fit.describe()
 
 
 def test_windows_separate_the_right_state_from_the_wrong_one(assessed):
@@ -175,3 +228,13 @@ def test_calibration_is_computed_once_per_ensembles_content(ensembles, monkeypat
     other = {k: Ensemble(e.state, e.settings, e.features, e.curves * 1.01, e.peaks, e.speed) for k, e in ensembles.items()}
     with pytest.raises(AssertionError, match="fitted again"):
         assess.assess_sessions([s], ensembles=other, progress=None)
+
+
+def test_stream_start_counts_the_blocks_before_the_first_recorded_one():
+    from wearbench.validation.assess import stream_start
+
+    t, angle, acc = generate("soft", 7100, 3.5)
+    keep = slice(600, None)  # the first three 200-sample blocks were not recorded
+    frame = pd.DataFrame({"time": t[keep], "acc": acc[keep], "sequence": np.arange(t.size)[keep] // 200})
+    s = MeasuredSession("late start", frame, pd.DataFrame({"time": t[::5], "angle": angle[::5]}))
+    assert stream_start(s) == pytest.approx(t[0], abs=1e-9)
