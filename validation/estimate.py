@@ -88,7 +88,7 @@ class EstimatorDesign:
     def small(cls) -> EstimatorDesign:
         """A small design for a first look (the demo's while no shipped estimator fits): 3 clearances
         0.25-0.65 mm x cycles run 0, 200,000, 400,000, 3 realisations x 4 cycles each (about 2 min of
-        CPU). Coarse: 3 x 3 points fit the emulator exactly, so its own error is not estimated."""
+        CPU). Coarse: 3 x 3 points fit the emulator exactly, so its own error comes from leave-one-out."""
         return cls((0.25e-3, 0.45e-3, 0.65e-3), (0.0, 200_000.0, 400_000.0), EnsembleSettings(realisations=3, cycles=4))
 
     @classmethod
