@@ -240,18 +240,60 @@ def main() -> None:
               f"does not reach it); the 90 % intervals hold the cycles run in {held:.2f}, the clearance in "
               f"{c_held:.2f}; median cycles-run interval {np.median([e.cycles_run.lo90 for *_, e in at]):,.0f}-"
               f"{np.median([e.cycles_run.hi90 for *_, e in at]):,.0f}")
+        information(model, [t[0] for t, _, _ in at], args.at)
     if lives:
         report_lives(bench, model, lives, life_runs, args, t_lives)
+
+
+def information(model, clearances, at: float) -> None:
+    """What limits the cycles-run interval at ``at`` cycles: the local (Fisher) sd of cycles run and
+    clearance at the truths' clearances with the model's covariance, then with one of its parts left
+    out or changed (tempered as the posterior is). A central 90 % interval excludes 0 and 2 x ``at``
+    when its median lies within ``at`` - 1.645 sd of the truth: for a Gaussian median, in a share
+    P(|Z| < at / sd - 1.645) of sessions, the 'expected' column."""
+    from scipy import stats
+
+    st = model.stats[model.reference]
+    sb, sw, d = st.between, st.within, np.diag(model.discrepancy)
+    ff = st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0 * sb
+    ens, floor = (sb + sw / st.cycles) / st.realisations, np.diag(st.floor)
+    cases = {"as estimated, 20 cycles": sb + sw / 20 + ens + floor + ff + d,
+             "100 cycles": sb + sw / 100 + ens + floor + ff + d,
+             "an endless session": sb + ens + floor + ff + d,
+             "20 cycles, no emulator error": sb + sw / 20 + ens + floor + ff,
+             "20 cycles, exact design means, no emulator error": sb + sw / 20 + floor + ff,
+             "20 cycles, sensor path known": sb + sw / 20 + ens + floor + d,
+             "20 cycles, no floor": sb + sw / 20 + ens + ff + d,
+             "20 cycles, the bench's tolerances known": sw / 20 + ens + floor + ff + d}
+
+    def grad(c):
+        hc, hn = 5e-6, 5e3
+        return np.stack([(model.mean(c + hc, at) - model.mean(c - hc, at)) / (2 * hc),
+                         (model.mean(c, at + hn) - model.mean(c, at - hn)) / (2 * hn)], axis=1)
+
+    print(f"\nwhat limits the cycles-run interval at {at:,.0f} cycles (local Fisher information at the {len(clearances)} "
+          "truths' clearances, median over them):")
+    print("covariance                                          sd cycles run   sd clearance (mm)   expected exclusion")
+    for name, cov in cases.items():
+        sds = []
+        for c in clearances:
+            g = grad(c)
+            inv = np.linalg.inv(g.T @ np.linalg.solve(cov, g)) * model.temperature
+            sds.append(np.sqrt(np.diag(inv)))
+        sd_n, sd_c = np.median(sds, axis=0)[::-1]
+        expected = 2 * stats.norm.cdf(max(0.0, at / sd_n - 1.645)) - 1
+        print(f"{name:50s}  {sd_n:13,.0f}   {sd_c * 1e3:17.4f}   {expected:18.2f}")
 
 
 def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
     """Coverage of the track's wear factor and cycles to a limit over the simulated lives."""
     from wearbench.compute import TaskFailure
     from wearbench.validation.features import CycleFeatures, FeatureSpec
-    from wearbench.validation.track import track_features
+    from wearbench.validation.track import _depth_curve, track_features
 
     cycles_run = [k * args.life_step for k in range(5)]
-    rows = []
+    n_curve, d_curve = _depth_curve(model)
+    rows, ratios = [], []
     for (c, seed), r in zip(lives, runs, strict=True):
         if isinstance(r, TaskFailure):
             print(f"life {seed} failed: {r}")
@@ -260,17 +302,29 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
         feats = [CycleFeatures(FeatureSpec(), f, np.zeros(len(f))) for f in r["features"]]
         t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit)
         m = t.cycles_to_limit
-        rows.append((c, t.factor, m, t.factor.contains(args.life_factor),
-                     m is not None and m.contains(5 * args.life_step)))
-        print(f"life {seed}: clearance {c * 1e3:.3f} mm, factor {t.factor.median:.2f} (90 % {t.factor.lo90:.2f}-"
-              f"{t.factor.hi90:.2f}), cycles to {limit * 1e3:.4f} mm: "
+        truth = 5 * args.life_step
+        rows.append((c, t.factor, m, t.factor.contains(args.life_factor), m is not None and m.contains(truth),
+                     t.factor.contains(args.life_factor, 50), m is not None and m.contains(truth, 50),
+                     t.clearance.contains(c), t.clearance.median - c))
+        i = int(np.argmin(np.abs(model.grid_c - c)))  # the truth's depth against the estimator's trajectory
+        ratios.append([r["depth"][k] / np.interp(args.life_factor * k * args.life_step, n_curve, d_curve[i])
+                       for k in range(1, 6)])
+        print(f"life {seed}: clearance {c * 1e3:.3f} mm (estimated {t.clearance.median * 1e3:.3f}, 90 % "
+              f"{t.clearance.lo90 * 1e3:.3f}-{t.clearance.hi90 * 1e3:.3f}), factor {t.factor.median:.2f} (90 % "
+              f"{t.factor.lo90:.2f}-{t.factor.hi90:.2f}), cycles to {limit * 1e3:.4f} mm: "
               + (f"{m.median:,.0f} (90 % {m.lo90:,.0f}-{m.hi90:,.0f})" if m else "beyond")
-              + f" (truth {5 * args.life_step:,.0f})")
+              + f" (truth {truth:,.0f})")
     if rows:
-        print(f"\n{len(rows)} lives ({seconds:.0f} s), wear factor {args.life_factor}: its 90 % interval holds it in "
-              f"{np.mean([r[3] for r in rows]):.2f}, the cycles-to-limit interval holds the truth's in "
-              f"{np.mean([r[4] for r in rows]):.2f}; median factor interval "
+        col = lambda k: np.mean([r[k] for r in rows])
+        print(f"\n{len(rows)} lives ({seconds:.0f} s), wear factor {args.life_factor}: its 90 % / 50 % intervals hold it "
+              f"in {col(3):.2f} / {col(5):.2f}; the cycles-to-limit 90 % / 50 % intervals hold the truth's in "
+              f"{col(4):.2f} / {col(6):.2f}; the initial clearance's 90 % interval holds it in {col(7):.2f} (median "
+              f"error {np.median([r[8] for r in rows]) * 1e3:+.4f} mm); median factor interval "
               f"{np.median([r[1].lo90 for r in rows]):.2f}-{np.median([r[1].hi90 for r in rows]):.2f}")
+        ratios = np.asarray(ratios)
+        print("the truths' wear depth / the estimator's trajectory at the same effective cycles, after each step: mean "
+              + " ".join(f"{v:.3f}" for v in ratios.mean(axis=0)) + ", sd "
+              + " ".join(f"{v:.3f}" for v in ratios.std(axis=0)))
 
 
 def rank(e, value: float, name: str, model) -> float:

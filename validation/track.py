@@ -8,13 +8,32 @@ shallow wear of a few micrometres, so the trajectory is the same, run faster). S
 bench recorded after ``N_i`` cycles give the joint posterior of the initial clearance ``c`` (shared:
 one bench) and ``k``:
 
-    p(c, k | sessions) ∝ prior(c) prior(k) prod_i L_i(c, k N_i)
+    p(c, k | sessions) ∝ prior(c) prior(k) L(c, k)
 
-with each session's tempered likelihood ``L_i`` from the estimator's grid (``estimate.py``),
-interpolated along ``N``; ``prior(k)`` log-uniform in [0.2, 5]. The wear depth (largest clearance
-growth of any joint) along the trajectory, extrapolated linearly beyond the estimator's last
-design point at its last stage's rate, gives for each (c, k) the cycles until ``c + depth``
-reaches a clearance ``limit``; weighted by the posterior, their interval.
+``prior(k)`` log-uniform in [0.2, 5]. The sessions are NOT independent given (c, k): they share the
+bench (its offset from the file, drawn once from the tolerances) and its sensor path. So
+``L`` is the Gaussian of the stacked session means ``x_i = mu(c, k N_i) + s + w_i``, with the shared
+``s ~ N(0, B)`` (the bench's offset from the file and its sensor path) and each session's own
+``w_i ~ N(0, W_i)``: its cycle-to-cycle part ``Sw / n_i`` and the estimator's error at its parameter
+value (design mean, emulator, floor), taken as independent between sessions because the emulator's
+error changes along the trajectory (taken as shared, it let the differences between sessions pin the
+clearance to +/-15 um and missed the truth in half of 20 simulated lives); by Woodbury,
+
+    Q = sum_i r_i' W_i^-1 r_i - u' (B^-1 + sum_i W_i^-1)^-1 u,   u = sum_i W_i^-1 r_i,
+
+tempered as a single session is (``estimate.py``). Multiplying the sessions' own likelihoods instead
+counted the shared bench offset once per session: the clearance came out sqrt(sessions) too sure.
+``mu`` at ``k N_i`` is the estimator's emulated mean; a ``k N_i`` beyond the design's last cycles
+run is outside what the estimator knows (zero likelihood there).
+
+The wear depth (largest clearance growth of any joint) along the trajectory, extrapolated linearly
+beyond the estimator's last design point at its last stage's rate, gives for each (c, k) the cycles
+until ``c + depth`` reaches a clearance ``limit``. A bench's own trajectory differs from the
+estimator's by a factor ``delta`` on the depth (its staging, and its geometry within tolerances):
+lognormal with ``depth_spread`` (default 5 %: simulated lives' depth after 100k-500k cycles differed
+from the estimator's trajectory at the same effective cycles by 1-5 % sd, ``benchmarks/estimate.py``),
+integrated by Gauss-Hermite quadrature. The cycles-to-limit interval is that of the joint posterior
+of (c, k, delta): the clearance's and coefficient's uncertainty and their correlation included.
 """
 
 from __future__ import annotations
@@ -23,11 +42,11 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import special
+from scipy import linalg, special
 from wearbench.validation.estimate import EstimatorModel, Interval, _interval
 from wearbench.validation.features import CycleFeatures
 
-__all__ = ["Track", "track_features", "track_figure"]
+__all__ = ["Track", "joint_log_likelihood", "track_features", "track_figure"]
 
 K_RANGE = (0.2, 5.0)
 
@@ -62,63 +81,94 @@ def _depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarr
     return np.concatenate([gn, far]), np.concatenate([depth, depth[:, -1:] + rate[:, None] * (far - gn[-1])], axis=1)
 
 
+def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Sequence[float],
+                         means: np.ndarray) -> np.ndarray:
+    """Untempered log likelihood (up to a constant) of one bench's session means ``xbars`` (S, p) over
+    ``cycles`` (S,) cycles each, at parameter values whose emulated means are ``means`` (..., S, p):
+    the sessions share the bench and its sensor path (see the module docstring)."""
+    st = model.stats[model.reference]
+    shared = st.between + (st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0)
+    estimator = st.covariance(np.inf, nuisance=False) - st.between + np.diag(model.discrepancy)
+    r = np.asarray(xbars, float) - means  # (..., S, p)
+    flat = r.reshape(-1, *r.shape[-2:])  # (G, S, p)
+    own = np.zeros(flat.shape[0])
+    u = np.zeros((flat.shape[0], flat.shape[-1]))
+    precision = np.zeros_like(shared)
+    for i, n in enumerate(cycles):
+        w = linalg.cho_factor(st.within / n + estimator, lower=True)
+        wr = linalg.cho_solve(w, flat[:, i].T).T  # W_i^-1 r_i
+        own += np.sum(flat[:, i] * wr, axis=1)
+        u += wr
+        precision += linalg.cho_solve(w, np.eye(shared.shape[0]))
+    g = linalg.cho_factor(linalg.inv(shared + 1e-12 * np.eye(shared.shape[0])) + precision, lower=True)
+    return (-0.5 * (own - np.sum(u * linalg.cho_solve(g, u.T).T, axis=1))).reshape(r.shape[:-2])
+
+
 def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float], model: EstimatorModel, *,
                    coefficient: float, limit: float | None = None, labels: Sequence[str] | None = None,
-                   factors: int = 161) -> Track:
+                   factors: int = 161, depth_spread: float = 0.05) -> Track:
     """Wear over life from sessions' cycle ``features`` recorded after ``cycles_run`` cycles.
 
-    coefficient: the bench file's wear coefficient K_n (1/Pa); limit: a clearance limit (m)."""
+    coefficient: the bench file's wear coefficient K_n (1/Pa); limit: a clearance limit (m);
+    depth_spread: lognormal sd of a bench's wear depth about the estimator's trajectory."""
     if len(features) != len(cycles_run) or len(features) < 2:
         raise ValueError(f"track: {len(features)} sessions and {len(cycles_run)} cycles-run values: expected one "
                          "value per session and at least two sessions")
     if any(n < 0 for n in cycles_run) or len(set(cycles_run)) < 2:
         raise ValueError(f"track: cycles run {list(cycles_run)}: expected values >= 0, at least two different")
+    if any(f.cycles < 1 for f in features):
+        raise ValueError("track: a session holds no complete crank cycle")
+    if not 0 <= depth_spread < 1:
+        raise ValueError(f"track: depth_spread = {depth_spread}: expected a lognormal sd in [0, 1)")
     labels = list(labels or [f"session {i + 1}" for i in range(len(features))])
     gc, gn = model.grid_c, model.grid_n
     ks = np.geomspace(*K_RANGE, factors)
-    log_post = np.zeros((gc.size, ks.size))  # uniform in c, log-uniform in k (uniform on this grid)
-    for f, n in zip(features, cycles_run, strict=True):
-        if f.cycles < 1:
-            raise ValueError("track: a session holds no complete crank cycle")
-        ll = -0.5 * model.distances(f.values.mean(axis=0), f.cycles) / model.temperature  # (gc, gn)
-        eff = ks * n
-        inside = eff <= gn[-1] + 1e-9
-        for i in range(gc.size):
-            row = np.full(ks.size, -np.inf)
-            row[inside] = np.interp(eff[inside], gn, ll[i])
-            log_post[i] += row
-    if not np.isfinite(log_post).any():
+    runs = np.asarray(cycles_run, float)
+    eff = ks[:, None] * runs[None, :]  # (k, S) effective cycles along the file's trajectory
+    inside = np.all(eff <= gn[-1] + 1e-9, axis=1)
+    if not inside.any():
         raise ValueError("track: the cycles run exceed the estimator's range for every wear coefficient")
+    xbars = np.stack([f.values.mean(axis=0) for f in features])
+    n_cycles = [f.cycles for f in features]
+    log_post = np.full((gc.size, ks.size), -np.inf)  # uniform in c, log-uniform in k (uniform on this grid)
+    for i, c in enumerate(gc):
+        means = model.mean(np.full(eff[inside].shape, c), eff[inside])  # (k inside, S, p)
+        log_post[i, inside] = joint_log_likelihood(model, xbars, n_cycles, means) / model.temperature
     post = np.exp(log_post - special.logsumexp(log_post))
     c_int = _interval(gc, post.sum(axis=1))
     k_int = _interval(np.log(ks), post.sum(axis=0))
     k_int = Interval(*(float(np.exp(v)) for v in asdict(k_int).values()))
     coef = Interval(*(v * coefficient for v in asdict(k_int).values()))
     n_curve, d_curve = _depth_curve(model)
+    nodes, qw = np.polynomial.hermite_e.hermegauss(9 if depth_spread > 0 else 1)
+    deltas, qw = np.exp(depth_spread * nodes), qw / qw.sum()  # the bench's depth / the trajectory's
+    weights = post[:, :, None] * qw  # (c, k, delta)
 
     def depth_at(n: float) -> Interval:
         d = np.stack([np.interp(ks * n, n_curve, d_curve[i]) for i in range(gc.size)])
-        return _interval(d.ravel(), post.ravel())
+        return _interval((d[:, :, None] * deltas).ravel(), weights.ravel())
 
     depth = [depth_at(n) for n in cycles_run]
     to_limit, beyond, notes = None, 0.0, []
     if limit is not None:
-        need = limit - gc  # wear depth that reaches the limit from each clearance
-        eff_limit = np.array([np.interp(need[i], d_curve[i], n_curve, right=np.inf) if need[i] > 0 else 0.0
+        need = (limit - gc)[:, None] / deltas[None, :]  # (c, delta) trajectory depth that reaches the limit
+        eff_limit = np.array([[np.interp(v, d_curve[i], n_curve, right=np.inf) if v > 0 else 0.0 for v in need[i]]
                               for i in range(gc.size)])
-        cycles = eff_limit[:, None] / ks[None, :]
+        cycles = eff_limit[:, None, :] / ks[None, :, None]  # (c, k, delta)
         finite = np.isfinite(cycles)
-        beyond = float(post[~finite].sum())
+        beyond = float(weights[~finite].sum())
         if beyond < 0.5:
-            to_limit = _interval(np.where(finite, cycles, 0.0)[finite], post[finite])
+            to_limit = _interval(cycles[finite], weights[finite])
         if beyond > 0.05:
             notes.append(f"{beyond:.0%} of the posterior reaches the limit beyond {n_curve[-1]:,.0f} effective cycles "
                          "(100x the estimator's range): the interval's upper end is a lower bound")
     horizon = max(1.5 * max(cycles_run), 1.2 * to_limit.hi90 if to_limit else 0.0)
     prediction = [(float(n), depth_at(n)) for n in np.linspace(0.0, horizon, 41)]
-    edge = post[:, :3].sum() + post[:, -3:].sum()
+    edge = post[:, :3].sum() + post[:, -3:].sum() + post[:, inside][:, -3:].sum()
     if edge > 0.1:
-        notes.append(f"the wear coefficient's posterior reaches the edge of {K_RANGE[0]}-{K_RANGE[1]} x the file's")
+        notes.append(f"the wear coefficient's posterior reaches the edge of {K_RANGE[0]}-"
+                     f"{min(K_RANGE[1], float(ks[inside][-1])):.3g} x the file's (the last session's cycles run times "
+                     "the factor must lie within the estimator's range)")
     return Track(labels, [float(n) for n in cycles_run], c_int, k_int, coef, depth, limit, to_limit, beyond,
                  prediction, notes)
 
