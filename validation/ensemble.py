@@ -23,6 +23,7 @@ from wearbench.bench.content import bench_key, file_digest
 from wearbench.bench.schema import Bench, WearState
 from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
+from wearbench.validation.sensor_path import PathSpread
 
 __all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "build_ensembles", "check_ensembles_fit",
            "ensembles_key", "load_ensembles", "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
@@ -39,6 +40,8 @@ class EnsembleSettings:
     grid: int = 720           # points per revolution of the kept filtered curves
     curve_filter: str = "cfc180"  # filter of the kept curves (bands and window scores)
     features: FeatureSpec = field(default_factory=FeatureSpec)
+    # each realisation seen through its own drawn mount (None: the model's acceleration as it is)
+    sensor_paths: PathSpread | None = field(default_factory=PathSpread)
 
     def __post_init__(self) -> None:
         if self.realisations < 3 or self.cycles < 2:
@@ -48,6 +51,13 @@ class EnsembleSettings:
             raise ValueError(f"ensemble: settle = {self.settle}, output_rate = {self.output_rate}: expected "
                              "settle >= 0 revolutions and a positive output rate (Hz)")
         parse_filter(self.curve_filter)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> EnsembleSettings:
+        """The inverse of ``asdict`` (JSON lists back to tuples); a file of a version before drawn
+        sensor paths holds none (its realisations saw the model's acceleration as it is)."""
+        return cls(**{**data, "features": FeatureSpec.from_dict(data["features"]),
+                      "sensor_paths": PathSpread.from_dict(data.get("sensor_paths"))})
 
 
 @dataclass(frozen=True)
@@ -84,8 +94,9 @@ def realisation_summary(bench: Bench, state: WearState, seed: int, *, speed: flo
 
     run = simulate_state(bench, state, seed, revolutions=settings.cycles + 1.0, settle=settings.settle,
                          speed=speed, output_rate=settings.output_rate)
-    feats = cycle_features(run.t, run.crank, run.acc, settings.features)
-    curves, peaks = cycle_curves(run.t, run.crank, run.acc, grid=settings.grid,
+    acc = run.acc if settings.sensor_paths is None else settings.sensor_paths.apply(run.acc, settings.output_rate, seed)
+    feats = cycle_features(run.t, run.crank, acc, settings.features)
+    curves, peaks = cycle_curves(run.t, run.crank, acc, grid=settings.grid,
                                  filter_spec=parse_filter(settings.curve_filter, remove_bias=False))
     n = min(feats.cycles, curves.shape[0], settings.cycles)
     return {"features": feats.values[:n], "curves": curves[:n], "peaks": peaks[:n]}
@@ -201,8 +212,7 @@ def load_ensembles(path: str | Path, *, key: str | None = None) -> dict[str, Ens
             out = {}
             for i, name in enumerate(data["states"]):
                 meta = json.loads(str(data[f"meta_{i}"]))
-                st = meta["settings"]
-                settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
+                settings = EnsembleSettings.from_dict(meta["settings"])
                 out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"],
                                           data[f"curves_{i}"].astype(float), data[f"peaks_{i}"],
                                           float(meta["speed"]), tuple(meta["failures"]))
