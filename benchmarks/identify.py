@@ -53,6 +53,9 @@ def main() -> None:
     ap.add_argument("--bands", help="impact bands, e.g. 100-1000 or 50-150,150-400,400-1000 Hz "
                     "(default: FeatureSpec's)")
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
+    ap.add_argument("--ensemble-paths", choices=("drawn", "none"), default="drawn",
+                    help="the ensembles' realisations each seen through a drawn sensor path (drawn, the default: "
+                    "EnsembleSettings.sensor_paths) or the model's acceleration as it is (none: earlier versions)")
     ap.add_argument("--calibrate", action="store_true", help="also identify with one calibration session per bench")
     ap.add_argument("--brief", action="store_true", help="accuracy tables only")
     args = ap.parse_args()
@@ -79,7 +82,8 @@ def main() -> None:
         bands = (tuple(tuple(float(v) for v in b.split("-")) for b in args.bands.split(",")) if args.bands
                  else spec.bands)
         spec = FeatureSpec(bins=args.bins or spec.bins, bands=bands)
-    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles, features=spec)
+    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles, features=spec,
+                                **({"sensor_paths": None} if args.ensemble_paths == "none" else {}))
     out = Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
     spread = {"spread": {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}}
@@ -119,8 +123,8 @@ def main() -> None:
     sessions = [load_session(p) for p in paths]
     feats = [session_features(s, settings.features) for s in sessions]
     truth_names = [s.name for s, _ in truths]
-    variants = {"sensor-path prior (default)": [models] * len(feats),
-                "sensor path taken as exact (earlier versions)": [fit_states(ensembles, replace(options,
+    variants = {"band-gain prior of the sensor path (default)": [models] * len(feats),
+                "no band-gain prior (only the ensembles' own spread)": [fit_states(ensembles, replace(options,
                                                                                         sensor_path="none"))] * len(feats)}
     if calibrations:
         t0 = time.perf_counter()

@@ -2,9 +2,12 @@
 
 Each realisation is one bench drawn within the bench's ``[tolerances]`` with a random start
 (``wearbench.model.realisation``), settled, then simulated for ``cycles`` crank revolutions. A
-realisation is reduced on the worker to what the comparison needs (per-cycle features, the
-filtered curve of each cycle on a crank-angle grid, per-cycle peaks), so only kilobytes travel
-back. Realisations run on the compute layer (``wearbench.compute``: dask.distributed,
+realisation is seen through a sensor path drawn from its seed (``EnsembleSettings.sensor_paths``,
+``sensor_path.PathSpread``: a mount/carriage mode and a sensitivity no bench file states), then
+reduced on the worker to what the comparison needs (per-cycle features, the filtered curve of each
+cycle on a crank-angle grid, per-cycle peaks), so only kilobytes travel back. This is the one place
+where a realisation's acceleration becomes features: identification and the estimator's design
+both come through it. Realisations run on the compute layer (``wearbench.compute``: dask.distributed,
 local by default) and are cached by content: bench physics, state (surfaces by their bytes),
 tolerances, seed, settings and the model's source digest.
 """
@@ -89,7 +92,8 @@ def _state_key(state: WearState) -> dict:
 
 def realisation_summary(bench: Bench, state: WearState, seed: int, *, speed: float,
                         settings: EnsembleSettings) -> dict[str, np.ndarray]:
-    """Simulate one realisation and reduce it to per-cycle features, curves and peaks (a worker task)."""
+    """Simulate one realisation, see it through its drawn sensor path (``settings.sensor_paths``, if any)
+    and reduce it to per-cycle features, curves and peaks (a worker task)."""
     from wearbench.model.realisation import simulate_state
 
     run = simulate_state(bench, state, seed, revolutions=settings.cycles + 1.0, settle=settings.settle,

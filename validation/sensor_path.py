@@ -22,6 +22,13 @@ The default prior (:meth:`SensorPath.prior`) is that of a second-order mode log-
 band by quadrature (a flat spectrum within the band). ``wearbench calibrate`` narrows it to the
 posterior of one bench's path from sessions of a known state (:func:`calibrate_path`).
 
+Per-band gains absorb a mode outside the bands and the sensitivity, not a mode inside a band: that
+reshapes the band across crank angles (impacts at different crank angles have different spectra,
+and a lightly damped mode rings into the next bin). So the ensembles also see the path: each
+realisation through its own drawn mount (:class:`PathSpread`, :func:`mount_response`, applied in
+``ensemble.realisation_summary``), and the pooled between-bench covariance holds what a path does to
+the features; the band-gain prior stays on top (measured in the README, "The sensor path").
+
 Pure numpy; imports only the feature spec.
 """
 
@@ -140,7 +147,8 @@ class SensorPath:
 
     @classmethod
     def none(cls, spec: FeatureSpec) -> SensorPath:
-        """The sensor path the ensembles assume (no nuisance): earlier versions' likelihood."""
+        """No band-gain nuisance: the ensembles' own spread (their drawn paths, if any) is all the
+        likelihood allows for; earlier versions' likelihood with ensembles without drawn paths."""
         k = 1 + len(spec.bands)
         return cls((0.0,) * k, tuple((0.0,) * k for _ in range(k)), "none: the bench file's sensor path taken as exact")
 
