@@ -17,15 +17,17 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
     .venv/bin/python benchmarks/identify.py [--draws 5] [--cycles 20] [--realisations 32]
     .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
     .venv/bin/python benchmarks/identify.py --sensor-paths --calibrate    # drawn mounts, with calibration
+    .venv/bin/python benchmarks/identify.py --ensemble-paths none         # ensembles without drawn paths
 
---sensor-paths draws each truth's sensor path (a mount/carriage mode log-uniform in 0.3-3 kHz, damping
-0.02-0.1, sensitivity +/-5 %: ``[emulator.accelerometer.spread]``); the accuracy table is then printed
-for the likelihood with the sensor-path prior (the default), with the path taken as exact (earlier
-versions) and, with --calibrate, with each bench calibrated on one session of a known state (0.3 mm
-new; 0.6 mm new for the 0.3 mm new truths, so calibration and test never share a state), same bench
-and mount: once with the calibration's band gains only, once relative to the calibration session
-(``validation/calibrated.py``, what identify does with a calibration); --brief adds the held-out
-candidates judged relative to the calibration.
+The ensembles' realisations are each seen through a drawn sensor path (``EnsembleSettings.sensor_paths``;
+--ensemble-paths none: the model's acceleration as it is, earlier versions). --sensor-paths draws each
+truth's sensor path (a mount/carriage mode log-uniform in 0.3-3 kHz, damping 0.02-0.1, sensitivity
++/-5 %: ``[emulator.accelerometer.spread]``); the accuracy table is then printed for the likelihood
+with the band-gain prior of the sensor path (the default), without it and, with --calibrate, with
+each bench calibrated on one session of a known state (0.3 mm new; 0.6 mm new for the 0.3 mm new
+truths, so calibration and test never share a state), same bench and mount: once with the
+calibration's band gains only, once relative to the calibration session
+(``validation/calibrated.py``); --brief adds the held-out candidates judged relative to the calibration.
 """
 
 from __future__ import annotations
