@@ -54,6 +54,9 @@ class EnsembleSettings:
             raise ValueError(f"ensemble: settle = {self.settle}, output_rate = {self.output_rate}: expected "
                              "settle >= 0 revolutions and a positive output rate (Hz)")
         parse_filter(self.curve_filter)
+        if self.sensor_paths is not None and not self.sensor_paths.mode[1] < 0.45 * self.output_rate:
+            raise ValueError(f"ensemble: sensor paths up to {self.sensor_paths.mode[1]:g} Hz need an output rate "
+                             f"above {self.sensor_paths.mode[1] / 0.45:g} Hz, got {self.output_rate:g} Hz")
 
     @classmethod
     def from_dict(cls, data: dict) -> EnsembleSettings:
