@@ -17,15 +17,17 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
     .venv/bin/python benchmarks/identify.py [--draws 5] [--cycles 20] [--realisations 32]
     .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
     .venv/bin/python benchmarks/identify.py --sensor-paths --calibrate    # drawn mounts, with calibration
+    .venv/bin/python benchmarks/identify.py --ensemble-paths none         # ensembles without drawn paths
 
---sensor-paths draws each truth's sensor path (a mount/carriage mode log-uniform in 0.3-3 kHz, damping
-0.02-0.1, sensitivity +/-5 %: ``[emulator.accelerometer.spread]``); the accuracy table is then printed
-for the likelihood with the sensor-path prior (the default), with the path taken as exact (earlier
-versions) and, with --calibrate, with each bench calibrated on one session of a known state (0.3 mm
-new; 0.6 mm new for the 0.3 mm new truths, so calibration and test never share a state), same bench
-and mount: once with the calibration's band gains only, once relative to the calibration session
-(``validation/calibrated.py``, what identify does with a calibration); --brief adds the held-out
-candidates judged relative to the calibration.
+The ensembles' realisations are each seen through a drawn sensor path (``EnsembleSettings.sensor_paths``;
+--ensemble-paths none: the model's acceleration as it is, earlier versions). --sensor-paths draws each
+truth's sensor path (a mount/carriage mode log-uniform in 0.3-3 kHz, damping 0.02-0.1, sensitivity
++/-5 %: ``[emulator.accelerometer.spread]``); the accuracy table is then printed for the likelihood
+with the band-gain prior of the sensor path (the default), without it and, with --calibrate, with
+each bench calibrated on one session of a known state (0.3 mm new; 0.6 mm new for the 0.3 mm new
+truths, so calibration and test never share a state), same bench and mount: once with the
+calibration's band gains only, once relative to the calibration session
+(``validation/calibrated.py``); --brief adds the held-out candidates judged relative to the calibration.
 """
 
 from __future__ import annotations
@@ -53,6 +55,9 @@ def main() -> None:
     ap.add_argument("--bands", help="impact bands, e.g. 100-1000 or 50-150,150-400,400-1000 Hz "
                     "(default: FeatureSpec's)")
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
+    ap.add_argument("--ensemble-paths", choices=("drawn", "none"), default="drawn",
+                    help="the ensembles' realisations each seen through a drawn sensor path (drawn, the default: "
+                    "EnsembleSettings.sensor_paths) or the model's acceleration as it is (none: earlier versions)")
     ap.add_argument("--calibrate", action="store_true", help="also identify with one calibration session per bench")
     ap.add_argument("--brief", action="store_true", help="accuracy tables only")
     args = ap.parse_args()
@@ -79,7 +84,8 @@ def main() -> None:
         bands = (tuple(tuple(float(v) for v in b.split("-")) for b in args.bands.split(",")) if args.bands
                  else spec.bands)
         spec = FeatureSpec(bins=args.bins or spec.bins, bands=bands)
-    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles, features=spec)
+    settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles, features=spec,
+                                **({"sensor_paths": None} if args.ensemble_paths == "none" else {}))
     out = Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
     spread = {"spread": {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}}
@@ -119,8 +125,8 @@ def main() -> None:
     sessions = [load_session(p) for p in paths]
     feats = [session_features(s, settings.features) for s in sessions]
     truth_names = [s.name for s, _ in truths]
-    variants = {"sensor-path prior (default)": [models] * len(feats),
-                "sensor path taken as exact (earlier versions)": [fit_states(ensembles, replace(options,
+    variants = {"band-gain prior of the sensor path (default)": [models] * len(feats),
+                "no band-gain prior (only the ensembles' own spread)": [fit_states(ensembles, replace(options,
                                                                                         sensor_path="none"))] * len(feats)}
     if calibrations:
         t0 = time.perf_counter()

@@ -2,9 +2,12 @@
 
 Each realisation is one bench drawn within the bench's ``[tolerances]`` with a random start
 (``wearbench.model.realisation``), settled, then simulated for ``cycles`` crank revolutions. A
-realisation is reduced on the worker to what the comparison needs (per-cycle features, the
-filtered curve of each cycle on a crank-angle grid, per-cycle peaks), so only kilobytes travel
-back. Realisations run on the compute layer (``wearbench.compute``: dask.distributed,
+realisation is seen through a sensor path drawn from its seed (``EnsembleSettings.sensor_paths``,
+``sensor_path.PathSpread``: a mount/carriage mode and a sensitivity no bench file states), then
+reduced on the worker to what the comparison needs (per-cycle features, the filtered curve of each
+cycle on a crank-angle grid, per-cycle peaks), so only kilobytes travel back. This is the one place
+where a realisation's acceleration becomes features: identification and the estimator's design
+both come through it. Realisations run on the compute layer (``wearbench.compute``: dask.distributed,
 local by default) and are cached by content: bench physics, state (surfaces by their bytes),
 tolerances, seed, settings and the model's source digest.
 """
@@ -23,6 +26,7 @@ from wearbench.bench.content import bench_key, file_digest
 from wearbench.bench.schema import Bench, WearState
 from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
+from wearbench.validation.sensor_path import PathSpread
 
 __all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "build_ensembles", "check_ensembles_fit",
            "ensembles_key", "load_ensembles", "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
@@ -39,6 +43,8 @@ class EnsembleSettings:
     grid: int = 720           # points per revolution of the kept filtered curves
     curve_filter: str = "cfc180"  # filter of the kept curves (bands and window scores)
     features: FeatureSpec = field(default_factory=FeatureSpec)
+    # each realisation seen through its own drawn mount (None: the model's acceleration as it is)
+    sensor_paths: PathSpread | None = field(default_factory=PathSpread)
 
     def __post_init__(self) -> None:
         if self.realisations < 3 or self.cycles < 2:
@@ -48,6 +54,16 @@ class EnsembleSettings:
             raise ValueError(f"ensemble: settle = {self.settle}, output_rate = {self.output_rate}: expected "
                              "settle >= 0 revolutions and a positive output rate (Hz)")
         parse_filter(self.curve_filter)
+        if self.sensor_paths is not None and not self.sensor_paths.mode[1] < 0.45 * self.output_rate:
+            raise ValueError(f"ensemble: sensor paths up to {self.sensor_paths.mode[1]:g} Hz need an output rate "
+                             f"above {self.sensor_paths.mode[1] / 0.45:g} Hz, got {self.output_rate:g} Hz")
+
+    @classmethod
+    def from_dict(cls, data: dict) -> EnsembleSettings:
+        """The inverse of ``asdict`` (JSON lists back to tuples); a file of a version before drawn
+        sensor paths holds none (its realisations saw the model's acceleration as it is)."""
+        return cls(**{**data, "features": FeatureSpec.from_dict(data["features"]),
+                      "sensor_paths": PathSpread.from_dict(data.get("sensor_paths"))})
 
 
 @dataclass(frozen=True)
@@ -79,13 +95,15 @@ def _state_key(state: WearState) -> dict:
 
 def realisation_summary(bench: Bench, state: WearState, seed: int, *, speed: float,
                         settings: EnsembleSettings) -> dict[str, np.ndarray]:
-    """Simulate one realisation and reduce it to per-cycle features, curves and peaks (a worker task)."""
+    """Simulate one realisation, see it through its drawn sensor path (``settings.sensor_paths``, if any)
+    and reduce it to per-cycle features, curves and peaks (a worker task)."""
     from wearbench.model.realisation import simulate_state
 
     run = simulate_state(bench, state, seed, revolutions=settings.cycles + 1.0, settle=settings.settle,
                          speed=speed, output_rate=settings.output_rate)
-    feats = cycle_features(run.t, run.crank, run.acc, settings.features)
-    curves, peaks = cycle_curves(run.t, run.crank, run.acc, grid=settings.grid,
+    acc = run.acc if settings.sensor_paths is None else settings.sensor_paths.apply(run.acc, settings.output_rate, seed)
+    feats = cycle_features(run.t, run.crank, acc, settings.features)
+    curves, peaks = cycle_curves(run.t, run.crank, acc, grid=settings.grid,
                                  filter_spec=parse_filter(settings.curve_filter, remove_bias=False))
     n = min(feats.cycles, curves.shape[0], settings.cycles)
     return {"features": feats.values[:n], "curves": curves[:n], "peaks": peaks[:n]}
@@ -201,8 +219,7 @@ def load_ensembles(path: str | Path, *, key: str | None = None) -> dict[str, Ens
             out = {}
             for i, name in enumerate(data["states"]):
                 meta = json.loads(str(data[f"meta_{i}"]))
-                st = meta["settings"]
-                settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
+                settings = EnsembleSettings.from_dict(meta["settings"])
                 out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"],
                                           data[f"curves_{i}"].astype(float), data[f"peaks_{i}"],
                                           float(meta["speed"]), tuple(meta["failures"]))

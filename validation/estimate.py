@@ -242,8 +242,7 @@ def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | N
                 return None
             meta = json.loads(str(data["meta"]))
             d = meta["design"]
-            st = d["settings"]
-            settings = EnsembleSettings(**{**st, "features": FeatureSpec.from_dict(st["features"])})
+            settings = EnsembleSettings.from_dict(d["settings"])
             design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]), settings)
             return Estimator(meta["bench"], str(data["key"]), design, data["features"], data["depth"],
                              float(meta["speed"]))

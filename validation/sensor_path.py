@@ -22,6 +22,13 @@ The default prior (:meth:`SensorPath.prior`) is that of a second-order mode log-
 band by quadrature (a flat spectrum within the band). ``wearbench calibrate`` narrows it to the
 posterior of one bench's path from sessions of a known state (:func:`calibrate_path`).
 
+Per-band gains absorb a mode outside the bands and the sensitivity, not a mode inside a band: that
+reshapes the band across crank angles (impacts at different crank angles have different spectra,
+and a lightly damped mode rings into the next bin). So the ensembles also see the path: each
+realisation through its own drawn mount (:class:`PathSpread`, :func:`mount_response`, applied in
+``ensemble.realisation_summary``), and the pooled between-bench covariance holds what a path does to
+the features; the band-gain prior stays on top (measured in the README, "The sensor path").
+
 Pure numpy; imports only the feature spec.
 """
 
@@ -31,9 +38,63 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import signal
 from wearbench.validation.features import FeatureSpec
 
-__all__ = ["SensorPath", "calibrate_path", "design_matrix"]
+__all__ = ["PathSpread", "SensorPath", "calibrate_path", "design_matrix", "mount_response"]
+
+
+def mount_response(acc: np.ndarray, fs: float, mode: float, damping: float, gain: float = 1.0) -> np.ndarray:
+    """``acc`` (sampled at ``fs`` Hz) seen through a mount or carriage: a second-order low-pass mode at
+    ``mode`` Hz with damping ratio ``damping`` (causal, bilinear with the peak pre-warped to ``mode``, as
+    the bench emulator's sensor chain has it) and a sensitivity ``gain``."""
+    if not 0 < mode < 0.45 * fs or not damping > 0:
+        raise ValueError(f"sensor path: mode {mode:g} Hz, damping {damping:g}: expected 0 < mode < "
+                         f"{0.45 * fs:g} Hz (0.45 x the {fs:g} Hz rate) and a positive damping ratio")
+    wn = 2.0 * fs * np.tan(np.pi * mode / fs)
+    sos = signal.tf2sos(*signal.bilinear([wn * wn], [1.0, 2.0 * damping * wn, wn * wn], fs))
+    x = np.asarray(acc, dtype=float)
+    y, _ = signal.sosfilt(sos, x, zi=signal.sosfilt_zi(sos) * x[0])
+    return gain * y
+
+
+@dataclass(frozen=True)
+class PathSpread:
+    """Sensor paths drawn per realisation of a theory ensemble (``EnsembleSettings.sensor_paths``): a
+    mount/carriage mode log-uniform in ``mode`` (Hz), damping ratio uniform in ``damping``, sensitivity
+    uniform within +/- ``sensitivity``; realisation seed ``s`` draws its own path, so the ensemble's
+    spread (and every likelihood, consistency test and estimate built on it) holds the path a bench
+    file does not state, its effect on each band's crank-angle shape included (ringing, a mode inside a
+    band), which band gains alone cannot absorb."""
+
+    mode: tuple[float, float] = (300.0, 3000.0)
+    damping: tuple[float, float] = (0.02, 0.1)
+    sensitivity: float = 0.05
+
+    def __post_init__(self) -> None:
+        mode = (float(self.mode[0]), float(self.mode[1]))
+        damping = (float(self.damping[0]), float(self.damping[1]))
+        if not 0 < mode[0] <= mode[1] or not 0 < damping[0] <= damping[1] or not 0 <= self.sensitivity < 0.5:
+            raise ValueError(f"sensor paths: mode {self.mode} Hz, damping {self.damping}, sensitivity "
+                             f"{self.sensitivity}: expected 0 < low <= high for mode and damping and a "
+                             "sensitivity spread in [0, 0.5)")
+        object.__setattr__(self, "mode", mode)
+        object.__setattr__(self, "damping", damping)
+
+    def draw(self, seed: int) -> tuple[float, float, float]:
+        """(mode Hz, damping ratio, sensitivity) of realisation ``seed``."""
+        rng = np.random.default_rng([int(seed), 0x4D4F])
+        lo, hi = self.mode
+        mode = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+        return mode, float(rng.uniform(*self.damping)), float(1.0 + rng.uniform(-self.sensitivity, self.sensitivity))
+
+    def apply(self, acc: np.ndarray, fs: float, seed: int) -> np.ndarray:
+        """``acc`` seen through realisation ``seed``'s drawn path (:func:`mount_response`)."""
+        return mount_response(acc, fs, *self.draw(seed))
+
+    @classmethod
+    def from_dict(cls, data: dict | None) -> PathSpread | None:
+        return None if data is None else cls(tuple(data["mode"]), tuple(data["damping"]), float(data["sensitivity"]))
 
 
 def design_matrix(spec: FeatureSpec, mean: np.ndarray, columns: slice = slice(None)) -> np.ndarray:
@@ -86,7 +147,8 @@ class SensorPath:
 
     @classmethod
     def none(cls, spec: FeatureSpec) -> SensorPath:
-        """The sensor path the ensembles assume (no nuisance): earlier versions' likelihood."""
+        """No band-gain nuisance: the ensembles' own spread (their drawn paths, if any) is all the
+        likelihood allows for; earlier versions' likelihood with ensembles without drawn paths."""
         k = 1 + len(spec.bands)
         return cls((0.0,) * k, tuple((0.0,) * k for _ in range(k)), "none: the bench file's sensor path taken as exact")
 

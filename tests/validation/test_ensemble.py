@@ -33,6 +33,9 @@ def test_settings_are_validated():
         EnsembleSettings(realisations=2)
     with pytest.raises(ValueError, match="filter"):
         EnsembleSettings(curve_filter="cfc999")
+    with pytest.raises(ValueError, match="sensor paths up to 3000 Hz need an output rate"):
+        EnsembleSettings(output_rate=5000.0)
+    assert EnsembleSettings(output_rate=5000.0, sensor_paths=None).sensor_paths is None
 
 
 def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, monkeypatch):

@@ -110,3 +110,49 @@ def test_calibration_recovers_the_path_and_then_names_the_state(models):
     calibrated = fit_states(ens, IdentifyOptions(floor_curve=1e-6, floor_energy=1e-6), sensor=cal)
     r = identify_features(band_offset(rng, -0.8), calibrated)
     assert r.verdict == "A" and r.sensor_path == "cal"
+
+
+def test_mount_response_is_a_second_order_mode_with_the_emulators_chain():
+    """Steady sinusoids through a drawn mount: gain ``g`` well below the mode, ``g / (2 zeta)`` at it,
+    ``g (f_n / f)^2`` well above (the analytic second-order low-pass); and the same samples as the bench
+    emulator's sensor chain with only its mounting resonance and sensitivity on."""
+    from wearbench.hardware.emulators.config import Accelerometer
+    from wearbench.hardware.emulators.sensor import SensorChain
+    from wearbench.validation.sensor_path import mount_response
+
+    fs, fn, zeta, g = 20_000.0, 700.0, 0.05, 1.04
+    t = np.arange(int(0.6 * fs)) / fs
+    # (above the mode the bilinear map's frequency warping takes a few % at 1.5 kHz of a 20 kHz rate)
+    for f, expected, rel in ((30.0, g, 0.01), (fn, g / (2 * zeta), 0.02), (1500.0, g / abs(1 - (1500 / fn) ** 2), 0.05)):
+        y = mount_response(np.sin(2 * np.pi * f * t), fs, fn, zeta, g)[t > 0.4]
+        assert np.sqrt(2 * np.mean(y ** 2)) == pytest.approx(expected, rel=rel), f
+    x = np.random.default_rng(3).normal(0.0, 50.0, 4000)
+    acc = Accelerometer(resonance=fn, damping=zeta, sensitivity=g, adc_bits=0, clipping=False)
+    chain = SensorChain(acc, fs, 1e6, np.random.default_rng(0))
+    assert chain.oversample == 1
+    np.testing.assert_allclose(mount_response(x, fs, fn, zeta, g), chain.process(x), rtol=1e-5, atol=1e-3)
+    with pytest.raises(ValueError, match="mode 9500 Hz"):
+        mount_response(x, fs, 9500.0, zeta)
+
+
+def test_drawn_paths_cover_the_stated_spread_and_key_the_ensembles():
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.validation.ensemble import ensembles_key
+    from wearbench.validation.sensor_path import PathSpread
+
+    spread = PathSpread()
+    draws = np.array([spread.draw(s) for s in range(1, 401)])
+    assert spread.draw(7) == spread.draw(7) and spread.draw(7) != spread.draw(8)
+    modes = np.log10(draws[:, 0])
+    assert 300 <= draws[:, 0].min() and draws[:, 0].max() <= 3000
+    assert np.histogram(modes, 4, (np.log10(300), np.log10(3000)))[0].min() > 70  # log-uniform
+    assert 0.02 <= draws[:, 1].min() and draws[:, 1].max() <= 0.1 and np.all(np.abs(draws[:, 2] - 1) <= 0.05)
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    keys = {ensembles_key(bench, bench.states, bench.speed, EnsembleSettings(sensor_paths=p))
+            for p in (None, spread, PathSpread(mode=(500.0, 3000.0)))}
+    assert len(keys) == 3
+    old = {k: v for k, v in vars(EnsembleSettings()).items() if k != "sensor_paths"}
+    old["features"] = SPEC.as_dict()
+    assert EnsembleSettings.from_dict(old).sensor_paths is None  # a file from before drawn paths
+    with pytest.raises(ValueError, match="sensor paths"):
+        PathSpread(mode=(3000.0, 300.0))
