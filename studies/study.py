@@ -45,7 +45,7 @@ from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages
 from wearbench.studies import studies_source_digest
 
-__all__ = ["PAPER", "STATISTICS", "Case", "CaseResult", "Cell", "StudyConfig", "cell_statistics",
+__all__ = ["PAPER", "STATISTICS", "Case", "CaseResult", "Cell", "StudyConfig", "cell_statistics", "cell_units",
            "cycle_maxima", "run_study", "staging_convergence", "study_realisation", "trends", "verdict",
            "wear_realisation"]
 
