@@ -117,7 +117,7 @@ def test_few_wear_runs_are_few_draws_the_old_bootstrap_was_too_narrow():
         old += lo <= truth <= hi
         st = cell_statistics(Cell(None, "s", {"q": x}, by_run=True), 0.95)["q"]["max"]
         new += st["lo"] <= truth <= st["hi"]
-    assert old / trials < 0.80
+    assert old / trials < 0.85  # 0.78
     assert new / trials >= 0.92
 
 
