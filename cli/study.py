@@ -13,7 +13,7 @@ from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import add_force_argument, positive_int
 from wearbench.cli.wear import add_plan_arguments, plan_from_args
 
-_SIZES = ("realisations", "cycles", "wear_runs", "seed", "bootstrap")
+_SIZES = ("realisations", "cycles", "wear_runs", "seed")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -21,10 +21,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "study", help="the paper's wear and clearance studies as ensembles: Table 3 with intervals, trend verdicts",
         description="Wear study: 0.6 mm at -5 pi rad/s, two wear stages. Clearance study: 0.1 / 0.3 / "
         "0.45 mm at -6 pi rad/s before and after one wear stage. Every cell is a statistic of the per-cycle "
-        "maxima of realisations drawn within the bench's tolerances with random starts (95th percentile, the "
-        "paper's 'max', and median, with bootstrap intervals); each wear stage is worn --wear-runs times from "
-        "drawn benches and starts; each of the paper's trends gets a verdict (agrees / disagrees / not "
-        "resolved) from the interval of its ratio. Writes table3.md (the report), table3.csv, cells.csv, "
+        "maxima of realisations drawn within the bench's tolerances with random starts (the geometric mean of "
+        "each realisation's max, the paper's 'max' of one run, and of its median cycle, with Student-t "
+        "intervals); each wear stage is worn --wear-runs times from drawn benches and starts, and after wear "
+        "the runs are the interval's units; each of the paper's trends gets a verdict (agrees / disagrees / "
+        "not resolved) from the intervals of its ratios. Writes table3.md (the report), table3.csv, cells.csv, "
         "trends.csv, peaks.csv, wear_runs.csv, study.json, surfaces and figures. Runs on the compute layer (a "
         "local cluster by default, or --scheduler); finished tasks are cached, so a rerun is quick.")
     p.add_argument("bench", metavar="BENCH.toml")
@@ -34,10 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cycles", type=positive_int, default=None,
                    help="crank cycles kept per realisation (default 8; --quick 3)")
     p.add_argument("--wear-runs", type=positive_int, default=None,
-                   help="wear runs per case from drawn benches and starts (default 3; --quick 2)")
+                   help="wear runs per case from drawn benches and starts (default 6; --quick 2)")
     p.add_argument("--seed", type=int, default=None, help="first seed (default 1): realisation i uses seed + i")
-    p.add_argument("--bootstrap", type=positive_int, default=None,
-                   help="bootstrap resamples of the intervals (default 2000; --quick 1000)")
     p.add_argument("--quick", action="store_true",
                    help="cut-down study for tests: one surface update per stage, 2 wear runs, 4 realisations "
                    "of 3 cycles per state")
