@@ -1,11 +1,11 @@
 """`wearbench calibrate` on a bench whose accelerometer sits on a carriage with a 700 Hz mode (damping
-0.05) the bench file does not know: taken as exact, the sensor path makes a 0.6 mm session "none of
-the candidates", and the diagnosis points at the 400-1000 Hz band with the gain (about +8 dB) a mount
-would give it; calibrated on one session of the same bench and mount in a known state (0.3 mm new),
-0.6 mm is the top state with p >= 0.99 and the result names the calibration. (A mode inside a band
-reshapes the band across crank angles, which a gain per band does not absorb: the consistency
-test's direction part still fails here, measured p 3e-8; see the README.) Non-twin truths
-(seed 7000), shipped ensembles (no ensemble simulation)."""
+0.05) the bench file does not know. The ensembles see every realisation through a drawn mount (0.3-3
+kHz), so the uncalibrated verdict already names 0.6 mm new and finds it consistent (before drawn
+paths: "none of the candidates", direction p 3e-8). Calibrated on one session of the same bench and
+mount in a known state (0.3 mm new), 0.6 mm is named with p >= 0.99, consistent, and the result names
+the calibration. Non-twin truths (seed 7000), shipped ensembles (no ensemble simulation). A calibrated
+bench named right where the uncalibrated verdict was "none": ``test_calibrated.py`` (a sensor reading
+half, outside the drawn paths)."""
 
 import json
 
@@ -40,16 +40,13 @@ def sessions(tmp_path_factory):
     return paths, saved
 
 
-def test_calibration_names_a_session_the_exact_path_cannot_explain(sessions, tmp_path, capsys):
+def test_a_mount_inside_the_drawn_paths_is_named_uncalibrated_and_calibrated(sessions, tmp_path, capsys):
     paths, saved = sessions
     exact = tmp_path / "exact.json"
     assert main(["identify", str(paths["0.6 mm new"]), "--ensembles", str(saved), "--calibration", "none",
                  "--json", str(exact)]) == 0
     row = json.loads(exact.read_text())[0]
-    assert row["verdict"] == "none of the candidates", row["posterior"]
-    d = row["diagnosis"]
-    assert max(d["blocks"], key=d["blocks"].get) == "impacts 400-1000 Hz", d
-    assert 5 < d["band_gain_db"]["400-1000 Hz"] < 12 and abs(d["band_gain_db"]["50-150 Hz"]) < 2, d
+    assert row["verdict"] == "0.6 mm new" and row["p_value"]["0.6 mm new"] > 0.01, row
     assert main(["calibrate", str(paths["0.3 mm new"]), "--state", "0.3 mm new", "--ensembles", str(saved)]) == 0
     out = capsys.readouterr().out
     assert "calibration: " in out and "gain" in out
