@@ -213,7 +213,9 @@ def estimate_text(truths, assessed) -> str:
         rows.append((truth, a.identification.verdict, f"{c.median * 1e3:.3f} [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}]",
                      f"{n.median / 1e3:.0f}k [{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k]",
                      f"{d.median * 1e6:.1f} [{d.lo90 * 1e6:.1f}-{d.hi90 * 1e6:.1f}]", f"yes (p {e.p_value:.2g})"))
-    return _columns(rows)
+    notes = [f"{truth}: {n}" for truth, a in zip(truths, assessed, strict=True) for n in a.identification.notes
+             if n.startswith("the estimate puts")]
+    return "\n".join([_columns(rows), *notes])
 
 
 def _columns(rows) -> str:

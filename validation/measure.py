@@ -137,7 +137,25 @@ def estimate_assessed(assessed: Sequence[Assessment], estimator: Estimator | Est
                               progress=progress)
     for a, e in zip(assessed, found, strict=True):
         a.estimate = e
+        note = _named_outside(a, e)
+        if note:
+            a.identification.notes.append(note)
     return list(assessed)
+
+
+def _named_outside(a: Assessment, est: Estimate | None) -> str | None:
+    """A note when the identified state's clearance lies outside the estimate's 90 % interval: the bench
+    is between the candidates (the nearest one named) or not among them."""
+    named = next((s for s in a.session.bench.states if s.name == a.identification.verdict), None) \
+        if a.session.bench is not None else None
+    if est is None or not est.explains or named is None or not named.clearances:
+        return None
+    c = est.clearance
+    outside = [v for v in named.clearances.values() if not c.contains(v)]
+    if not outside:
+        return None
+    return (f"the estimate puts the clearance at {c.median * 1e3:.3f} mm [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}], "
+            f"outside {named.name}'s {outside[0] * 1e3:.3f} mm: the bench lies between the candidates or beyond them")
 
 
 def recorded_cycles_run(session: MeasuredSession) -> float | None:
