@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+SENSOR_PATHS = {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}
+
 
 def true_sensor_delay(bench, accel_delay: float) -> tuple[float, float]:
     """The truth's accelerometer delay behind the encoder at the stream's start (s: ``accel_delay``
@@ -71,6 +73,8 @@ def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, fl
             seed = args.seed + 100 * k + d
             delay = float(np.random.default_rng(seed).uniform(0.0, args.delay_max))
             table = {**bench.emulator, "truth": {"accel_delay": f"{delay * 1e3!r} ms"}}
+            if args.sensor_paths:  # the truth's own mount, as benchmarks/identify.py --sensor-paths draws it
+                table["accelerometer"] = {**bench.emulator.get("accelerometer", {}), "spread": SENSOR_PATHS}
             truths.append((s, seed, table, delay, folder / f"{slug(s.name)}_{seed}.mcap"))
     revolutions = truth_revolutions(args.cycles + 1)
     todo = [t for t in truths if not t[4].exists()]
@@ -97,6 +101,10 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None, help="compute workers (default: the machine's cores)")
     ap.add_argument("--record-only", action="store_true", help="record the truths and stop")
     ap.add_argument("--alpha", type=float, default=0.05, help="false-alarm rate of the verdict (0.05)")
+    ap.add_argument("--sensor-paths", action="store_true",
+                    help="draw each truth's sensor path (mount mode 0.3-3 kHz, damping 0.02-0.1, sensitivity "
+                    "+/-5 %%; keep these sessions in their own --sessions folder; the true delay then leaves out "
+                    "the drawn mount's group delay, up to about 0.1 ms)")
     ap.add_argument("--delay-only", action="store_true", help="print only the sensor delay table")
     args = ap.parse_args()
     os.environ.setdefault("WEARBENCH_CACHE", tempfile.mkdtemp(prefix="wearbench-windows-"))
