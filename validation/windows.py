@@ -496,7 +496,8 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
                     stated) if starts else None
     for s in starts:
         cyc = slice(s, s + n)
-        delay = measured.stated(stated, cyc) + fit.residual if stated is not None else np.full(n, fit.delay)
+        base = measured.stated(stated, cyc) if stated is not None else None
+        delay = base + fit.residual if base is not None else np.full(n, fit.delay)
         x = measured.at(delay, cyc)
         values, sub, bins = theory.statistics(x, theory.reference, theory.iso_pool)
         p = {k: _p_value(theory.null[k], v) for k, v in values.items()}
@@ -523,5 +524,5 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
                                  float(100.0 * np.mean(theory.null_iso <= sub["rating"])), percentile,
                                  opts.statistic, consistent, departs, x,
                                  measured.times[cyc] - t0, shown, theory.windows[shown, 0],
-                                 float(measured.stated(stated, cyc).mean()) if stated is not None else None))
+                                 float(base.mean()) if base is not None else None))
     return SessionWindows(theory.state, opts, out, theory.band, fit)
