@@ -34,7 +34,8 @@ from wearbench.validation.identify import IdentifyOptions, fit_states
 from wearbench.validation.measured import MeasuredSession, load_session
 from wearbench.validation.track import Track, track_features
 
-__all__ = ["calibrate_sessions", "estimate_assessed", "estimate_sessions", "recorded_cycles_run", "track_sessions"]
+__all__ = ["calibrate_sessions", "estimate_assessed", "estimate_sessions", "named_outside", "recorded_cycles_run",
+           "track_sessions"]
 
 
 def _grouped(sessions: Sequence[str | Path | MeasuredSession], needs_bench: str | None
@@ -137,13 +138,13 @@ def estimate_assessed(assessed: Sequence[Assessment], estimator: Estimator | Est
                               progress=progress)
     for a, e in zip(assessed, found, strict=True):
         a.estimate = e
-        note = _named_outside(a, e)
+        note = named_outside(a, e)
         if note:
             a.identification.notes.append(note)
     return list(assessed)
 
 
-def _named_outside(a: Assessment, est: Estimate | None) -> str | None:
+def named_outside(a: Assessment, est: Estimate | None) -> str | None:
     """A note when the identified state's clearance lies outside the estimate's 90 % interval: the bench
     is between the candidates (the nearest one named) or not among them."""
     named = next((s for s in a.session.bench.states if s.name == a.identification.verdict), None) \

@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.validation.estimate import Interval
-from wearbench.validation.measure import _named_outside
+from wearbench.validation.measure import named_outside
 
 
 def _case(verdict: str, lo: float, hi: float, explains: bool = True):
@@ -16,11 +16,11 @@ def _case(verdict: str, lo: float, hi: float, explains: bool = True):
 
 
 def test_a_bench_between_the_candidates_is_noted_where_the_named_clearance_is_outside():
-    note = _named_outside(*_case("0.3 mm new", 0.366e-3, 0.487e-3))  # the demo's 0.45 mm bench
+    note = named_outside(*_case("0.3 mm new", 0.366e-3, 0.487e-3))  # the demo's 0.45 mm bench
     assert note and "0.426 mm [0.366-0.487]" in note and "0.3 mm new's 0.300 mm" in note
 
 
 def test_no_note_inside_the_interval_for_undecided_or_unexplained():
-    assert _named_outside(*_case("0.3 mm new", 0.271e-3, 0.407e-3)) is None
-    assert _named_outside(*_case("undecided", 0.366e-3, 0.487e-3)) is None
-    assert _named_outside(*_case("0.3 mm new", 0.366e-3, 0.487e-3, explains=False)) is None
+    assert named_outside(*_case("0.3 mm new", 0.271e-3, 0.407e-3)) is None
+    assert named_outside(*_case("undecided", 0.366e-3, 0.487e-3)) is None
+    assert named_outside(*_case("0.3 mm new", 0.366e-3, 0.487e-3, explains=False)) is None
