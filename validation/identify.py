@@ -41,7 +41,7 @@ import numpy as np
 from scipy import linalg, optimize, special, stats
 from wearbench.validation.ensemble import Ensemble
 from wearbench.validation.features import CycleFeatures, FeatureSpec
-from wearbench.validation.sensor_path import SensorPath, calibrate_path, design_matrix
+from wearbench.validation.sensor_path import PathSpread, SensorPath, calibrate_path, design_matrix
 from wearbench.validation.statistics import StateStatistics
 
 __all__ = ["Identification", "IdentifyOptions", "StateModels", "fit_states", "identify_features"]
@@ -340,7 +340,7 @@ def diagnose(xbar: np.ndarray, n: int, models: StateModels, state: str) -> dict:
     rms = {nm: float(np.sqrt(np.nanmean(b ** 2))) for nm, b in zip(names, blocks, strict=True)
            if np.isfinite(b).any()}
     angles = [f"{nm} {r}" for nm, b in zip(names, blocks, strict=True) for r in _ranges(np.abs(b) > 3, spec.bins)]
-    broad = SensorPath.prior(spec, mode=(100.0, 10000.0), damping=(0.01, 0.3), sensitivity=0.3)
+    broad = SensorPath.prior(spec, PathSpread(mode=(100.0, 10000.0), damping=(0.01, 0.3), sensitivity=0.3))
     full_x, full_m = np.zeros(spec.size), np.zeros(spec.size)
     full_x[cols], full_m[cols] = xbar, base
     full_c = np.eye(spec.size) * 1e6  # features not used carry no information

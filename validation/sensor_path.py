@@ -126,10 +126,11 @@ class SensorPath:
     source: str
 
     @classmethod
-    def prior(cls, spec: FeatureSpec, *, mode: tuple[float, float] = (300.0, 3000.0),
-              damping: tuple[float, float] = (0.02, 0.1), sensitivity: float = 0.05) -> SensorPath:
-        """The prior of an unmeasured path: a structural mode log-uniform in ``mode`` (Hz), damping
-        uniform in ``damping``, sensitivity uniform within +/- ``sensitivity`` (moments by quadrature)."""
+    def prior(cls, spec: FeatureSpec, spread: PathSpread = PathSpread()) -> SensorPath:
+        """The prior of an unmeasured path drawn as ``spread`` draws it: a structural mode log-uniform
+        in its ``mode`` (Hz), damping uniform in its ``damping``, sensitivity uniform within +/- its
+        ``sensitivity`` (moments by quadrature)."""
+        mode, damping, sensitivity = spread.mode, spread.damping, spread.sensitivity
         fr = np.geomspace(*mode, 41)
         zeta = np.linspace(*damping, 5)
         gains = 1.0 + np.linspace(-sensitivity, sensitivity, 5)
