@@ -8,16 +8,16 @@ results. Stands above ``model`` and ``compute``; nothing below imports it.
 from __future__ import annotations
 
 import functools
-from pathlib import Path
+import hashlib
+import inspect
+from collections.abc import Callable
 
-from wearbench.model.digest import package_source_digest
-
-__all__ = ["studies_source_digest"]
+__all__ = ["tasks_source_digest"]
 
 
 @functools.cache
-def studies_source_digest() -> str:
-    """SHA-256 (hex) over the source of every module of ``wearbench.studies``: a study's or sweep's
-    task key holds it (``compute.task_key`` holds the model's), so changed study code never replays a
-    cached result."""
-    return package_source_digest(Path(__file__).parent)
+def tasks_source_digest(*functions: Callable) -> str:
+    """SHA-256 (hex) over the source of the ``functions`` a study's or sweep's tasks run: every task
+    key holds it (``compute.task_key`` holds the model's digest too), so changed simulation code never
+    replays a cached result, and changed statistics, reports or figures reuse the cached runs."""
+    return hashlib.sha256("".join(inspect.getsource(f) for f in functions).encode()).hexdigest()

@@ -27,9 +27,6 @@ results cached by content). Imports the model contract, the wear modules and mat
 
 from __future__ import annotations
 
-import functools
-import hashlib
-import inspect
 import itertools
 import json
 import math
@@ -43,7 +40,7 @@ import pandas as pd
 from wearbench.bench.content import bench_key
 from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan, WearRun, convergence, run_stages
-from wearbench.studies import studies_source_digest
+from wearbench.studies import tasks_source_digest
 
 __all__ = ["PAPER", "STATISTICS", "Case", "CaseResult", "Cell", "StudyConfig", "cell_statistics", "cell_units",
            "cycle_maxima", "run_study", "staging_convergence", "study_realisation", "trends", "verdict",
@@ -205,15 +202,6 @@ def study_realisation(bench, clearances: Mapping[str, float], surfaces, seed: in
     return out
 
 
-@functools.cache
-def _task_source_digest() -> str:
-    """SHA-256 (hex) over the source of the functions the study's tasks run (every task key holds the
-    model's digest too): changed simulation code never replays a cached result, and changed
-    statistics or reports reuse the cached simulations."""
-    source = "".join(inspect.getsource(f) for f in (wear_realisation, cycle_maxima, study_realisation))
-    return hashlib.sha256(source.encode()).hexdigest()
-
-
 # ------------------------------------------------------------------------------------------------
 # statistics
 
@@ -230,23 +218,69 @@ def cell_units(x: np.ndarray, statistic: str, by_run: bool) -> np.ndarray:
     return logs.mean(axis=1) if by_run else logs.reshape(-1)
 
 
-def _t_interval(x: np.ndarray, y: np.ndarray | None, paired: bool, level: float) -> tuple[float, float, float]:
-    """Mean of ``x`` (``y`` None) or of ``x - y`` and its Student-t interval at ``level``: paired
+def _t_parts(x: np.ndarray, y: np.ndarray | None, paired: bool) -> tuple[float, float, float]:
+    """Mean of ``x`` (``y`` None) or of ``x - y``, its standard error and degrees of freedom: paired
     (the same units) on the differences, else Welch's with Satterthwaite's degrees of freedom. Fewer
-    than 2 units on a side give no interval (-inf, inf)."""
-    from scipy import stats as sps
-
+    than 2 units on a side give an infinite standard error."""
     if y is not None and paired:
         x, y = x - y, None
     sides = [x] if y is None else [x, y]
     diff = float(x.mean() - (0.0 if y is None else y.mean()))
     if min(v.size for v in sides) < 2:
-        return diff, -math.inf, math.inf
+        return diff, math.inf, 1.0
     var = [v.var(ddof=1) / v.size for v in sides]
     se = math.sqrt(sum(var))
     dof = sum(var) ** 2 / sum(u**2 / (v.size - 1) for u, v in zip(var, sides, strict=True)) if se > 0 else 1.0
-    half = float(sps.t.ppf(0.5 * (1 + level), dof)) * se
+    return diff, se, dof
+
+
+def _t_quantile(level: float, dof: float) -> float:
+    from scipy import stats as sps
+
+    return float(sps.t.ppf(0.5 * (1 + level), dof))
+
+
+def _t_interval(x: np.ndarray, y: np.ndarray | None, paired: bool, level: float) -> tuple[float, float, float]:
+    """Mean of ``x`` (``y`` None) or of ``x - y`` and its Student-t interval at ``level``
+    (:func:`_t_parts`); no interval (-inf, inf) without a standard error."""
+    diff, se, dof = _t_parts(x, y, paired)
+    if not math.isfinite(se):
+        return diff, -math.inf, math.inf
+    half = _t_quantile(level, dof) * se
     return diff, diff - half, diff + half
+
+
+def replication(parts: Sequence[tuple[float, float, float]], level: float) -> dict[str, float]:
+    """How a rerun of the same size would judge a finding of ratios with log-ratio estimates, standard
+    errors and degrees of freedom ``parts`` (intervals at ``level``).
+
+    A rerun's estimate of each log ratio is predicted as N(d, 2 se^2) (the effect known only through
+    this run, flat prior: Goodman's replication probability), the ratios as independent. Returns the
+    probability of each of the rerun's verdicts, ``agrees`` (every interval above 1), ``disagrees``
+    (any below 1) and ``not resolved``, and ``size_for_90``: the factor on the number of units (wear runs or
+    realisations) at which a rerun resolves the finding the way its estimates point with probability
+    0.9, were the true ratios the estimated ones (at today's t quantile; inf when no estimate points
+    anywhere or the factor exceeds 1000)."""
+    from scipy import stats as sps
+    from scipy.optimize import brentq
+
+    z = np.array([d / se if math.isfinite(se) and se > 0 else 0.0 for d, se, _ in parts])
+    t = np.array([_t_quantile(level, dof) for *_, dof in parts])
+    up = sps.norm.cdf((z - t) / math.sqrt(2))
+    down = sps.norm.cdf((-z - t) / math.sqrt(2))
+    agrees, disagrees = float(np.prod(up)), float(1 - np.prod(1 - down))
+
+    def resolved(f: float) -> float:  # probability the rerun at f times the units resolves the pointed way
+        if (z > 0).all():
+            return float(np.prod(sps.norm.cdf(z * math.sqrt(f) - t)))
+        return float(1 - np.prod(1 - sps.norm.cdf(-z * math.sqrt(f) - t)))
+
+    pointed = bool((z > 0).all() or (z < 0).any()) and bool(np.abs(z).max() > 0)
+    if not pointed or resolved(1000.0) < 0.9:
+        size = math.inf
+    else:
+        size = 0.0 if resolved(1e-9) >= 0.9 else brentq(lambda f: resolved(f) - 0.9, 1e-9, 1000.0)
+    return {"agrees": agrees, "disagrees": disagrees, "not resolved": 1 - agrees - disagrees, "size_for_90": size}
 
 
 def cell_statistics(cell: Cell, level: float) -> dict[str, dict[str, dict]]:
@@ -308,7 +342,7 @@ def staging_convergence(bench, ks: list[float], total_cycles: float, plan: Stage
     order = sorted(plans, reverse=True)  # longest first: balanced workers
     tasks = [Task(_wear_only, {"bench": bench, "plan": plans[k], "clearances": clearances, "speed": speed,
                                "initial": initial},
-                  task_key("wear-stages", studies_source_digest(), bench_key(bench), plans[k], clearances, speed, initial), f"k={k:g}")
+                  task_key("wear-stages", tasks_source_digest(_wear_only), bench_key(bench), plans[k], clearances, speed, initial), f"k={k:g}")
              for k in order]
     if tasks:
         done = run_tasks(tasks, workers=workers, scheduler=scheduler, progress="wear convergence")
@@ -393,7 +427,7 @@ def run_study(bench, out: str | Path, config: StudyConfig) -> dict:
     t0 = time.perf_counter()
     cases = [config.wear_case, *config.clearance_cases]
     joints = [j.name for j in bench.clearance_joints]
-    physics = (_task_source_digest(), bench_key(bench), asdict(bench.tolerances))
+    physics = (tasks_source_digest(wear_realisation, cycle_maxima, study_realisation), bench_key(bench), asdict(bench.tolerances))
     sizes = {"cycles": config.cycles, "settle": config.settle, "output_rate": config.output_rate}
 
     def realisation(case: Case, surfaces, seed: int, keep: bool, label: str) -> Task:
@@ -568,8 +602,9 @@ def trends(stats: Mapping, depth: Mapping, config: StudyConfig, joints: Sequence
 
     def add(finding: str, pending: list[dict]) -> None:
         level = 1 - (1 - config.level) / len(pending)
-        comparisons = []
+        comparisons, parts = [], []
         for c in pending:
+            parts.append(_t_parts(c["num"], c["den"], c["paired"]))
             d, lo, hi = _t_interval(c["num"], c["den"], c["paired"], level)
             r, lo, hi = math.exp(d), math.exp(lo), math.exp(hi)
             comparisons.append({"comparison": c["comparison"], "ratio": r, "lo": lo, "hi": hi, "level": level,
@@ -577,8 +612,9 @@ def trends(stats: Mapping, depth: Mapping, config: StudyConfig, joints: Sequence
         v = _combine([c["verdict"] for c in comparisons])
         detail = "; ".join(f"{c['comparison']} {c['ratio']:.2f} [{c['lo']:.2f}, {c['hi']:.2f}]"
                            + (f" (paper {c['paper_ratio']:.2f})" if c["paper_ratio"] else "") for c in comparisons)
+        rerun = replication(parts, level)
         out.append({"finding": finding, "paper": True, "verdict": v, "ours": v == "agrees", "detail": detail,
-                    "comparisons": comparisons})
+                    "replication": rerun[v], "size_for_90": rerun["size_for_90"], "comparisons": comparisons})
 
     def paper_ratio(a: float | None, b: float | None) -> float | None:
         return a / b if a and b else None
@@ -637,6 +673,10 @@ def _cell(v: float, lo: float, hi: float, paper: float | None, digits: int = 0) 
     return text + (f" / {paper:g}" if paper else "")
 
 
+def _size(factor: float) -> str:
+    return "beyond 1000x" if not math.isfinite(factor) else "met" if factor <= 1 else f"{factor:.1f}x"
+
+
 def report_markdown(summary: dict, config: StudyConfig) -> str:
     """The study's report: Table 3 analogue and wear study with intervals beside the paper's values,
     the spread of the wear runs, and the verdict on each of the paper's trends."""
@@ -684,8 +724,14 @@ def report_markdown(summary: dict, config: StudyConfig) -> str:
     lines += ["", (f"The paper's findings on our bench (intervals of the ratios at {pct} shared out over each finding's "
               f"ratios; a finding agrees when every interval lies above 1, disagrees when one lies below 1): "
               f"{c['agrees']} agree, {c['disagrees']} disagree, {c['not resolved']} not resolved at this size"), "",
-              "| finding | verdict | ours: ratio [interval] (paper's ratio) |", "|---|---|---|"]
-    lines += [f"| {t['finding']} | {t['verdict']} | {t['detail']} |" for t in summary["trends"]]
+              ("A rerun of this size repeats a verdict with the probability in the third column (Goodman's "
+               "replication probability: the rerun's estimates predicted from this run's); the fourth is the "
+               "factor on the ensemble at which a rerun resolves the finding the way its estimates point "
+               "in 9 of 10 reruns, were the true ratios these estimates."), "",
+              "| finding | verdict | rerun repeats it | size for 9 in 10 | ours: ratio [interval] (paper's ratio) |",
+              "|---|---|---|---|---|"]
+    lines += [f"| {t['finding']} | {t['verdict']} | {t['replication']:.2f} | {_size(t['size_for_90'])} | {t['detail']} |"
+              for t in summary["trends"]]
     if summary["failures"]:
         lines += ["", "Failed realisations (left out): " + "; ".join(
             f"{k}: {len(v)}" for k, v in summary["failures"].items())]

@@ -27,7 +27,7 @@ from wearbench.bench.content import bench_key
 from wearbench.bench.units import QuantityError, parse_quantity
 from wearbench.compute import Task, TaskFailure, run_tasks, task_key
 from wearbench.model.wear_stages import StagePlan
-from wearbench.studies import studies_source_digest
+from wearbench.studies import tasks_source_digest
 
 __all__ = ["PARAMETERS", "STATISTICS", "Axis", "Parameter", "SweepResult", "SweepSpec", "format_value",
            "parse_axis", "plot_sweep", "run_point", "run_sweep"]
@@ -236,7 +236,7 @@ def run_sweep(bench, spec: SweepSpec, *, workers: int | None = None, scheduler: 
             label = " ".join(f"{n}={format_value(n, v)}" for n, v in point.items()) + (f" seed={seed}" if seed is not None
                                                                                   else "")
             tasks.append(Task(run_point, {"bench": bench, "values": point, "seed": seed, "spec": spec},
-                              task_key("sweep-point", studies_source_digest(), part, _apply(bench, point, spec.plan),
+                              task_key("sweep-point", tasks_source_digest(run_point, _apply), part, _apply(bench, point, spec.plan),
                                        seed, how), label))
     results = run_tasks(tasks, workers=workers, scheduler=scheduler, progress=progress, cache=cache)
     rows, failures = [], []

@@ -171,7 +171,8 @@ def test_overlapping_axes_follow_one_rule_and_the_cache_keys_the_computation(ben
 
 def test_a_change_of_the_studies_code_changes_the_task_keys(bench, monkeypatch):
     """The sweep left ``model/`` (whose source digest every task key holds): its keys hold the
-    studies' own source digest, so a changed sweep never replays a cached result of the old code."""
+    digest of the functions its tasks run, so a changed sweep never replays a cached result of the
+    old code."""
     from wearbench.studies import sweep
 
     keys = []
@@ -182,8 +183,8 @@ def test_a_change_of_the_studies_code_changes_the_task_keys(bench, monkeypatch):
 
     monkeypatch.setattr(sweep, "run_tasks", capture)
     spec = _spec(Axis("clearance.S", (0.2e-3,)))
-    for digest in (sweep.studies_source_digest(), "changed"):
-        monkeypatch.setattr(sweep, "studies_source_digest", lambda d=digest: d)
+    for digest in (sweep.tasks_source_digest(sweep.run_point, sweep._apply), "changed"):
+        monkeypatch.setattr(sweep, "tasks_source_digest", lambda *_, d=digest: d)
         with pytest.raises(KeyboardInterrupt):
             run_sweep(bench, spec, workers=0)
     assert len(keys[0]) == len(keys[1]) == 1 and keys[0] != keys[1]

@@ -21,6 +21,7 @@ from wearbench.studies.study import (
     cell_statistics,
     cell_units,
     cycle_maxima,
+    replication,
     run_study,
     trends,
     verdict,
@@ -296,3 +297,36 @@ def test_a_realisation_on_surfaces_in_memory_is_the_one_on_their_files(tmp_path)
     b = simulate_state(bench, files, 3, **kw)
     pd.testing.assert_frame_equal(a.table, b.table, check_exact=True)
     assert np.array_equal(a.acc, b.acc) and np.array_equal(a.t, a.table["t"].to_numpy())
+
+
+def test_replication_probability_is_calibrated_under_its_flat_prior():
+    """Effects drawn from a wide flat prior, two runs of each: among first runs that predict a rerun
+    "agrees" with probability p (binned), the second run agrees at rate p (a second method: the
+    simulated reruns); the probabilities of the three verdicts add up to one."""
+    rng = np.random.default_rng(5)
+    n, se, level = 200_000, 1.0, 0.95
+    delta = rng.uniform(-12, 12, n)
+    first, second = delta + rng.normal(0, se, n), delta + rng.normal(0, se, n)
+    keep = np.abs(first) < 8  # away from the prior's edges, where it stops being flat
+    t = sps.norm.ppf(0.975)
+    predicted = np.array([replication([(d, se, 1e9)], level)["agrees"] for d in first[keep][:20_000]])
+    agreed = second[keep][:20_000] > t * se
+    for lo, hi in ((0.05, 0.2), (0.2, 0.4), (0.4, 0.6), (0.6, 0.8), (0.8, 0.95)):
+        sel = (predicted >= lo) & (predicted < hi)
+        assert sel.sum() > 300
+        assert agreed[sel].mean() == pytest.approx(predicted[sel].mean(), abs=0.04)
+    r = replication([(1.0, 1.0, 8.0), (-0.5, 0.7, 5.0)], level)
+    assert r["agrees"] + r["disagrees"] + r["not resolved"] == pytest.approx(1.0)
+
+
+def test_size_for_nine_in_ten_is_the_power_calculation():
+    """One ratio at z = t + 1.2816 resolves in 9 of 10 reruns at today's size (factor 1); at half that z
+    it takes 4x the units (se ~ 1/sqrt(units)); two such ratios need more than one; a finding whose
+    estimate is 0 points nowhere."""
+    t = sps.norm.ppf(0.975)
+    z = t + sps.norm.ppf(0.9)
+    assert replication([(z, 1.0, 1e9)], 0.95)["size_for_90"] == pytest.approx(1.0, rel=1e-6)
+    assert replication([(z / 2, 1.0, 1e9)], 0.95)["size_for_90"] == pytest.approx(4.0, rel=1e-6)
+    assert replication([(z, 1.0, 1e9)] * 2, 0.95)["size_for_90"] > 1.0
+    assert replication([(-z, 1.0, 1e9), (z, 1.0, 1e9)], 0.95)["size_for_90"] < 1.0  # disagrees: any one below
+    assert math.isinf(replication([(0.0, 1.0, 1e9)], 0.95)["size_for_90"])
