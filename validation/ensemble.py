@@ -152,12 +152,14 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
         if found is not None:
             return found
     physics = bench_key(bench)
+    # a realisation is its seed and how it is run: ensembles of other sizes or first seeds share it
+    how = {k: v for k, v in asdict(settings).items() if k not in ("realisations", "seed")}
     tasks, owners = [], []
     for state in states:
         for i in range(settings.realisations):
             seed = settings.seed + i
             key = task_key("ensemble-realisation", physics, asdict(bench.tolerances), _state_key(state), seed,
-                           round(speed, 9), asdict(settings))
+                           round(speed, 9), how)
             tasks.append(Task(realisation_summary, {"bench": bench, "state": state, "seed": seed, "speed": speed,
                                                     "settings": settings}, key, f"{state.name} #{i}"))
             owners.append(state.name)

@@ -57,6 +57,17 @@ def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, 
     # a rerun is served from the cache: the same arrays, no simulation
     again = build_ensembles(BENCH, [state], settings=settings, workers=0, progress=None)[state.name]
     np.testing.assert_array_equal(again.features, ens.features)
+    # an ensemble of another size and first seed shares the realisations of the seeds they have in
+    # common (seeds 1-3 here): only seed 0 is simulated
+    from wearbench.validation import ensemble as module
+
+    ran = []
+    real = module.realisation_summary
+    monkeypatch.setattr(module, "realisation_summary", lambda *a, **k: ran.append(k["seed"]) or real(*a, **k))
+    wider = build_ensembles(BENCH, [state], settings=replace(settings, realisations=4, seed=0), workers=0,
+                            progress=None)[state.name]
+    assert ran == [0]
+    np.testing.assert_array_equal(wider.features[1:], ens.features)
 
 
 def test_the_shipped_ensembles_are_current():
