@@ -52,8 +52,7 @@ def main() -> None:
     seeds = [int(v) for v in args.seeds.split(",")]
     out = Path(args.sessions or tempfile.mkdtemp(prefix="wearbench-rebuilds-sessions-"))
     out.mkdir(parents=True, exist_ok=True)
-    spread = {"spread": {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}}
-    emulator = {} if args.default_path else {"accelerometer": spread}
+    emulator = {} if args.default_path else {"accelerometer": {"spread": {}}}  # the emulator's drawn mounts
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
     paths = []
     for s, seed in truths:

@@ -315,9 +315,10 @@ def _spread(r: _Reader, d: Any) -> SensorSpread:
             raise r.fail(f"{k}.{name}", raw, "expected low <= high")
         return lo, hi
 
-    mode = pair("mode", (300.0, 3000.0), lambda v: r.quantity(v, k, "mode", "frequency", positive=True))
-    damping = pair("damping", (0.02, 0.1), lambda v: r.number(v, k, "damping", low=0.0, high=2.0, open_low=True))
-    return SensorSpread(mode, damping, r.number(d, k, "sensitivity", low=0.0, high=0.5, default=0.05))
+    base = SensorSpread()  # what an empty table draws
+    mode = pair("mode", base.mode, lambda v: r.quantity(v, k, "mode", "frequency", positive=True))
+    damping = pair("damping", base.damping, lambda v: r.number(v, k, "damping", low=0.0, high=2.0, open_low=True))
+    return SensorSpread(mode, damping, r.number(d, k, "sensitivity", low=0.0, high=0.5, default=base.sensitivity))
 
 
 def _motor(r: _Reader, d: dict) -> MotorImperfections:

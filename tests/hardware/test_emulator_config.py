@@ -98,6 +98,8 @@ def test_a_sensor_spread_draws_one_path_per_truth_seed(testbed):
     paths = [emulator_config(testbed, "0.3 mm new", seed, accelerometer=spread).accelerometer for seed in range(40)]
     modes = [a.resonance for a in paths]
     assert all(300 <= m <= 3000 for m in modes) and len(set(modes)) == 40
+    # an empty table draws these ranges, the defaults the file's comment states
+    assert emulator_config(testbed, "0.3 mm new", 3, accelerometer={"spread": {}}).accelerometer == paths[3]
     assert all(0.02 <= a.damping <= 0.1 and 0.95 <= a.sensitivity <= 1.05 for a in paths)
     # log-uniform: about half the modes below the geometric middle (949 Hz)
     assert 10 <= sum(m < 949 for m in modes) <= 30
