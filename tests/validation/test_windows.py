@@ -23,6 +23,7 @@ from wearbench.validation.filters import parse_filter
 from wearbench.validation.identify import fit_states
 from wearbench.validation.measured import MeasuredSession
 from wearbench.validation.windows import (
+    FEATURE_STATISTICS,
     WindowOptions,
     measured_curves,
     score_windows,
@@ -182,6 +183,31 @@ def test_null_is_calibrated_on_held_out_realisations(ensembles):
     assert len(got) == 12
     assert np.mean([w.consistent for w in got]) >= 0.75
     assert np.ptp([w.percentile for w in got]) > 40
+
+
+def test_each_feature_statistic_can_decide_with_its_own_held_out_null(ensembles):
+    """With any feature statistic as the verdict, fresh draws of the true state are consistent at
+    about 1 - alpha and draws of the other state are not; the verdict reads that statistic's p-value,
+    whose null is the held-out realisations' windows; without the fitted statistics it is refused."""
+    models = fit_states(ensembles, window_cycles=5)
+    draws = {}
+    for state in STATES:
+        for seed in range(6100, 6104):
+            t, angle, acc = generate(state, seed, 11.5)
+            draws.setdefault(state, []).append((measured_curves(t, angle, acc, grid=SETTINGS.grid,
+                                                                filter_spec=SETTINGS.curve_filter),
+                                                cycle_features(t, angle, acc, SETTINGS.features)))
+    for stat in FEATURE_STATISTICS:
+        options = WindowOptions(statistic=stat)
+        theory = window_theory(ensembles["soft"], crank_speed=OMEGA, models=models, options=options)
+        assert theory.null[stat].size == models.window_null["soft"].shape[0]
+        got = {s: [w for mc, f in d for w in score_windows(mc, theory, f).windows] for s, d in draws.items()}
+        assert all(w.consistent == (w.p_values[stat] >= options.alpha) for ws in got.values() for w in ws)
+        assert np.mean([w.consistent for w in got["soft"]]) >= 0.75, stat
+        assert not any(w.consistent for w in got["hard"]), stat
+        bare = window_theory(ensembles["soft"], crank_speed=OMEGA, options=options)
+        with pytest.raises(ValueError, match=f"{stat!r} verdict needs"):
+            score_windows(draws["soft"][0][0], bare, draws["soft"][0][1])
 
 
 def test_report_has_one_window_verdict_per_session_and_a_theory_with_impacts(assessed, tmp_path):
