@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy import signal, stats
+from scipy import linalg, signal, stats
 from wearbench.validation.chain_delay import StatedDelay
 from wearbench.validation.cycles import WindowSpec, choose_windows, crank_turns
 from wearbench.validation.ensemble import Ensemble
@@ -60,7 +60,7 @@ from wearbench.validation.identify import StateModels, _ranges, direction_distan
 from wearbench.validation.metrics import iso18571
 
 __all__ = ["FEATURE_STATISTICS", "STATISTICS", "DelayFit", "MeasuredCurves", "SessionWindows", "WindowOptions", "WindowTheory", "WindowVerdict",
-           "fit_delay", "measured_curves", "score_windows", "window_theory"]
+           "fit_delay", "measured_curves", "score_windows", "separation", "window_theory"]
 
 TWO_PI = 2.0 * np.pi
 BINS = 36  # 10 deg bins for the energy distance and the departure angles
@@ -265,6 +265,25 @@ class WindowTheory:
             sub["lowpass_rating"] = float(low.rating)
             sub["ratings"] = [float(i.rating) for i in isos]
         return values, sub, _binned(out.astype(float)).mean(axis=0)
+
+
+def separation(models: StateModels, judged: str, truth: str, cycles: int = 5, alpha: float = 0.05) -> dict[str, float]:
+    """How well ``cycles``-cycle windows of ``truth`` can be told from ``judged`` at all, from the
+    fitted feature statistics alone (Gaussian; the truth's windows spread as the judged state's do,
+    as the pooled statistics have them): ``distance``, the Mahalanobis distance between the two means
+    under the judged state's window covariance (between-bench, cycle-to-cycle, sensor path, floors);
+    ``power``, the most any test of "consistent with judged" at false-alarm ``alpha`` can call the
+    truth's windows inconsistent (Neyman-Pearson: the likelihood ratio, here the projection on the
+    line between the means); ``power_direction``, the same for the chi-square test along the
+    directions to all other candidates (``features_direction`` with an exact null); ``bayes_error``,
+    the least misclassification rate between the two at equal priors."""
+    st = models.stats[judged]
+    z = linalg.solve_triangular(st.whitener(cycles), models.stats[truth].mean - st.mean, lower=True)
+    delta = float(np.linalg.norm(z))
+    k = max(1, len(models.states) - 1)
+    return {"distance": delta, "power": float(stats.norm.sf(stats.norm.isf(alpha) - delta)),
+            "power_direction": float(stats.ncx2.sf(stats.chi2.isf(alpha, k), k, delta ** 2)),
+            "bayes_error": float(stats.norm.cdf(-delta / 2))}
 
 
 def _min_p(null: np.ndarray) -> np.ndarray:
