@@ -21,8 +21,9 @@ ensembles when their key matches, else built): the consistent rate against the t
 inconsistent rate against each wrong state, the KS test of the true state's window percentiles
 against uniform, the delay's error the three ways (within 0.2 ms, p5/p50/p95, how often the
 residual sits at its bound and the statement is flagged as disagreeing), the scores' separation
-(which statistic was chosen and why) and the time to score a 20-cycle session's windows against 4
-cached ensembles. Which statistic decides is chosen by ``DECISION_RULE``, written down before the
+(which statistic was chosen and why), how far apart the wear states' windows lie in the ensembles
+alone (``windows.separation``: the most any test can tell them apart), and the time to score a
+20-cycle session's windows against 4 cached ensembles. Which statistic decides is chosen by ``DECISION_RULE``, written down before the
 fresh truths it was applied to (seeds from 31000) were scored; the table prints how many of the
 issue's marks each statistic meets and the rule's pick.
 
