@@ -21,6 +21,10 @@ as much as the delay (``benchmarks/delay_floor.py``), so the signal alone does n
 
 Scores of a window against a state (see README "How sessions are scored" for the measurement behind
 the choice of the verdict's statistic):
+- ``features_all`` / ``features_direction``: squared Mahalanobis distance of the window's mean cycle
+  features (the identification's) from the state, in all features / along the directions to the
+  other candidates only (``identify``'s consistency test, for one window); ``features``: the smaller
+  of those two p-values (itself calibrated on the held-out windows);
 - ``outside``: fraction of the window outside the band;
 - ``z2``: mean over the window of ((x - mean) / sd)^2 per crank angle;
 - ``energy``: energy distance between the window's cycles and the ensemble's cycles, both as 10 deg
@@ -46,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy import signal, stats
+from scipy import linalg, signal, stats
 from wearbench.validation.chain_delay import StatedDelay
 from wearbench.validation.cycles import WindowSpec, choose_windows, crank_turns
 from wearbench.validation.ensemble import Ensemble
@@ -55,12 +59,14 @@ from wearbench.validation.filters import apply_filter, parse_filter
 from wearbench.validation.identify import StateModels, _ranges, direction_distance2, feature_ranges
 from wearbench.validation.metrics import iso18571
 
-__all__ = ["STATISTICS", "DelayFit", "MeasuredCurves", "SessionWindows", "WindowOptions", "WindowTheory", "WindowVerdict",
-           "fit_delay", "measured_curves", "score_windows", "window_theory"]
+__all__ = ["FEATURE_STATISTICS", "STATISTICS", "DelayFit", "MeasuredCurves", "SessionWindows", "WindowOptions", "WindowTheory", "WindowVerdict",
+           "fit_delay", "measured_curves", "score_windows", "separation", "window_theory"]
 
 TWO_PI = 2.0 * np.pi
 BINS = 36  # 10 deg bins for the energy distance and the departure angles
-STATISTICS = ("features", "outside", "z2", "energy", "iso", "iso_lowpass")  # each: larger = worse
+# each: larger = worse; the feature ones need the candidates' fitted statistics (``StateModels``)
+FEATURE_STATISTICS = ("features", "features_all", "features_direction")
+STATISTICS = (*FEATURE_STATISTICS, "outside", "z2", "energy", "iso", "iso_lowpass")
 
 
 @dataclass(frozen=True)
@@ -69,7 +75,7 @@ class WindowOptions:
 
     cycles: int = 5
     alpha: float = 0.05          # false-alarm rate of the verdict (per window)
-    statistic: str = "features"  # the verdict's statistic, one of STATISTICS
+    statistic: str = "features_direction"  # the verdict's statistic, one of STATISTICS (README: chosen on fresh truths)
     max_delay: float = 2e-3      # s, without a statement the sensor chain's delay is fitted in [0, max_delay]
     delay_floor: float = 7.5e-4  # s, how far a fit on the signal alone scatters: p95 of its error (README)
     delay_step: float = 2.5e-5   # s, grid of the delay search (then refined by a parabola)
@@ -261,6 +267,25 @@ class WindowTheory:
         return values, sub, _binned(out.astype(float)).mean(axis=0)
 
 
+def separation(models: StateModels, judged: str, truth: str, cycles: int = 5, alpha: float = 0.05) -> dict[str, float]:
+    """How well ``cycles``-cycle windows of ``truth`` can be told from ``judged`` at all, from the
+    fitted feature statistics alone (Gaussian; the truth's windows spread as the judged state's do,
+    as the pooled statistics have them): ``distance``, the Mahalanobis distance between the two means
+    under the judged state's window covariance (between-bench, cycle-to-cycle, sensor path, floors);
+    ``power``, the most any test of "consistent with judged" at false-alarm ``alpha`` can call the
+    truth's windows inconsistent (Neyman-Pearson: the likelihood ratio, here the projection on the
+    line between the means); ``power_direction``, the same for the chi-square test along the
+    directions to all other candidates (``features_direction`` with an exact null); ``bayes_error``,
+    the least misclassification rate between the two at equal priors."""
+    st = models.stats[judged]
+    z = linalg.solve_triangular(st.whitener(cycles), models.stats[truth].mean - st.mean, lower=True)
+    delta = float(np.linalg.norm(z))
+    k = max(1, len(models.states) - 1)
+    return {"distance": delta, "power": float(stats.norm.sf(stats.norm.isf(alpha) - delta)),
+            "power_direction": float(stats.ncx2.sf(stats.chi2.isf(alpha, k), k, delta ** 2)),
+            "bayes_error": float(stats.norm.cdf(-delta / 2))}
+
+
 def _min_p(null: np.ndarray) -> np.ndarray:
     """Per row of (windows, k) distances (larger = worse): the smallest of its k empirical p-values."""
     ranks = [(1 + np.sum(null[:, j][None, :] >= null[:, j][:, None], axis=1)) / (1 + null.shape[0])
@@ -294,7 +319,7 @@ def window_theory(ensemble: Ensemble, *, crank_speed: float, models: StateModels
                           _Reference.of(curves, scale, n, fs_grid, options.lowpass, options.delay_lowpass), scale,
                           windows,
                           np.arange(k), {}, np.zeros((0, BINS)), np.zeros(0), models)
-    null: dict[str, list[float]] = {s: [] for s in STATISTICS if s != "features"}
+    null: dict[str, list[float]] = {s: [] for s in STATISTICS if s not in FEATURE_STATISTICS}
     bins, iso = [], []
     cells = _binned(curves.reshape(-1, grid)) / scale
     dist = np.sqrt(((cells[:, None, :] - cells[None, :, :]) ** 2).sum(-1))  # between all cycles, once
@@ -314,7 +339,8 @@ def window_theory(ensemble: Ensemble, *, crank_speed: float, models: StateModels
                 iso.append(sub["rating"])
     theory.null = {key: np.asarray(v) for key, v in null.items()}
     if models is not None:
-        theory.null["features"] = _min_p(models.window_null[ensemble.state])
+        held_out = models.window_null[ensemble.state]
+        theory.null.update(features=_min_p(held_out), features_all=held_out[:, 0], features_direction=held_out[:, 1])
     theory.null_bins = np.asarray(bins)
     theory.null_iso = np.asarray(iso)
     return theory
@@ -482,8 +508,8 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
         raise ValueError(f"windows: measured curves on {measured.times.shape[1]} points per cycle, the ensemble's "
                          f"on {grid}")
     use_features = features is not None and theory.models is not None
-    if opts.statistic == "features" and not use_features:
-        raise ValueError("windows: the 'features' verdict needs the session's cycle features and the fitted "
+    if opts.statistic in FEATURE_STATISTICS and not use_features:
+        raise ValueError(f"windows: the {opts.statistic!r} verdict needs the session's cycle features and the fitted "
                          "state statistics (window_theory(..., models=fit_states(...)))")
     if use_features and features.cycles != measured.times.shape[0]:
         raise ValueError(f"windows: {features.cycles} cycles of features for {measured.times.shape[0]} cycles of "
@@ -503,10 +529,8 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
         p = {k: _p_value(theory.null[k], v) for k, v in values.items()}
         departs = [f"band {r}" for r in _ranges(bins > theory.null_bins.max(axis=0), BINS)]
         if use_features:
-            d2, t2 = theory.feature_distances(features.values[cyc])
-            null = theory.models.window_null[theory.state]
-            values["features_all"], values["features_direction"] = d2, t2
-            p["features_all"], p["features_direction"] = _p_value(null[:, 0], d2), _p_value(null[:, 1], t2)
+            values["features_all"], values["features_direction"] = theory.feature_distances(features.values[cyc])
+            p.update({k: _p_value(theory.null[k], values[k]) for k in ("features_all", "features_direction")})
             values["features"] = -min(p["features_all"], p["features_direction"])
             p["features"] = float((1 + np.sum(theory.null["features"] <= -values["features"]))
                                   / (1 + theory.null["features"].size))

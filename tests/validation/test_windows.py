@@ -20,12 +20,20 @@ from wearbench.validation.chain_delay import StatedDelay
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.features import cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
-from wearbench.validation.identify import fit_states
+from wearbench.validation.identify import (
+    IdentifyOptions,
+    StateModels,
+    direction_distance2,
+    fit_states,
+)
 from wearbench.validation.measured import MeasuredSession
+from wearbench.validation.statistics import StateStatistics
 from wearbench.validation.windows import (
+    FEATURE_STATISTICS,
     WindowOptions,
     measured_curves,
     score_windows,
+    separation,
     window_theory,
 )
 
@@ -184,6 +192,31 @@ def test_null_is_calibrated_on_held_out_realisations(ensembles):
     assert np.ptp([w.percentile for w in got]) > 40
 
 
+def test_each_feature_statistic_can_decide_with_its_own_held_out_null(ensembles):
+    """With any feature statistic as the verdict, fresh draws of the true state are consistent at
+    about 1 - alpha and draws of the other state are not; the verdict reads that statistic's p-value,
+    whose null is the held-out realisations' windows; without the fitted statistics it is refused."""
+    models = fit_states(ensembles, window_cycles=5)
+    draws = {}
+    for state in STATES:
+        for seed in range(6100, 6104):
+            t, angle, acc = generate(state, seed, 11.5)
+            draws.setdefault(state, []).append((measured_curves(t, angle, acc, grid=SETTINGS.grid,
+                                                                filter_spec=SETTINGS.curve_filter),
+                                                cycle_features(t, angle, acc, SETTINGS.features)))
+    for stat in FEATURE_STATISTICS:
+        options = WindowOptions(statistic=stat)
+        theory = window_theory(ensembles["soft"], crank_speed=OMEGA, models=models, options=options)
+        assert theory.null[stat].size == models.window_null["soft"].shape[0]
+        got = {s: [w for mc, f in d for w in score_windows(mc, theory, f).windows] for s, d in draws.items()}
+        assert all(w.consistent == (w.p_values[stat] >= options.alpha) for ws in got.values() for w in ws)
+        assert np.mean([w.consistent for w in got["soft"]]) >= 0.75, stat
+        assert not any(w.consistent for w in got["hard"]), stat
+        bare = window_theory(ensembles["soft"], crank_speed=OMEGA, options=options)
+        with pytest.raises(ValueError, match=f"{stat!r} verdict needs"):
+            score_windows(draws["soft"][0][0], bare, draws["soft"][0][1])
+
+
 def test_report_has_one_window_verdict_per_session_and_a_theory_with_impacts(assessed, tmp_path):
     report = write_assessment_report(assessed, tmp_path)
     scores = json.loads(report.scores_json.read_text())
@@ -238,3 +271,32 @@ def test_stream_start_counts_the_blocks_before_the_first_recorded_one():
     frame = pd.DataFrame({"time": t[keep], "acc": acc[keep], "sequence": np.arange(t.size)[keep] // 200})
     s = MeasuredSession("late start", frame, pd.DataFrame({"time": t[::5], "angle": angle[::5]}))
     assert stream_start(s) == pytest.approx(t[0], abs=1e-9)
+
+
+def test_separation_matches_a_simulation_of_the_tests_it_bounds():
+    """The closed forms of ``separation`` (Neyman-Pearson power, the chi-square test along the
+    candidates' directions, the Bayes error) against windows drawn from the Gaussians themselves,
+    judged by the likelihood ratio and by ``identify.direction_distance2``."""
+    rng = np.random.default_rng(7)
+    p = 6
+    a = rng.standard_normal((p, p))
+    within, between = a @ a.T / p + np.eye(p), 0.2 * np.eye(p)
+    means = {"A": np.zeros(p), "B": 0.9 * rng.standard_normal(p), "C": 2.0 * rng.standard_normal(p)}
+    st = {k: StateStatistics(m, within, between, np.full(p, 0.01), 32, 8) for k, m in means.items()}
+    models = StateModels(tuple(st), st, 1.0, {}, {}, {}, {}, {}, IdentifyOptions())
+    got = separation(models, "A", "B", cycles=5, alpha=0.05)
+    cov = st["A"].covariance(5)
+    d = means["B"] - means["A"]
+    assert got["distance"] == pytest.approx(np.sqrt(d @ np.linalg.solve(cov, d)), rel=1e-9)
+    under_a = rng.multivariate_normal(means["A"], cov, 40000)
+    under_b = rng.multivariate_normal(means["B"], cov, 40000)
+    w = np.linalg.solve(cov, d)
+    lr_a, lr_b = under_a @ w, under_b @ w
+    assert np.mean(lr_b > np.quantile(lr_a, 0.95)) == pytest.approx(got["power"], abs=0.01)
+    half = 0.5 * d @ w  # equal priors: the likelihood ratio's midpoint
+    assert 0.5 * (np.mean(lr_a > half) + np.mean(lr_b <= half)) == pytest.approx(got["bayes_error"], abs=0.01)
+    others = [means["B"], means["C"]]
+    t_a = [direction_distance2(st["A"], others, x, 5) for x in under_a[:3000]]
+    t_b = [direction_distance2(st["A"], others, x, 5) for x in under_b[:3000]]
+    assert np.mean(np.array(t_b) > np.quantile(t_a, 0.95)) == pytest.approx(got["power_direction"], abs=0.03)
+    assert got["power_direction"] < got["power"] and 0 < got["bayes_error"] < 0.5
