@@ -164,7 +164,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
                          "(100x the estimator's range): the interval's upper end is a lower bound")
     horizon = max(1.5 * max(cycles_run), 1.2 * to_limit.hi90 if to_limit else 0.0)
     prediction = [(float(n), depth_at(n)) for n in np.linspace(0.0, horizon, 41)]
-    edge = post[:, :3].sum() + post[:, -3:].sum() + post[:, inside][:, -3:].sum()
+    edge = post[:, :3].sum() + post[:, inside][:, -3:].sum()  # the lowest and the highest factors allowed
     if edge > 0.1:
         notes.append(f"the wear coefficient's posterior reaches the edge of {K_RANGE[0]}-"
                      f"{min(K_RANGE[1], float(ks[inside][-1])):.3g} x the file's (the last session's cycles run times "

@@ -225,3 +225,35 @@ def test_the_joint_likelihood_of_a_benchs_sessions_is_their_stacked_gaussian(mod
     one = joint_log_likelihood(model, xbars[:1], [20], model.grid_mean[:, :, None, :])
     assert np.allclose(-2 * one, model.distances(xbars[0], 20), rtol=1e-8)
 
+
+
+def test_the_edge_note_fires_when_a_tenth_of_the_factor_lies_at_the_grids_edge(model):
+    """Sessions at 0 and 100k cycles (no factor in 0.2-5 leaves the design's 600k: nothing caps the
+    grid) of a bench worn 4.45x and 4.6x the file's rate, its cycle features exactly the model's mean:
+    the posterior mass of the factor in the outer three grid cells at either end, computed here from
+    the dense stacked Gaussian, decides the note (> 0.1). At 4.45x it is 0.05-0.1: counted twice,
+    the note would fire."""
+    from scipy import linalg, special
+    from wearbench.validation.track import K_RANGE, track_features
+
+    runs, n = [0.0, 1e5], 20
+    ks = np.geomspace(*K_RANGE, 161)
+    st = model.stats[model.reference]
+    shared = st.between + st.nuisance @ st.nuisance.T
+    own = model.covariance(np.inf) - shared + st.within / n
+    chol = linalg.cho_factor(np.kron(np.ones((2, 2)), shared) + linalg.block_diag(own, own))
+
+    def edge_mass(xbars):
+        means = np.stack([model.mean(np.full((ks.size, 2), c), ks[:, None] * np.array(runs)) for c in model.grid_c])
+        r = (xbars - means).reshape(-1, 2 * P)  # (c x k, stacked sessions)
+        logp = (-0.5 * np.sum(r * linalg.cho_solve(chol, r.T).T, axis=1) / model.temperature).reshape(-1, ks.size)
+        marginal = np.exp(special.logsumexp(logp, axis=0) - special.logsumexp(logp))
+        return marginal[:3].sum() + marginal[-3:].sum()
+
+    for factor, fires in ((4.45, False), (4.6, True)):
+        xbars = np.stack([model.mean(0.4e-3, factor * n) for n in runs])
+        mass = edge_mass(xbars)
+        assert (0.05 < mass < 0.1) if not fires else mass > 0.1, (factor, mass)
+        feats = [CycleFeatures(SPEC, np.repeat(x[None], n, axis=0), np.zeros(n)) for x in xbars]
+        t = track_features(feats, runs, model, coefficient=5.2e-14)
+        assert any("reaches the edge" in note for note in t.notes) == fires, (factor, mass, t.notes)
