@@ -241,6 +241,7 @@ def main() -> None:
               f"{c_held:.2f}; median cycles-run interval {np.median([e.cycles_run.lo90 for *_, e in at]):,.0f}-"
               f"{np.median([e.cycles_run.hi90 for *_, e in at]):,.0f}")
         information(model, [t[0] for t, _, _ in at], args.at)
+        recording(model, [t[0] for t, _, _ in at], args.at)
     if lives:
         report_lives(bench, model, lives, life_runs, args, t_lives)
 
@@ -283,6 +284,41 @@ def information(model, clearances, at: float) -> None:
         sd_n, sd_c = np.median(sds, axis=0)[::-1]
         expected = 2 * stats.norm.cdf(max(0.0, at / sd_n - 1.645)) - 1
         print(f"{name:50s}  {sd_n:13,.0f}   {sd_c * 1e3:17.4f}   {expected:18.2f}")
+
+
+def recording(model, clearances, at: float) -> None:
+    """What a lab must record for the cycles-run interval at ``at`` to exclude 0 and 2 x ``at``: the
+    local (Fisher) sd of the effective cycles run at ``at`` for one session, and for sessions of the
+    same bench at equally spaced cycles run up to ``at`` (``track``: they share the bench's offset and
+    sensor path, each has its own cycle-to-cycle and estimator error, and the wear coefficient scales
+    them all), against the cycles per session; tempered as the posterior is. 'expected exclusion' as in
+    :func:`information`."""
+    from scipy import linalg, stats
+
+    st = model.stats[model.reference]
+    shared = st.between + (st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0)
+    own = st.covariance(np.inf, nuisance=False) - st.between + np.diag(model.discrepancy)
+    print(f"\nwhat to record for the cycles-run interval at {at:,.0f} to exclude 0 and {2 * at:,.0f} (local Fisher "
+          f"information, median over the {len(clearances)} truths' clearances; sd of the effective cycles run at "
+          f"{at:,.0f} / expected exclusion):")
+    counts = (5, 10, 20, 50, 100, 1000)
+    print("sessions of one bench at cycles run            " + "".join(f"{n:>10d} cyc" for n in counts) + "      endless")
+    for sessions in (1, 2, 3, 5):
+        f = np.array([1.0]) if sessions == 1 else np.linspace(0.0, 1.0, sessions)
+        cells = []
+        for n in (*counts, np.inf):
+            sds = []
+            for c in clearances:
+                hc, hn = 5e-6, 5e3
+                g = np.concatenate([np.stack([(model.mean(c + hc, fi * at) - model.mean(c - hc, fi * at)) / (2 * hc),
+                                              fi * (model.mean(c, fi * at + hn) - model.mean(c, fi * at - hn)) / (2 * hn)],
+                                             axis=1) for fi in f])
+                cov = np.kron(np.ones((f.size, f.size)), shared) + linalg.block_diag(*[st.within / n + own] * f.size)
+                sds.append(np.sqrt(np.linalg.inv(g.T @ np.linalg.solve(cov, g))[1, 1] * model.temperature))
+            sd = float(np.median(sds))
+            cells.append(f"{sd / 1e3:7.0f}k/{2 * stats.norm.cdf(max(0.0, at / sd - 1.645)) - 1:.2f}")
+        name = "one session" if sessions == 1 else ", ".join(f"{v * at / 1e3:.0f}k" for v in f)
+        print(f"{name:45s}  " + "  ".join(cells))
 
 
 def report_lives(bench, model, lives, runs, args, seconds: float) -> None:

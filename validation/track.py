@@ -131,9 +131,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     xbars = np.stack([f.values.mean(axis=0) for f in features])
     n_cycles = [f.cycles for f in features]
     log_post = np.full((gc.size, ks.size), -np.inf)  # uniform in c, log-uniform in k (uniform on this grid)
-    for i, c in enumerate(gc):
-        means = model.mean(np.full(eff[inside].shape, c), eff[inside])  # (k inside, S, p)
-        log_post[i, inside] = joint_log_likelihood(model, xbars, n_cycles, means) / model.temperature
+    means = np.stack([model.mean(np.full(eff[inside].shape, c), eff[inside]) for c in gc])  # (c, k inside, S, p)
+    log_post[:, inside] = joint_log_likelihood(model, xbars, n_cycles, means) / model.temperature
     post = np.exp(log_post - special.logsumexp(log_post))
     c_int = _interval(gc, post.sum(axis=1))
     k_int = _interval(np.log(ks), post.sum(axis=0))
