@@ -255,5 +255,41 @@ def test_the_edge_note_fires_when_a_tenth_of_the_factor_lies_at_the_grids_edge(m
         mass = edge_mass(xbars)
         assert (0.05 < mass < 0.1) if not fires else mass > 0.1, (factor, mass)
         feats = [CycleFeatures(SPEC, np.repeat(x[None], n, axis=0), np.zeros(n)) for x in xbars]
-        t = track_features(feats, runs, model, coefficient=5.2e-14)
+        t = track_features(feats, runs, model, coefficient=5.2e-14, drift=False)  # the dense form above
         assert any("reaches the edge" in note for note in t.notes) == fires, (factor, mass, t.notes)
+
+
+def test_the_wear_drift_is_measured_from_the_designs_shared_benches_and_enters_the_stacked_gaussian():
+    """A design whose realisations keep their bench at every design point (as the real design's seeds
+    do) and whose offset moves by a drawn d (sd 0.1, 0.2 in two halves of the features) from new to
+    worn: wear_drift recovers that variance, and not the cycle-to-cycle noise; with the drift, the
+    sessions' likelihood equals the dense stacked Gaussian's log density, determinant included."""
+    from scipy import linalg
+    from wearbench.validation.track import joint_log_likelihood, wear_drift
+
+    rng = np.random.default_rng(12)
+    m = 40
+    sd = np.where(np.arange(P) < P // 2, 0.1, 0.2)
+    bench, moved = rng.normal(0.0, np.sqrt(SB), (m, P)), rng.normal(0.0, sd, (m, P))
+    feats = np.stack([np.stack([true_mean(c, n) + bench[:, None] + (n > 0) * moved[:, None]
+                                + rng.normal(0.0, np.sqrt(SW), (m, 8, P)) for n in DESIGN.cycles])
+                      for c in DESIGN.clearances])
+    depth = np.outer(np.ones(5), np.array(DESIGN.cycles) * 2e-11)
+    fitted = fit_estimator(Estimator("synthetic", "k", DESIGN, feats, depth, 2 * np.pi), OPTIONS)
+    drift = wear_drift(fitted)
+    got = np.sqrt(np.diag(drift))
+    assert np.median(got[: P // 2]) == pytest.approx(0.1, rel=0.15) and np.median(got[P // 2:]) == pytest.approx(0.2, rel=0.15)
+
+    st = fitted.stats[fitted.reference]
+    ns, worn = [20, 10, 5], np.array([0.0, 0.5, 1.0])
+    xbars = np.stack([session(rng, 0.4e-3, n).values.mean(axis=0) for n in (0.0, 1e5, 2e5)])
+    means = np.stack([np.stack([fitted.mean(c, n) for n in (0.0, 1e5, 2e5)]) for c in (0.3e-3, 0.4e-3)])
+    shared = st.between + st.nuisance @ st.nuisance.T
+    own = fitted.covariance(np.inf) - shared
+    dense = (np.kron(np.ones((3, 3)), shared) + np.kron(np.outer(worn, worn), drift)
+             + linalg.block_diag(*[st.within / n + own for n in ns]))
+    for g in range(2):
+        r = (xbars - means[g]).ravel()
+        expected = -0.5 * (r @ np.linalg.solve(dense, r) + np.linalg.slogdet(dense)[1])
+        got = joint_log_likelihood(fitted, xbars, ns, means[g], worn, drift)
+        assert got == pytest.approx(expected, rel=1e-8)
