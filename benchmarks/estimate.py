@@ -290,12 +290,14 @@ def recording(model, clearances, at: float) -> None:
     """What a lab must record for the cycles-run interval at ``at`` to exclude 0 and 2 x ``at``: the
     local (Fisher) sd of the effective cycles run at ``at`` for one session, and for sessions of the
     same bench at equally spaced cycles run up to ``at`` (``track``: they share the bench's offset and
-    sensor path, each has its own cycle-to-cycle and estimator error, and the wear coefficient scales
-    them all), against the cycles per session; tempered as the posterior is. 'expected exclusion' as in
+    sensor path, the worn ones its move from new, each has its own cycle-to-cycle and estimator error,
+    and the wear coefficient scales them all), against the cycles per session; tempered as the posterior is. 'expected exclusion' as in
     :func:`information`."""
     from scipy import linalg, stats
+    from wearbench.validation.track import wear_drift
 
     st = model.stats[model.reference]
+    drift = wear_drift(model)
     shared = st.between + (st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0)
     own = st.covariance(np.inf, nuisance=False) - st.between + np.diag(model.discrepancy)
     print(f"\nwhat to record for the cycles-run interval at {at:,.0f} to exclude 0 and {2 * at:,.0f} (local Fisher "
@@ -313,7 +315,9 @@ def recording(model, clearances, at: float) -> None:
                 g = np.concatenate([np.stack([(model.mean(c + hc, fi * at) - model.mean(c - hc, fi * at)) / (2 * hc),
                                               fi * (model.mean(c, fi * at + hn) - model.mean(c, fi * at - hn)) / (2 * hn)],
                                              axis=1) for fi in f])
-                cov = np.kron(np.ones((f.size, f.size)), shared) + linalg.block_diag(*[st.within / n + own] * f.size)
+                worn = (f > 0) * float(f.size > 1)  # a worn session's share of the bench's move from new (track's)
+                cov = (np.kron(np.ones((f.size, f.size)), shared) + np.kron(np.outer(worn, worn), drift)
+                       + linalg.block_diag(*[st.within / n + own] * f.size))
                 sds.append(np.sqrt(np.linalg.inv(g.T @ np.linalg.solve(cov, g))[1, 1] * model.temperature))
             sd = float(np.median(sds))
             cells.append(f"{sd / 1e3:7.0f}k/{2 * stats.norm.cdf(max(0.0, at / sd - 1.645)) - 1:.2f}")
