@@ -169,7 +169,9 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     """Wear over life from sessions' cycle ``features`` recorded after ``cycles_run`` cycles.
 
     coefficient: the bench file's wear coefficient K_n (1/Pa); limit: a clearance limit (m);
-    depth_spread: lognormal sd of a bench's wear depth about the estimator's trajectory."""
+    depth_spread: lognormal sd of a bench's wear depth about the estimator's trajectory; drift: the
+    worn sessions share the bench's move from new (:func:`wear_drift`; False: the offset is constant
+    over the life, as before it was measured)."""
     if len(features) != len(cycles_run) or len(features) < 2:
         raise ValueError(f"track: {len(features)} sessions and {len(cycles_run)} cycles-run values: expected one "
                          "value per session and at least two sessions")
@@ -191,9 +193,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     n_cycles = [f.cycles for f in features]
     log_post = np.full((gc.size, ks.size), -np.inf)  # uniform in c, log-uniform in k (uniform on this grid)
     means = np.stack([model.mean(np.full(eff[inside].shape, c), eff[inside]) for c in gc])  # (c, k inside, S, p)
-    worn = np.broadcast_to((runs > 0).astype(float), means.shape[:-1])  # the drift: complete once worn
-    log_post[:, inside] = joint_log_likelihood(model, xbars, n_cycles, means, *((worn, wear_drift(model)) if drift
-                                                                                else ())) / model.temperature
+    moved = (np.broadcast_to((runs > 0).astype(float), means.shape[:-1]), wear_drift(model)) if drift else ()
+    log_post[:, inside] = joint_log_likelihood(model, xbars, n_cycles, means, *moved) / model.temperature
     post = np.exp(log_post - special.logsumexp(log_post))
     c_int = _interval(gc, post.sum(axis=1))
     k_int = _interval(np.log(ks), post.sum(axis=0))
