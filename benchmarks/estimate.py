@@ -21,7 +21,10 @@ wear depth) the coverage of the 50 % and 90 % intervals with its binomial standa
 rank histogram (posterior CDF at the truth, 10 bins; flat when calibrated); median 90 % widths at
 5, 10 and 20 cycles; the clearance median absolute error; "no parameter value explains it" rates;
 for the --at truths, how often the 90 % cycles-run interval excludes 0 and twice the truth; for
-the lives, the coverage of the wear factor and of the cycles to the limit.
+the lives, the coverage of the wear factor and of the cycles to the limit (also with the bench's
+offset constant over the life, ``track(drift=False)``); for the --at truths, what limits their
+interval (Fisher information) and what a lab must record (cycles per session, sessions of one bench)
+for it to exclude 0 and twice the truth.
 
     .venv/bin/python benchmarks/estimate.py [--truths 100] [--cycles 20] [--realisations 16]
     .venv/bin/python benchmarks/estimate.py --design-clearances 0.25mm,0.45mm,0.65mm \\
@@ -333,7 +336,7 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
 
     cycles_run = [k * args.life_step for k in range(5)]
     n_curve, d_curve = _depth_curve(model)
-    rows, ratios = [], []
+    rows, ratios, constant = [], [], []  # constant: track with the bench's offset constant over the life
     for (c, seed), r in zip(lives, runs, strict=True):
         if isinstance(r, TaskFailure):
             print(f"life {seed} failed: {r}")
@@ -343,6 +346,9 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
         t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit)
         m = t.cycles_to_limit
         truth = 5 * args.life_step
+        still = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit, drift=False)
+        constant.append((still.factor.contains(args.life_factor), still.cycles_to_limit is not None
+                         and still.cycles_to_limit.contains(truth), still.clearance.contains(c)))
         rows.append((c, t.factor, m, t.factor.contains(args.life_factor), m is not None and m.contains(truth),
                      t.factor.contains(args.life_factor, 50), m is not None and m.contains(truth, 50),
                      t.clearance.contains(c), t.clearance.median - c))
@@ -361,6 +367,9 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
               f"{col(4):.2f} / {col(6):.2f}; the initial clearance's 90 % interval holds it in {col(7):.2f} (median "
               f"error {np.median([r[8] for r in rows]) * 1e3:+.4f} mm); median factor interval "
               f"{np.median([r[1].lo90 for r in rows]):.2f}-{np.median([r[1].hi90 for r in rows]):.2f}")
+        print("with the bench's offset constant over the life (track(drift=False)): the 90 % intervals hold the "
+              "factor / the cycles to the limit / the clearance in "
+              + " / ".join(f"{v:.2f}" for v in np.mean(constant, axis=0)))
         ratios = np.asarray(ratios)
         print("the truths' wear depth / the estimator's trajectory at the same effective cycles, after each step: mean "
               + " ".join(f"{v:.3f}" for v in ratios.mean(axis=0)) + ", sd "
