@@ -21,7 +21,10 @@ wear depth) the coverage of the 50 % and 90 % intervals with its binomial standa
 rank histogram (posterior CDF at the truth, 10 bins; flat when calibrated); median 90 % widths at
 5, 10 and 20 cycles; the clearance median absolute error; "no parameter value explains it" rates;
 for the --at truths, how often the 90 % cycles-run interval excludes 0 and twice the truth; for
-the lives, the coverage of the wear factor and of the cycles to the limit.
+the lives, the coverage of the wear factor and of the cycles to the limit (also with the bench's
+offset constant over the life, ``track(drift=False)``); for the --at truths, what limits their
+interval (Fisher information) and what a lab must record (cycles per session, sessions of one bench)
+for it to exclude 0 and twice the truth.
 
     .venv/bin/python benchmarks/estimate.py [--truths 100] [--cycles 20] [--realisations 16]
     .venv/bin/python benchmarks/estimate.py --design-clearances 0.25mm,0.45mm,0.65mm \\
@@ -241,6 +244,7 @@ def main() -> None:
               f"{c_held:.2f}; median cycles-run interval {np.median([e.cycles_run.lo90 for *_, e in at]):,.0f}-"
               f"{np.median([e.cycles_run.hi90 for *_, e in at]):,.0f}")
         information(model, [t[0] for t, _, _ in at], args.at)
+        recording(model, [t[0] for t, _, _ in at], args.at)
     if lives:
         report_lives(bench, model, lives, life_runs, args, t_lives)
 
@@ -285,6 +289,45 @@ def information(model, clearances, at: float) -> None:
         print(f"{name:50s}  {sd_n:13,.0f}   {sd_c * 1e3:17.4f}   {expected:18.2f}")
 
 
+def recording(model, clearances, at: float) -> None:
+    """What a lab must record for the cycles-run interval at ``at`` to exclude 0 and 2 x ``at``: the
+    local (Fisher) sd of the effective cycles run at ``at`` for one session, and for sessions of the
+    same bench at equally spaced cycles run up to ``at`` (``track``: they share the bench's offset and
+    sensor path, the worn ones its move from new, each has its own cycle-to-cycle and estimator error,
+    and the wear coefficient scales them all), against the cycles per session; tempered as the posterior is. 'expected exclusion' as in
+    :func:`information`."""
+    from scipy import linalg, stats
+    from wearbench.validation.track import wear_drift
+
+    st = model.stats[model.reference]
+    drift = wear_drift(model)
+    shared = st.between + (st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0)
+    own = st.covariance(np.inf, nuisance=False) - st.between + np.diag(model.discrepancy)
+    print(f"\nwhat to record for the cycles-run interval at {at:,.0f} to exclude 0 and {2 * at:,.0f} (local Fisher "
+          f"information, median over the {len(clearances)} truths' clearances; sd of the effective cycles run at "
+          f"{at:,.0f} / expected exclusion):")
+    counts = (5, 10, 20, 50, 100, 1000)
+    print("sessions of one bench at cycles run            " + "".join(f"{n:>10d} cyc" for n in counts) + "      endless")
+    for sessions in (1, 2, 3, 5):
+        f = np.array([1.0]) if sessions == 1 else np.linspace(0.0, 1.0, sessions)
+        cells = []
+        for n in (*counts, np.inf):
+            sds = []
+            for c in clearances:
+                hc, hn = 5e-6, 5e3
+                g = np.concatenate([np.stack([(model.mean(c + hc, fi * at) - model.mean(c - hc, fi * at)) / (2 * hc),
+                                              fi * (model.mean(c, fi * at + hn) - model.mean(c, fi * at - hn)) / (2 * hn)],
+                                             axis=1) for fi in f])
+                worn = (f > 0) * float(f.size > 1)  # a worn session's share of the bench's move from new (track's)
+                cov = (np.kron(np.ones((f.size, f.size)), shared) + np.kron(np.outer(worn, worn), drift)
+                       + linalg.block_diag(*[st.within / n + own] * f.size))
+                sds.append(np.sqrt(np.linalg.inv(g.T @ np.linalg.solve(cov, g))[1, 1] * model.temperature))
+            sd = float(np.median(sds))
+            cells.append(f"{sd / 1e3:7.0f}k/{2 * stats.norm.cdf(max(0.0, at / sd - 1.645)) - 1:.2f}")
+        name = "one session" if sessions == 1 else ", ".join(f"{v * at / 1e3:.0f}k" for v in f)
+        print(f"{name:45s}  " + "  ".join(cells))
+
+
 def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
     """Coverage of the track's wear factor and cycles to a limit over the simulated lives."""
     from wearbench.compute import TaskFailure
@@ -293,7 +336,7 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
 
     cycles_run = [k * args.life_step for k in range(5)]
     n_curve, d_curve = _depth_curve(model)
-    rows, ratios = [], []
+    rows, ratios, constant = [], [], []  # constant: track with the bench's offset constant over the life
     for (c, seed), r in zip(lives, runs, strict=True):
         if isinstance(r, TaskFailure):
             print(f"life {seed} failed: {r}")
@@ -303,6 +346,9 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
         t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit)
         m = t.cycles_to_limit
         truth = 5 * args.life_step
+        still = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit, drift=False)
+        constant.append((still.factor.contains(args.life_factor), still.cycles_to_limit is not None
+                         and still.cycles_to_limit.contains(truth), still.clearance.contains(c)))
         rows.append((c, t.factor, m, t.factor.contains(args.life_factor), m is not None and m.contains(truth),
                      t.factor.contains(args.life_factor, 50), m is not None and m.contains(truth, 50),
                      t.clearance.contains(c), t.clearance.median - c))
@@ -321,6 +367,9 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
               f"{col(4):.2f} / {col(6):.2f}; the initial clearance's 90 % interval holds it in {col(7):.2f} (median "
               f"error {np.median([r[8] for r in rows]) * 1e3:+.4f} mm); median factor interval "
               f"{np.median([r[1].lo90 for r in rows]):.2f}-{np.median([r[1].hi90 for r in rows]):.2f}")
+        print("with the bench's offset constant over the life (track(drift=False)): the 90 % intervals hold the "
+              "factor / the cycles to the limit / the clearance in "
+              + " / ".join(f"{v:.2f}" for v in np.mean(constant, axis=0)))
         ratios = np.asarray(ratios)
         print("the truths' wear depth / the estimator's trajectory at the same effective cycles, after each step: mean "
               + " ".join(f"{v:.3f}" for v in ratios.mean(axis=0)) + ", sd "

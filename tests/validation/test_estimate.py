@@ -225,3 +225,71 @@ def test_the_joint_likelihood_of_a_benchs_sessions_is_their_stacked_gaussian(mod
     one = joint_log_likelihood(model, xbars[:1], [20], model.grid_mean[:, :, None, :])
     assert np.allclose(-2 * one, model.distances(xbars[0], 20), rtol=1e-8)
 
+
+
+def test_the_edge_note_fires_when_a_tenth_of_the_factor_lies_at_the_grids_edge(model):
+    """Sessions at 0 and 100k cycles (no factor in 0.2-5 leaves the design's 600k: nothing caps the
+    grid) of a bench worn 4.45x and 4.6x the file's rate, its cycle features exactly the model's mean:
+    the posterior mass of the factor in the outer three grid cells at either end, computed here from
+    the dense stacked Gaussian, decides the note (> 0.1). At 4.45x it is 0.05-0.1: counted twice,
+    the note would fire."""
+    from scipy import linalg, special
+    from wearbench.validation.track import K_RANGE, track_features
+
+    runs, n = [0.0, 1e5], 20
+    ks = np.geomspace(*K_RANGE, 161)
+    st = model.stats[model.reference]
+    shared = st.between + st.nuisance @ st.nuisance.T
+    own = model.covariance(np.inf) - shared + st.within / n
+    chol = linalg.cho_factor(np.kron(np.ones((2, 2)), shared) + linalg.block_diag(own, own))
+
+    def edge_mass(xbars):
+        means = np.stack([model.mean(np.full((ks.size, 2), c), ks[:, None] * np.array(runs)) for c in model.grid_c])
+        r = (xbars - means).reshape(-1, 2 * P)  # (c x k, stacked sessions)
+        logp = (-0.5 * np.sum(r * linalg.cho_solve(chol, r.T).T, axis=1) / model.temperature).reshape(-1, ks.size)
+        marginal = np.exp(special.logsumexp(logp, axis=0) - special.logsumexp(logp))
+        return marginal[:3].sum() + marginal[-3:].sum()
+
+    for factor, fires in ((4.45, False), (4.6, True)):
+        xbars = np.stack([model.mean(0.4e-3, factor * n) for n in runs])
+        mass = edge_mass(xbars)
+        assert (0.05 < mass < 0.1) if not fires else mass > 0.1, (factor, mass)
+        feats = [CycleFeatures(SPEC, np.repeat(x[None], n, axis=0), np.zeros(n)) for x in xbars]
+        t = track_features(feats, runs, model, coefficient=5.2e-14, drift=False)  # the dense form above
+        assert any("reaches the edge" in note for note in t.notes) == fires, (factor, mass, t.notes)
+
+
+def test_the_wear_drift_is_measured_from_the_designs_shared_benches_and_enters_the_stacked_gaussian():
+    """A design whose realisations keep their bench at every design point (as the real design's seeds
+    do) and whose offset moves by a drawn d (sd 0.1, 0.2 in two halves of the features) from new to
+    worn: wear_drift recovers that variance, and not the cycle-to-cycle noise; with the drift, the
+    sessions' likelihood equals the dense stacked Gaussian's log density, determinant included."""
+    from scipy import linalg
+    from wearbench.validation.track import joint_log_likelihood, wear_drift
+
+    rng = np.random.default_rng(12)
+    m = 40
+    sd = np.where(np.arange(P) < P // 2, 0.1, 0.2)
+    bench, moved = rng.normal(0.0, np.sqrt(SB), (m, P)), rng.normal(0.0, sd, (m, P))
+    feats = np.stack([np.stack([true_mean(c, n) + bench[:, None] + (n > 0) * moved[:, None]
+                                + rng.normal(0.0, np.sqrt(SW), (m, 8, P)) for n in DESIGN.cycles])
+                      for c in DESIGN.clearances])
+    depth = np.outer(np.ones(5), np.array(DESIGN.cycles) * 2e-11)
+    fitted = fit_estimator(Estimator("synthetic", "k", DESIGN, feats, depth, 2 * np.pi), OPTIONS)
+    drift = wear_drift(fitted)
+    got = np.sqrt(np.diag(drift))
+    assert np.median(got[: P // 2]) == pytest.approx(0.1, rel=0.15) and np.median(got[P // 2:]) == pytest.approx(0.2, rel=0.15)
+
+    st = fitted.stats[fitted.reference]
+    ns, worn = [20, 10, 5], np.array([0.0, 0.5, 1.0])
+    xbars = np.stack([session(rng, 0.4e-3, n).values.mean(axis=0) for n in (0.0, 1e5, 2e5)])
+    means = np.stack([np.stack([fitted.mean(c, n) for n in (0.0, 1e5, 2e5)]) for c in (0.3e-3, 0.4e-3)])
+    shared = st.between + st.nuisance @ st.nuisance.T
+    own = fitted.covariance(np.inf) - shared
+    dense = (np.kron(np.ones((3, 3)), shared) + np.kron(np.outer(worn, worn), drift)
+             + linalg.block_diag(*[st.within / n + own for n in ns]))
+    for g in range(2):
+        r = (xbars - means[g]).ravel()
+        expected = -0.5 * (r @ np.linalg.solve(dense, r) + np.linalg.slogdet(dense)[1])
+        got = joint_log_likelihood(fitted, xbars, ns, means[g], worn, drift)
+        assert got == pytest.approx(expected, rel=1e-8)
