@@ -43,8 +43,6 @@ from pathlib import Path
 
 import numpy as np
 
-SENSOR_PATHS = {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}
-
 
 def true_sensor_delay(bench, accel_delay: float) -> tuple[float, float]:
     """The truth's accelerometer delay behind the encoder at the stream's start (s: ``accel_delay``
@@ -77,7 +75,7 @@ def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, fl
             delay = float(np.random.default_rng(seed).uniform(0.0, args.delay_max))
             table = {**bench.emulator, "truth": {"accel_delay": f"{delay * 1e3!r} ms"}}
             if args.sensor_paths:  # the truth's own mount, as benchmarks/identify.py --sensor-paths draws it
-                table["accelerometer"] = {**bench.emulator.get("accelerometer", {}), "spread": SENSOR_PATHS}
+                table["accelerometer"] = {**bench.emulator.get("accelerometer", {}), "spread": {}}  # the emulator's drawn mounts
             truths.append((s, seed, table, delay, folder / f"{slug(s.name)}_{seed}.mcap"))
     revolutions = truth_revolutions(args.cycles + 1)
     todo = [t for t in truths if not t[4].exists()]
