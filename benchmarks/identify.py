@@ -26,8 +26,9 @@ truth's sensor path (a mount/carriage mode log-uniform in 0.3-3 kHz, damping 0.0
 with the band-gain prior of the sensor path (the default), without it and, with --calibrate, with
 each bench calibrated on one session of a known state (0.3 mm new; 0.6 mm new for the 0.3 mm new
 truths, so calibration and test never share a state), same bench and mount: once with the
-calibration's band gains only, once relative to the calibration session
-(``validation/calibrated.py``); --brief adds the held-out candidates judged relative to the calibration.
+calibration's band gains only, once relative to the calibration session and once with the
+ensembles' realisations weighted by it (``validation/calibrated.py``); --brief adds the held-out
+candidates judged with either.
 """
 
 from __future__ import annotations

@@ -19,7 +19,14 @@ the band offsets of the path cancel. Each state becomes a ``StateStatistics`` wi
 consistency test, the window verdicts and the diagnosis of ``identify.py`` apply unchanged; the
 temperature and the consistency nulls come from held-out realisations played through the same
 procedure (half of a realisation's cycles of ``k`` its calibration, its cycles of every state its
-sessions).
+sessions: ``HeldOut``).
+
+``WeightedStatistics`` conditions the ensembles on the calibration session instead: realisation
+``i`` of every state is one drawn bench seen through one drawn sensor path, so it weights each by
+the calibration session's likelihood under realisation ``i`` of ``k`` (tempered so that at least 8
+realisations carry the weight, :func:`tempered_weights`) and uses the weighted means and
+between-bench covariance. Neither beat the uncalibrated likelihood on drawn-path ensembles (README,
+"The sensor path"), so neither is the default of ``identify``.
 
 Imports validation.identify, statistics, sensor_path.
 """
