@@ -19,6 +19,11 @@ true state failing its consistency test) and how often a truth held out of the c
 (undecided or none; per state). Realisations run through the compute layer in this process (cached).
 
     .venv/bin/python benchmarks/sensor_path_routes.py [--realisations 16] [--draws 3]
+    .venv/bin/python benchmarks/sensor_path_routes.py --modes 300-3000,300-8500 --specs 3   # mode ranges
+
+--modes: the mode ranges (Hz, log-uniform) of the drawn ensemble paths compared (default 300-3000,
+``PathSpread``'s); a range reaching far above the bands holds the stud mount of the emulator's
+default path too (the top is limited to 0.45 x the 20 kHz output rate).
 """
 
 from __future__ import annotations
@@ -42,6 +47,8 @@ def main() -> None:
     ap.add_argument("--realisations", type=int, default=16, help="realisations per state (16)")
     ap.add_argument("--ensemble-cycles", type=int, default=6, help="cycles per realisation (6)")
     ap.add_argument("--draws", type=int, default=3, help="truths per state (3)")
+    ap.add_argument("--modes", default="300-3000", help="mode ranges of the drawn ensemble paths, Hz (300-3000)")
+    ap.add_argument("--specs", choices=("3", "6", "both"), default="both", help="feature specs: 3 or 6 bands (both)")
     args = ap.parse_args()
 
     from wearbench.bench.content import bench_key
@@ -62,13 +69,14 @@ def main() -> None:
                            task_key("raw-run", bench_key(bench), names[k], seed, revs), f"{kind} {names[k]} {seed}")
                       for kind, k, seed, revs in jobs], workers=0, progress="realisations and truths")
     runs = {(kind, k, seed): r for (kind, k, seed, _), r in zip(jobs, runs, strict=True)}
-    spread = PathSpread()
+    spreads = {f"drawn {lo}-{hi}" if args.modes != "300-3000" else "drawn":
+               PathSpread(mode=(float(lo), float(hi))) for lo, hi in (r.split("-") for r in args.modes.split(","))}
 
     def features(key, spec, path):
         r = runs[key]
         acc = r["acc"].astype(float)
-        if path == "ensemble":
-            acc = spread.apply(acc, fs, key[2])
+        if path in spreads:
+            acc = spreads[path].apply(acc, fs, key[2])
         elif path == "drawn":
             a = SensorSpread().draw(Accelerometer(), key[2])
             acc = mount_response(acc, fs, a.resonance, a.damping, a.sensitivity)
@@ -84,12 +92,13 @@ def main() -> None:
 
     specs = {"3 bands": FeatureSpec(), "6 bands": FeatureSpec(bands=((50.0, 100.0), (100.0, 150.0), (150.0, 250.0),
                                                                       (250.0, 400.0), (400.0, 650.0), (650.0, 1000.0)))}
+    specs = {k: v for k, v in specs.items() if args.specs == "both" or k.startswith(args.specs)}
     truths = [k for k in runs if k[0] == "truth"]
     print(f"{m} realisations x {c} cycles per state, {len(truths)} truths of 20 cycles")
     print("spec     ensembles  likelihood  truth path   cycles  top-1 right wrong undec none  true-inconsistent   "
           "held out caught (per state)")
     for sname, spec in specs.items():
-        for ens_path in ("as is", "ensemble"):
+        for ens_path in ("as is", *spreads):
             settings = EnsembleSettings(realisations=m, cycles=c, features=spec)
             ens = {}
             for k, nm in enumerate(names):
@@ -108,7 +117,7 @@ def main() -> None:
                         sub = [(CycleFeatures(f.spec, f.values[s:s + n], f.clipped[s:s + n]), k) for f, k in rows
                                for s in range(0, f.cycles - n + 1, n)]
                         tail = " ".join(f"{v:.2f}" for v in caught) if n == 20 else ""
-                        print(f"{sname}  {'drawn' if ens_path == 'ensemble' else 'as is':9s}  {lik:10s}  "
+                        print(f"{sname}  {ens_path:9s}  {lik:10s}  "
                               f"{p:11s}  {n:6d}  {rates(models, sub)}  {'':17s}  {tail}", flush=True)
 
 

@@ -22,6 +22,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", help="commanded motor speed, e.g. 2pi or 60rpm (default: the bench's)")
     p.add_argument("--realisations", type=positive_int, default=32, help="realisations per state (32)")
     p.add_argument("--cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
+    p.add_argument("--sensor-paths", choices=("drawn", "none"), default="drawn",
+                   help="each realisation seen through its own drawn sensor path: a mount/carriage mode 0.3-3 kHz, "
+                   "damping 0.02-0.1, sensitivity +/-5 %% (drawn, the default) or the model's acceleration as it is "
+                   "(none: ensembles of versions before drawn paths; identification then trusts the bench file's "
+                   "sensor path)")
     p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-ensembles.npz)")
     add_force_argument(p)
     p.add_argument("--ship", action="store_true",
@@ -42,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
         save_ensembles,
         shipped_ensembles_path,
     )
+    from wearbench.validation.sensor_path import PathSpread
 
     bench = load_bench(resolve_bench(args.bench))
     states = load_states(args.candidates, bench) if args.candidates else bench.states
@@ -49,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{bench.name}: no [[state]] tables; give --candidates STATES.toml")
     speed = (motor_speed(args.speed, max_speed=bench.motor.max_speed, source=str(bench.path or bench.name))
              if args.speed else bench.speed)
-    settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.cycles)
+    settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.cycles,
+                                sensor_paths=PathSpread() if args.sensor_paths == "drawn" else None)
     out = shipped_ensembles_path(bench) if args.ship else Path(args.out or f"{bench.name}-ensembles.npz")
     check_output(out, force=args.force or args.ship)  # refused before the realisations run
     # built fresh (no shipped file is consulted), so --ship really refreshes it
@@ -60,5 +67,6 @@ def run(args: argparse.Namespace) -> int:
     for name, e in ensembles.items():
         failed = f", {len(e.failures)} failed" if e.failures else ""
         print(f"{name}: {e.realisations} realisations x {e.features.shape[1]} cycles{failed}")
+    print(f"sensor paths: {'drawn per realisation' if settings.sensor_paths else 'none (the model as it is)'}")
     print(f"saved: {out}")
     return 0

@@ -29,25 +29,41 @@ from scipy import linalg
 __all__ = ["StateStatistics", "shrunk_covariance"]
 
 
-def shrunk_covariance(x: np.ndarray) -> np.ndarray:
+def shrunk_covariance(x: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     """Covariance of the rows of ``x`` (n, p) shrunk towards its diagonal.
 
     Schäfer & Strimmer (2005), "A shrinkage approach to large-scale covariance matrix estimation",
     Stat. Appl. Genet. Mol. Biol. 4(1), target D: the correlations are shrunk towards 0 with the
     intensity lambda = sum Var(r_ij) / sum r_ij^2 (i != j), clipped to [0, 1].
+
+    ``weights`` (n,), non-negative: the rows' weights (reliability weights: the moments are the
+    weighted ones with the unbiased correction ``1 - sum a^2`` of the normalised weights ``a``, and
+    the intensity's ``n`` is their effective number ``1 / sum a^2``); None: equal weights.
     """
     x = np.asarray(x, dtype=float)
     n, p = x.shape
-    if n < 3:
-        raise ValueError(f"covariance: needs at least 3 samples, got {n}")
-    xc = x - x.mean(axis=0)
-    sd = xc.std(axis=0, ddof=1)
+    a = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, dtype=float) / np.sum(weights)
+    n_eff = 1.0 / float(np.sum(a * a))
+    if n < 3 or not n_eff >= 3 - 1e-9 or (a < 0).any():
+        raise ValueError(f"covariance: needs at least 3 samples (effective, non-negative weights), got {n} "
+                         f"rows of effective number {n_eff:.3g}")
+    if weights is None:
+        xc = x - x.mean(axis=0)
+        sd = xc.std(axis=0, ddof=1)
+    else:
+        xc = x - a @ x
+        sd = np.sqrt(a @ (xc * xc) / (1.0 - 1.0 / n_eff))
     sd_safe = np.where(sd > 0, sd, 1.0)
     z = xc / sd_safe
     w = z[:, :, None] * z[:, None, :]  # (n, p, p)
-    wbar = w.mean(axis=0)
-    r = wbar * n / (n - 1)
-    var_r = n / (n - 1) ** 3 * ((w - wbar) ** 2).sum(axis=0)
+    if weights is None:
+        wbar = w.mean(axis=0)
+        r = wbar * n / (n - 1)
+        var_r = n / (n - 1) ** 3 * ((w - wbar) ** 2).sum(axis=0)
+    else:
+        wbar = np.tensordot(a, w, axes=1)
+        r = wbar * n_eff / (n_eff - 1)
+        var_r = n_eff ** 2 / (n_eff - 1) ** 3 * np.tensordot(a, (w - wbar) ** 2, axes=1)
     off = ~np.eye(p, dtype=bool)
     denom = float((r[off] ** 2).sum())
     lam = 1.0 if denom == 0 else float(np.clip(var_r[off].sum() / denom, 0.0, 1.0))
