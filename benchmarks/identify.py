@@ -90,7 +90,7 @@ def main() -> None:
                                 **({"sensor_paths": None} if args.ensemble_paths == "none" else {}))
     out = Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
-    spread = {"spread": {"mode": ["300 Hz", "3 kHz"], "damping": [0.02, 0.1], "sensitivity": 0.05}}
+    spread = {"spread": {}}  # the emulator's drawn mounts (SensorSpread's defaults)
     emulator = {"accelerometer": spread} if args.sensor_paths else {}
     known = {s.name: states[1] if s is states[0] else states[0] for s in states}
     calibrations = [(known[s.name], seed) for s, seed in truths] if args.calibrate else []
