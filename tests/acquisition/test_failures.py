@@ -74,7 +74,8 @@ def _start_record(bench, tmp_path, out):
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:  # wait until a few chunks of samples are on disk
-        if out.exists() and len(recorded_blocks(out)[ACCELERATION]) >= 15:
+        # the recorder creates the file before its header reaches the disk: an empty file is not yet a session
+        if out.exists() and out.stat().st_size > 0 and len(recorded_blocks(out)[ACCELERATION]) >= 15:
             return proc
         if proc.poll() is not None:
             break
