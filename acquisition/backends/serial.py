@@ -158,14 +158,23 @@ class SerialLink:
         return ack
 
     def status(self) -> m.Status:
+        """The device's STATUS. It comes before its ACK, so it is there when the ACK is; a lost or late
+        STATUS is asked for again, as often as a command is sent again (``retries``)."""
         count = self._status_count
-        self.command(m.GetStatus())  # STATUS comes before its ACK; a lost STATUS: ask again
-        try:
-            return self.wait_for(lambda: self._status if self._status_count > count else None, 0.0, "STATUS")
-        except DeviceTimeout:
+
+        def arrived() -> m.Status | None:
+            return self._status if self._status_count > count else None
+
+        wait = 0.0
+        for _ in range(self.retries):
             self.command(m.GetStatus())
-            return self.wait_for(lambda: self._status if self._status_count > count else None,
-                                 self.reply_timeout, "STATUS")
+            try:
+                return self.wait_for(arrived, wait, "STATUS")
+            except DeviceTimeout:
+                self.inbox.append(Event("retry", "serial: no STATUS before its ACK; asking again"))
+            wait = self.reply_timeout
+        self.command(m.GetStatus())
+        return self.wait_for(arrived, wait, "STATUS")
 
     def info(self) -> m.Info:
         self._info = None
