@@ -125,7 +125,9 @@ def main(argv: list[str] | None = None) -> int:
     if as_program:
         signal.signal(signal.SIGINT, _Interrupt.handler)
         sys.unraisablehook = _Interrupt.unraisable
-    command = "wearbench"
+    # named before parsing, so a Ctrl-C while a slow start imports still says which command it stopped
+    named = next((w for w in (sys.argv[1:] if argv is None else argv) if not w.startswith("-")), None)
+    command = _Interrupt.command = f"wearbench {named}" if named in COMMANDS else "wearbench"
     try:
         parser = build_parser()
         args = parser.parse_args(argv)

@@ -101,3 +101,18 @@ def test_ctrl_c_on_a_local_cluster_leaves_no_worker_traceback_or_leaked_semaphor
         if code == 0:
             continue
         assert code == 130 and _said(err) == [f"wearbench {args[0]}: interrupted"], err
+
+
+def test_a_ctrl_c_before_the_command_is_parsed_still_names_it(monkeypatch, capsys):
+    """A slow start (imports on a loaded machine) can take the Ctrl-C before the parser has run: the
+    line still names the command the user typed."""
+    from wearbench import cli
+
+    def interrupted():
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert cli.main(["compare", "session.mcap"]) == 130
+    assert capsys.readouterr().err.strip() == "wearbench compare: interrupted"
+    assert cli.main(["--help"]) == 130  # no command typed: the program's name
+    assert capsys.readouterr().err.strip() == "wearbench: interrupted"
