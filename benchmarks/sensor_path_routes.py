@@ -69,14 +69,17 @@ def main() -> None:
                            task_key("raw-run", bench_key(bench), names[k], seed, revs), f"{kind} {names[k]} {seed}")
                       for kind, k, seed, revs in jobs], workers=0, progress="realisations and truths")
     runs = {(kind, k, seed): r for (kind, k, seed, _), r in zip(jobs, runs, strict=True)}
+    # the ensembles' drawn paths by label ("drawn" for PathSpread's own range)
     spreads = {f"drawn {lo}-{hi}" if args.modes != "300-3000" else "drawn":
                PathSpread(mode=(float(lo), float(hi))) for lo, hi in (r.split("-") for r in args.modes.split(","))}
 
     def features(key, spec, path):
+        """``path``: a realisation's ``PathSpread``, a truth's mount as the emulator draws it
+        ("drawn"), or the acceleration as it is (None, "default")."""
         r = runs[key]
         acc = r["acc"].astype(float)
-        if path in spreads:
-            acc = spreads[path].apply(acc, fs, key[2])
+        if isinstance(path, PathSpread):
+            acc = path.apply(acc, fs, key[2])
         elif path == "drawn":
             a = SensorSpread().draw(Accelerometer(), key[2])
             acc = mount_response(acc, fs, a.resonance, a.damping, a.sensitivity)
@@ -98,7 +101,7 @@ def main() -> None:
     print("spec     ensembles  likelihood  truth path   cycles  top-1 right wrong undec none  true-inconsistent   "
           "held out caught (per state)")
     for sname, spec in specs.items():
-        for ens_path in ("as is", *spreads):
+        for ens_label, ens_path in (("as is", None), *spreads.items()):
             settings = EnsembleSettings(realisations=m, cycles=c, features=spec)
             ens = {}
             for k, nm in enumerate(names):
@@ -117,7 +120,7 @@ def main() -> None:
                         sub = [(CycleFeatures(f.spec, f.values[s:s + n], f.clipped[s:s + n]), k) for f, k in rows
                                for s in range(0, f.cycles - n + 1, n)]
                         tail = " ".join(f"{v:.2f}" for v in caught) if n == 20 else ""
-                        print(f"{sname}  {ens_path:9s}  {lik:10s}  "
+                        print(f"{sname}  {ens_label:9s}  {lik:10s}  "
                               f"{p:11s}  {n:6d}  {rates(models, sub)}  {'':17s}  {tail}", flush=True)
 
 
