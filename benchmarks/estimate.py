@@ -270,23 +270,26 @@ def information(model, clearances, at: float) -> None:
              "20 cycles, no floor": sb + sw / 20 + ens + ff + d,
              "20 cycles, the bench's tolerances known": sw / 20 + ens + floor + ff + d}
 
-    def grad(c):
-        hc, hn = 5e-6, 5e3
-        return np.stack([(model.mean(c + hc, at) - model.mean(c - hc, at)) / (2 * hc),
-                         (model.mean(c, at + hn) - model.mean(c, at - hn)) / (2 * hn)], axis=1)
-
     print(f"\nwhat limits the cycles-run interval at {at:,.0f} cycles (local Fisher information at the {len(clearances)} "
           "truths' clearances, median over them):")
     print("covariance                                          sd cycles run   sd clearance (mm)   expected exclusion")
     for name, cov in cases.items():
         sds = []
         for c in clearances:
-            g = grad(c)
+            g = _gradient(model, c, at)
             inv = np.linalg.inv(g.T @ np.linalg.solve(cov, g)) * model.temperature
             sds.append(np.sqrt(np.diag(inv)))
         sd_n, sd_c = np.median(sds, axis=0)[::-1]
         expected = 2 * stats.norm.cdf(max(0.0, at / sd_n - 1.645)) - 1
         print(f"{name:50s}  {sd_n:13,.0f}   {sd_c * 1e3:17.4f}   {expected:18.2f}")
+
+
+def _gradient(model, clearance: float, cycles_run: float) -> np.ndarray:
+    """(p, 2): the emulated mean's derivatives in the clearance and the cycles run, central differences."""
+    hc, hn = 5e-6, 5e3
+    return np.stack([(model.mean(clearance + hc, cycles_run) - model.mean(clearance - hc, cycles_run)) / (2 * hc),
+                     (model.mean(clearance, cycles_run + hn) - model.mean(clearance, cycles_run - hn)) / (2 * hn)],
+                    axis=1)
 
 
 def recording(model, clearances, at: float) -> None:
@@ -297,12 +300,11 @@ def recording(model, clearances, at: float) -> None:
     and the wear coefficient scales them all), against the cycles per session; tempered as the posterior is. 'expected exclusion' as in
     :func:`information`."""
     from scipy import linalg, stats
-    from wearbench.validation.track import wear_drift
+    from wearbench.validation.track import session_covariances, wear_drift
 
     st = model.stats[model.reference]
     drift = wear_drift(model)
-    shared = st.between + (st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0)
-    own = st.covariance(np.inf, nuisance=False) - st.between + np.diag(model.discrepancy)
+    shared, own = session_covariances(model)
     print(f"\nwhat to record for the cycles-run interval at {at:,.0f} to exclude 0 and {2 * at:,.0f} (local Fisher "
           f"information, median over the {len(clearances)} truths' clearances; sd of the effective cycles run at "
           f"{at:,.0f} / expected exclusion):")
@@ -314,10 +316,7 @@ def recording(model, clearances, at: float) -> None:
         for n in (*counts, np.inf):
             sds = []
             for c in clearances:
-                hc, hn = 5e-6, 5e3
-                g = np.concatenate([np.stack([(model.mean(c + hc, fi * at) - model.mean(c - hc, fi * at)) / (2 * hc),
-                                              fi * (model.mean(c, fi * at + hn) - model.mean(c, fi * at - hn)) / (2 * hn)],
-                                             axis=1) for fi in f])
+                g = np.concatenate([_gradient(model, c, fi * at) * [1.0, fi] for fi in f])
                 worn = (f > 0) * float(f.size > 1)  # a worn session's share of the bench's move from new (track's)
                 cov = (np.kron(np.ones((f.size, f.size)), shared) + np.kron(np.outer(worn, worn), drift)
                        + linalg.block_diag(*[st.within / n + own] * f.size))

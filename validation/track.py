@@ -61,7 +61,7 @@ from wearbench.validation.estimate import EstimatorModel, Interval, _interval
 from wearbench.validation.features import CycleFeatures
 from wearbench.validation.statistics import _psd, shrunk_covariance
 
-__all__ = ["Track", "joint_log_likelihood", "track_features", "track_figure", "wear_drift"]
+__all__ = ["Track", "joint_log_likelihood", "session_covariances", "track_features", "track_figure", "wear_drift"]
 
 K_RANGE = (0.2, 5.0)
 
@@ -111,6 +111,15 @@ def wear_drift(model: EstimatorModel) -> np.ndarray:
     return _psd(cov - model.stats[model.reference].within / c * (1 + 1 / (nn - 1)))
 
 
+def session_covariances(model: EstimatorModel) -> tuple[np.ndarray, np.ndarray]:
+    """(shared, own): the covariance of what one bench's sessions share (its offset from the design
+    mean, with the sensor path's band gains) and of what each session has alone besides its
+    cycle-to-cycle noise (the estimator's error at its parameter values)."""
+    st = model.stats[model.reference]
+    shared = st.between + (st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0)
+    return shared, st.covariance(np.inf, nuisance=False) - st.between + np.diag(model.discrepancy)
+
+
 def _sqrt_psd(a: np.ndarray) -> np.ndarray:
     vals, vecs = np.linalg.eigh(0.5 * (a + a.T))
     return vecs * np.sqrt(np.clip(vals, 0.0, None))
@@ -126,8 +135,7 @@ def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Seque
     :func:`wear_drift`); then the log density with its determinant (it changes with ``worn``), up to
     ``-S p log(2 pi) / 2``. Without ``worn``: the quadratic form only (the determinant is constant)."""
     st = model.stats[model.reference]
-    shared = st.between + (st.nuisance @ st.nuisance.T if st.nuisance is not None else 0.0)
-    estimator = st.covariance(np.inf, nuisance=False) - st.between + np.diag(model.discrepancy)
+    shared, estimator = session_covariances(model)
     r = np.asarray(xbars, float) - means  # (..., S, p)
     flat = r.reshape(-1, *r.shape[-2:])  # (G, S, p)
     p = flat.shape[-1]
