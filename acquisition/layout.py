@@ -395,7 +395,7 @@ def decode_command(data: bytes) -> Command:
                    None if math.isnan(m.acceleration) else m.acceleration, m.host_time)
 
 
-_INFO = {"phase", "stop", "recovered", "event", "info"}
+_INFO = {"phase", "stop", "recovered", "event", "info", "tap"}
 _ERROR = {"error", "fault", "stall", "overspeed", "bus_off", "disconnect", "emcy"}
 
 
