@@ -359,13 +359,16 @@ class Recorder:
             return
         prog.phase = "record"
         self._recording.set()
+        start = self._poll().device_time
         self._post(Event("phase", f"record: {p.taps} taps at rest, {p.tap_interval:g} s apart (half-sine "
-                         f"{p.tap_width * 1e3:g} ms, peak {peak:g} m/s^2)", device_time=self._poll().device_time))
+                         f"{p.tap_width * 1e3:g} ms, peak {peak:g} m/s^2)", device_time=start))
         for k in range(p.taps):
             rig.drive.tap(0.25 * p.tap_interval, p.tap_width, peak)
             prog.cycles = k + 1
-            if self._wait(p.tap_interval, prog) is None:
+            s = self._wait(p.tap_interval, prog)
+            if s is None:
                 return
+            prog.elapsed = s.device_time - start
         self.stop("completed", "phase")
 
     def _run(self, prog: Progress) -> None:
