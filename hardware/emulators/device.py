@@ -490,6 +490,10 @@ class BenchDevice:
             theta, omega = theta + (sigma * r / k) * (math.cos(phi) - np.cos(psi)), omega * (1 + r * np.sin(psi))
         return theta, omega
 
+    def encoder_counts(self, t: float) -> int:
+        """The encoder's count at device time ``t`` (what a touch probe latches with a time stamp)."""
+        return int(self._encoder_state(self._motion(np.array([t]))[0])[0][0])
+
     @property
     def clipped_samples(self) -> int:
         """Accelerometer samples clipped at the range since the chain was last configured."""
