@@ -49,8 +49,8 @@ def run(args: argparse.Namespace) -> int:
     path = resolve_bench(args.bench)
     bench = load_bench(path)
     if args.write_latency and path.resolve().parent == BENCH_DIR.resolve():
-        raise ValueError(f"--write-latency: {args.bench} is a shipped bench; copy it (e.g. 'cp {path} mybench.toml') "
-                         "and give the copy")
+        raise ValueError(f"--write-latency: {args.bench} is a shipped bench, never changed; copy it first "
+                         f"('wearbench bench copy {path.stem} mybench.toml') and give the copy")
     if args.json:
         check_output(args.json, option="--json")
     session = args.session
