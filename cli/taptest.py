@@ -8,7 +8,7 @@ import sys
 
 from wearbench.bench.schema import BACKENDS
 from wearbench.cli.options import positive_quantity
-from wearbench.cli.record import _option_value
+from wearbench.cli.record import backend_options
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -90,13 +90,7 @@ def _record(bench, args: argparse.Namespace) -> str:
                        tap_interval=positive_quantity(args.interval, "time", "--interval", bare_unit="s"),
                        tap_width=positive_quantity(args.width, "time", "--width", bare_unit="s"),
                        tap_peak=parse_quantity(args.peak, "acceleration") if args.peak else None)
-    options = {}
-    for item in args.option:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"--option {item!r}: expected KEY=VALUE")
-        options[key.strip()] = _option_value(value.strip())
-    rig = open_rig(bench, args.backend, options)
+    rig = open_rig(bench, args.backend, backend_options(args.option))
     try:
         result = Recorder(rig, bench, plan, args.out, writer=SessionWriter(args.out, replace=args.force)).run()
     finally:
