@@ -351,7 +351,7 @@ class Recorder:
         drive (its latch arrives as a "tap" event from the sources), then one interval to let the last die away."""
         p, rig = self.plan, self.rig
         peak = p.tap_peak or 0.25 * float(self.bench.sensor("accelerometer").range or 50 * 9.80665)
-        prog.target = float(p.taps)
+        prog.target = p.taps * p.tap_interval  # s; the cranks stay at rest (no cycles)
         self._command("enable")  # the drive holds the cranks at rest
         for source in rig.sources:
             source.start()
@@ -362,9 +362,8 @@ class Recorder:
         start = self._poll().device_time
         self._post(Event("phase", f"record: {p.taps} taps at rest, {p.tap_interval:g} s apart (half-sine "
                          f"{p.tap_width * 1e3:g} ms, peak {peak:g} m/s^2)", device_time=start))
-        for k in range(p.taps):
+        for _ in range(p.taps):
             rig.drive.tap(0.25 * p.tap_interval, p.tap_width, peak)
-            prog.cycles = k + 1
             s = self._wait(p.tap_interval, prog)
             if s is None:
                 return

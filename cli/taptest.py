@@ -64,6 +64,9 @@ def run(args: argparse.Namespace) -> int:
               f"{t.gain:6.3f} {t.snr:7.0f} {t.match:7.4f}")
     print(f"{bench.name}: {result.describe()}")
     print(f"enter under the accelerometer's [sensor.chain]:  {result.line()}")
+    if result.coverage < 0.95:
+        print(f"wearbench taptest: {len(result.taps)} taps give only a {result.coverage:.0%} interval for the median; "
+              "6 or more give 95 %", file=sys.stderr)
     if args.json:
         with open(args.json, "x") as fh:
             json.dump(result.as_dict(), fh, indent=1)

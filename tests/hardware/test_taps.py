@@ -50,6 +50,33 @@ def test_a_tap_passes_through_the_accelerometers_own_delay_and_chain(device, del
     assert np.max(np.abs(x)) > 20.0  # the tap was seen
 
 
+def test_a_tap_while_the_mechanism_turns_adds_the_chains_response_at_the_truths_delay(testbed, make_config):
+    """Two devices playing the same turning pattern, one tapped, differ by the chain's response to the
+    pulse alone at the truth's accel_delay (the chain is linear without noise and ADC): the tap is summed
+    into the mechanism's signal before the device's one chain, as a real hammer's blow is."""
+    outs = []
+    for tapped in (False, True):
+        clock = ManualClock()
+        dev = BenchDevice(testbed, make_config(signal="harmonic", accelerometer=CHAIN,
+                                               truth={"accel_delay": "0.2 ms"}), clock)
+        dev.enable()
+        dev.set_speed(6.0, 1e6)
+        dev.start_stream()
+        clock.advance(0.3)
+        dev.read()
+        if tapped:
+            tap = dev.tap(after=0.05, width=2e-4, peak=300.0)
+        outs.append(_samples(dev, clock, 0.2))
+    (t, plain), (_, with_tap) = outs
+    chain = SensorChain(dev.config.accelerometer, dev.sample_rate, dev.range, np.random.default_rng(0))
+    m_ = chain.oversample
+    ti = t[0] + (np.arange(t.size * m_) - (m_ - 1)) / (dev.sample_rate * m_)
+    chain._zi = np.zeros((chain.sos.shape[0], 2))  # the pulse alone, from rest
+    alone = chain.process(tap.pulse(ti - 2e-4))
+    np.testing.assert_allclose(with_tap - plain, alone, atol=2e-3 * 300)
+    assert np.max(np.abs(alone)) > 10.0
+
+
 def test_the_latch_is_the_trigger_on_the_encoders_clock_to_a_microsecond(device):
     dev, clock = device()
     dev.start_stream()
