@@ -187,9 +187,10 @@ def _fit_tap(tap: RecordedTap, taps: list[RecordedTap], t: np.ndarray, x: np.nda
     others = [o.latch for o in taps if o is not tap]
     before = max([o for o in others if o < tap.latch], default=-math.inf)
     after = min([o for o in others if o > tap.latch], default=math.inf)
-    if tap.latch - before < PRE + 0.1 or after - tap.latch < POST:
-        raise TapTestError(f"{name}: the next tap follows within {min(tap.latch - before, after - tap.latch):.3f} s; "
-                           f"expected {POST:g} s after a tap for its response to die away")
+    gap = min(tap.latch - before, after - tap.latch)
+    if gap < PRE + POST:
+        raise TapTestError(f"{name}: another tap {gap:.3f} s away; expected >= {PRE + POST:g} s between taps (a "
+                           "response must die away before the next tap's segment begins)")
     sel = (t >= tap.latch - PRE) & (t < tap.latch + POST)
     n_expected = int((PRE + POST) * fs) - 2
     if np.count_nonzero(sel) < n_expected or t[sel][0] > tap.latch - PRE + 2 / fs:
