@@ -124,7 +124,10 @@ def fit_shift(measured: np.ndarray, predicted: np.ndarray, f: np.ndarray, *,
 
 
 def _accelerometer_chain(bench: Bench, source: str) -> SensorChainStatement:
-    acc = bench.sensor("accelerometer")
+    try:
+        acc = bench.sensor("accelerometer")
+    except KeyError:
+        raise TapTestError(f"{source}: the bench {bench.name!r} has no [[sensor]] of kind accelerometer") from None
     if acc.chain is None:
         raise TapTestError(f"{source}: the bench's accelerometer {acc.name!r} has no [sensor.chain] statement; "
                            "state its anti-alias filter and mounted resonance (or their delays) first: the tap test "
