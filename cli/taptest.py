@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--out", "-o", help="record a tap session to this MCAP file (never replaced unless --force)")
     what.add_argument("--session", help="analyse this recorded tap session instead of recording one")
-    p.add_argument("--force", action="store_true", help="replace an existing --out session")
+    p.add_argument("--force", action="store_true", help="replace an existing --out session or --json file")
     p.add_argument("--taps", type=int, default=10, help="taps to record (default 10)")
     p.add_argument("--interval", default="0.5s", help="time between taps (default 0.5s)")
     p.add_argument("--width", default="0.2ms", help="the tap's half-sine pulse width (default 0.2ms)")
@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--write-latency", action="store_true",
                    help="write the measured latency into BENCH's accelerometer [sensor.chain] (only that key "
                    "changes, comments are kept; a shipped bench is never changed)")
-    p.add_argument("--json", metavar="FILE", help="also write every number to FILE (JSON; never replaced)")
+    p.add_argument("--json", metavar="FILE", help="also write every number to FILE (JSON; never replaced unless --force)")
     p.set_defaults(func=run)
 
 
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--write-latency: {args.bench} is a shipped bench, never changed; copy it first "
                          f"('wearbench bench copy {path.stem} mybench.toml') and give the copy")
     if args.json:
-        check_output(args.json, option="--json")
+        check_output(args.json, force=args.force, option="--json")
     session = args.session
     if session is None:
         session = _record(bench, args)
@@ -68,8 +68,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"wearbench taptest: {len(result.taps)} taps give only a {result.coverage:.0%} interval for the median; "
               "6 or more give 95 %", file=sys.stderr)
     if args.json:
-        with open(args.json, "x") as fh:
-            json.dump(result.as_dict(), fh, indent=1)
+        from wearbench.bench.output_file import output_file
+
+        with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
+            json.dump(result.as_dict(), f, indent=1)
     if args.write_latency:
         from wearbench.bench.chain_latency import set_chain_latency
 
