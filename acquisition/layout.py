@@ -148,7 +148,8 @@ def session_records(bench: Bench, plan: SessionPlan, backend: str, info: Mapping
     session = {"bench": b.name, "bench_sha256": b.sha256, "operator": p.operator,
                "software": f"wearbench {version('wearbench')}", "backend": backend,
                "speed_rad_s": repr(p.speed), "started_at": started_at}
-    session["target"] = f"{p.cycles} cycles" if p.cycles is not None else f"{p.duration} s"
+    session["target"] = (f"{p.taps} taps at rest, {p.tap_interval!r} s apart" if p.taps
+                         else f"{p.cycles} cycles" if p.cycles is not None else f"{p.duration} s")
     if p.cycles_run is not None:
         session["cycles_run"] = repr(float(p.cycles_run))
     if b.path is not None:
@@ -395,7 +396,7 @@ def decode_command(data: bytes) -> Command:
                    None if math.isnan(m.acceleration) else m.acceleration, m.host_time)
 
 
-_INFO = {"phase", "stop", "recovered", "event", "info"}
+_INFO = {"phase", "stop", "recovered", "event", "info", "tap"}
 _ERROR = {"error", "fault", "stall", "overspeed", "bus_off", "disconnect", "emcy"}
 
 

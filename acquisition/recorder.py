@@ -346,8 +346,35 @@ class Recorder:
         """Speed ratio of the encoder's crank to the motor."""
         return self.bench.encoder_driver.ratio
 
+    def _run_taps(self, prog: Progress) -> None:
+        """The tap test: cranks at rest, ``plan.taps`` taps ``tap_interval`` apart, each latched by the
+        drive (its latch arrives as a "tap" event from the sources), then one interval to let the last die away."""
+        p, rig = self.plan, self.rig
+        peak = p.tap_peak or 0.25 * float(self.bench.sensor("accelerometer").range or 50 * 9.80665)
+        prog.target = p.taps * p.tap_interval  # s; the cranks stay at rest (no cycles)
+        self._command("enable")  # the drive holds the cranks at rest
+        for source in rig.sources:
+            source.start()
+        if self._wait(p.settle, prog) is None:
+            return
+        prog.phase = "record"
+        self._recording.set()
+        start = self._poll().device_time
+        self._post(Event("phase", f"record: {p.taps} taps at rest, {p.tap_interval:g} s apart (half-sine "
+                         f"{p.tap_width * 1e3:g} ms, peak {peak:g} m/s^2)", device_time=start))
+        for _ in range(p.taps):
+            rig.drive.tap(0.25 * p.tap_interval, p.tap_width, peak)
+            s = self._wait(p.tap_interval, prog)
+            if s is None:
+                return
+            prog.elapsed = s.device_time - start
+        self.stop("completed", "phase")
+
     def _run(self, prog: Progress) -> None:
         p, rig = self.plan, self.rig
+        if p.taps:
+            self._run_taps(prog)
+            return
         acc = p.acceleration or self.bench.motor.max_acceleration
         prog.target = p.cycles if p.cycles is not None else p.duration
         self._command("enable")

@@ -14,7 +14,9 @@ __all__ = ["Progress", "SessionPlan", "SessionResult"]
 class SessionPlan:
     """What to record. ``speed`` is the motor speed (rad/s); stop after ``cycles`` complete crank
     cycles (index pulse to index pulse) or ``duration`` s of recording (device clock), whichever is
-    given."""
+    given. A tap session (``taps`` > 0, the tap test) keeps the cranks at rest (``speed`` 0, no
+    cycles or duration) and fires ``taps`` taps ``tap_interval`` s apart: half-sine pulses of
+    ``tap_width`` s peaking at ``tap_peak`` m/s^2 (None: a quarter of the accelerometer's range)."""
 
     speed: float
     cycles: float | None = None
@@ -29,8 +31,15 @@ class SessionPlan:
     silence_timeout: float = 2.0  # s (rig clock) without a block: the device stopped answering
     state_interval: float = 0.05  # s (rig clock) between drive state polls
     max_malformed: int = 100  # malformed frames tolerated before the session stops
+    taps: int = 0  # the tap test: taps fired with the cranks at rest
+    tap_interval: float = 0.5  # s between taps (the response must die away between them)
+    tap_width: float = 2e-4  # s, the tap's half-sine pulse
+    tap_peak: float | None = None  # m/s^2, None: a quarter of the accelerometer's range
 
     def __post_init__(self) -> None:
+        if self.taps:
+            self._check_taps()
+            return
         if (self.cycles is None) == (self.duration is None):
             raise ValueError("a session needs exactly one of cycles or duration")
         if self.speed == 0 or not math.isfinite(self.speed):
@@ -43,6 +52,19 @@ class SessionPlan:
                              "number >= 0")
         if not (math.isfinite(self.settle) and self.settle >= 0):
             raise ValueError(f"settle = {self.settle!r} s: expected a finite number >= 0")
+
+
+    def _check_taps(self) -> None:
+        if not (isinstance(self.taps, int) and self.taps > 0):
+            raise ValueError(f"taps = {self.taps!r}: expected a whole number > 0")
+        if self.speed != 0 or self.cycles is not None or self.duration is not None:
+            raise ValueError(f"a tap session keeps the cranks at rest: expected speed 0 and no cycles or duration "
+                             f"(got speed {self.speed!r}, cycles {self.cycles!r}, duration {self.duration!r})")
+        for name, value in (("tap_interval", self.tap_interval), ("tap_width", self.tap_width)):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r} s: expected a finite number > 0")
+        if self.tap_peak is not None and not (math.isfinite(self.tap_peak) and self.tap_peak > 0):
+            raise ValueError(f"tap_peak = {self.tap_peak!r} m/s^2: expected a finite number > 0")
 
 
 @dataclass

@@ -62,12 +62,10 @@ def true_sensor_delay(bench, accel_delay: float) -> tuple[float, float]:
     return accel_delay + float(np.mean(gd)) / chain.internal_rate, drift
 
 
-def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, float]]:
-    """(true state, session path, true sensor delay) of every truth, recorded once into ``folder``."""
-    from wearbench.compute import Task, compute_client, run_tasks, task_key
-    from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
+def truth_specs(bench, states, args, folder: Path) -> list[tuple]:
+    """(state, seed, emulator table, accel_delay, session path) of every truth."""
+    from wearbench.testing.truths import slug
 
-    folder.mkdir(parents=True, exist_ok=True)
     truths = []
     for k, s in enumerate(states):
         for d in range(args.draws):
@@ -77,6 +75,16 @@ def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, fl
             if args.sensor_paths:  # the truth's own mount, as benchmarks/identify.py --sensor-paths draws it
                 table["accelerometer"] = {**bench.emulator.get("accelerometer", {}), "spread": {}}  # the emulator's drawn mounts
             truths.append((s, seed, table, delay, folder / f"{slug(s.name)}_{seed}.mcap"))
+    return truths
+
+
+def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, float]]:
+    """(true state, session path, true sensor delay) of every truth, recorded once into ``folder``."""
+    from wearbench.compute import Task, compute_client, run_tasks, task_key
+    from wearbench.testing.truths import prepare_truth, record_state, truth_revolutions
+
+    folder.mkdir(parents=True, exist_ok=True)
+    truths = truth_specs(bench, states, args, folder)
     revolutions = truth_revolutions(args.cycles + 1)
     todo = [t for t in truths if not t[4].exists()]
     if todo:
@@ -249,7 +257,8 @@ def report(bench, states, truths, args) -> None:
         return
     from dataclasses import replace
 
-    chain = bench.sensor("accelerometer").chain  # each session with its truth's tap-tested latency stated
+    chain = bench.sensor("accelerometer").chain  # each session with its truth's latency stated, copied from the
+    # truth (benchmarks/tap_delay.py measures it with the tap test instead: the same 1.00 within 0.2 ms)
     sessions = [_with_chain(load_session(p, label=f"{name} #{p.stem}"), replace(chain, latency=round(d, 5)))
                 for name, p, d in truths]
     timings = []  # the calibration (fit, window nulls) is computed the first time, then cached

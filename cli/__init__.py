@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "study": "study",
     "sweep": "sweep",
     "record": "record",
+    "taptest": "taptest",
     "inspect": "inspect",
     "recover": "recover",
     "emulate": "emulate",

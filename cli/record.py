@@ -64,6 +64,17 @@ def _option_value(text: str):
     return {"true": True, "false": False}.get(text.lower(), text)
 
 
+def backend_options(items: list[str]) -> dict:
+    """``--option KEY=VALUE`` items as the backend's options (numbers and true/false converted)."""
+    options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"--option {item!r}: expected KEY=VALUE")
+        options[key.strip()] = _option_value(value.strip())
+    return options
+
+
 def run(args: argparse.Namespace) -> int:
     from wearbench.acquisition.backends import open_rig
     from wearbench.acquisition.recorder import Recorder
@@ -112,12 +123,7 @@ def run(args: argparse.Namespace) -> int:
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,
         clearances=clearances, wear=wear, operator=args.operator, cycles_run=cycles_run_value(args.cycles_run),
         settle=positive_quantity(args.settle, "time", "--settle", bare_unit="s", allow_zero=True))
-    options = {}
-    for item in args.option:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"--option {item!r}: expected KEY=VALUE")
-        options[key.strip()] = _option_value(value.strip())
+    options = backend_options(args.option)
     check_free_space(args.out)  # refuse before the rig starts
     live = None
     if args.live is not None:

@@ -56,7 +56,8 @@ COMMANDS = [  # {f}: the bad input; {s}: a good session; {d}: a folder for outpu
     "record ninebar-testbed --backend sim --cycles 1 --wear A={f} --out {d}/y.mcap", "emulate {f} --serial",
     "emulate ninebar-testbed --serial --config {f}", "estimate {f}", "estimate {s} --estimator {f}",
     "track {f} --cycles-run 0", "track {s} --cycles-run 0 --estimator {f}", "calibrate {f} --state x",
-    "calibrate {s} --state x --ensembles {f}", "estimator {f}",
+    "calibrate {s} --state x --ensembles {f}", "estimator {f}", "taptest ninebar-testbed --session {f}",
+    "taptest {f} --session {s}",
 ]
 READABLE = {("inspect {f}", "cut.mcap")}  # what it is for: an unfinished file says what it holds
 

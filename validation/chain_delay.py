@@ -18,7 +18,7 @@ import numpy as np
 from scipy import signal
 from wearbench.bench.schema import SensorChainStatement
 
-__all__ = ["StatedDelay", "analog_group_delay", "stated_delay"]
+__all__ = ["StatedDelay", "analog_group_delay", "stated_delay", "stated_response"]
 
 
 def analog_group_delay(z: np.ndarray, p: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -98,3 +98,29 @@ def stated_delay(chain: SensorChainStatement, band: tuple[float, float] = (1.0, 
         sensor = 0.0
     return StatedDelay(filt, sensor, chain.latency, chain.clock_drift, chain.uncertainty,
                        (float(band[0]), float(band[1])))
+
+
+def stated_response(chain: SensorChainStatement, f: np.ndarray) -> np.ndarray:
+    """The stated chain's complex frequency response at ``f`` (Hz): its anti-alias filter (or its
+    datasheet delay as a pure delay), its mounted resonance (or its stated delay) and its latency;
+    1 at 0 Hz. What a tap through this chain is predicted to look like (``validation/tap_test.py``)."""
+    w = 2 * np.pi * np.asarray(f, dtype=float)
+    h = np.exp(-1j * w * chain.latency)
+    if chain.filter_delay is not None:
+        h = h * np.exp(-1j * w * chain.filter_delay)
+    elif chain.filter != "none":
+        z, p = _filter_zpk(chain)
+        h = h * _unit_dc(z, p, w)
+    if chain.sensor_delay is not None:
+        h = h * np.exp(-1j * w * chain.sensor_delay)
+    elif chain.resonance:
+        h = h * _unit_dc(np.zeros(0), _resonance_poles(chain), w)
+    return h
+
+
+def _unit_dc(z: np.ndarray, p: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Response at ``w`` (rad/s) of the analogue filter with zeros ``z`` and poles ``p``, gain 1 at 0 Hz."""
+    s = 1j * np.asarray(w)[..., None]
+    num = np.prod(s - z, axis=-1) if len(z) else 1.0
+    num0 = np.prod(-z) if len(z) else 1.0
+    return (num / num0) * (np.prod(-p) / np.prod(s - p, axis=-1))

@@ -44,6 +44,7 @@ from wearbench.acquisition.drivers import (
 from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode
+from wearbench.hardware.protocol.taps import tap_message
 
 __all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "FrameLog", "frame_log", "open_bus", "open_rig",
            "replay"]
@@ -118,6 +119,9 @@ class BenchFrames(can.Listener):
             kind = fault_name(code) or "event"
             self.inbox.put(Event(kind, f"device: {kind} (detail {int(values['Detail'])})", now,
                                  values["TimeMs"] * 1e-3))
+        elif name == "TapLatch":
+            self.inbox.put(Event("tap", "device: " + tap_message(int(values["Number"]), float(values["Width"]),
+                                                                 float(values["Peak"])), now, values["TimeNs"] * 1e-9))
         elif name in ("MotorStatus", "StreamStatus"):
             with self.cond:
                 if name == "MotorStatus":
@@ -314,19 +318,27 @@ class CanDrive(MotorDrive):
         self._lock = threading.Lock()
 
     def _command(self, command: str, speed: float = 0.0, acceleration: float = 0.0) -> dict:
+        return self._acknowledged(command, "MotorCommand", {"Command": command, "TargetSpeed": speed,
+                                                             "Acceleration": acceleration})
+
+    def _acknowledged(self, what: str, frame: str, values: dict, retries: int = 2) -> dict:
+        """Send ``frame`` with the next command counter; the MotorStatus acknowledging it (sent again
+        up to ``retries`` times without one)."""
         f = self.frames
         with self._lock:
             self._counter = (self._counter + 1) & 0xF
             counter, count = self._counter, f.status_count
-            f.request(lambda: _send(self.bus, "MotorCommand", {
-                "Command": command, "Counter": counter, "TargetSpeed": speed,
-                "Acceleration": acceleration}),
-                lambda: f.status_count > count and f.status["AckCounter"] == counter,
-                self.reply_timeout, f"MotorStatus acknowledging {command}")
+            f.request(lambda: _send(self.bus, frame, {**values, "Counter": counter}),
+                      lambda: f.status_count > count and f.status["AckCounter"] == counter,
+                      self.reply_timeout, f"MotorStatus acknowledging {what}", retries)
             status = f.status
         if status["AckError"] != ErrorCode.OK:
-            raise DriverError(f"CAN bench refused {command}: {ErrorCode(status['AckError']).name}")
+            raise DriverError(f"CAN bench refused {what}: {ErrorCode(status['AckError']).name}")
         return status
+
+    def tap(self, after: float = 0.01, width: float = 2e-4, peak: float = 1000.0) -> None:
+        # not idempotent (a resent command is a second tap): sent once
+        self._acknowledged("TAP", "TapCommand", {"After": after, "Width": width, "Peak": peak}, retries=0)
 
     def enable(self) -> None:
         if self._command("GET_STATUS")["Fault"]:

@@ -40,12 +40,14 @@ from wearbench.acquisition.drivers import (
 )
 from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol.can_frames import EDS_PATH
+from wearbench.hardware.protocol.taps import tap_message
 
 __all__ = ["Cia402Drive", "open_rig"]
 
 CONTROLWORD, STATUSWORD, MODE, MODE_DISPLAY = 0x6040, 0x6041, 0x6060, 0x6061
 POSITION, VELOCITY, TARGET_VELOCITY, ERROR_CODE = 0x6064, 0x606C, 0x60FF, 0x603F
 PROFILE_ACC, PROFILE_DEC, RESOLUTION = 0x6083, 0x6084, 0x608F
+TOUCH_PROBE_FUNCTION, TOUCH_PROBE_STATUS, TOUCH_PROBE_TIME, TAPPER = 0x60B8, 0x60B9, 0x60D1, 0x2100
 _MAPPING = {("rpdo", 1): (CONTROLWORD, TARGET_VELOCITY), ("tpdo", 1): (STATUSWORD, VELOCITY),
             ("tpdo", 2): (POSITION, ERROR_CODE, MODE_DISPLAY)}
 _FAULTS = {0x7121: "stall"}
@@ -61,6 +63,7 @@ class Cia402Drive(MotorDrive):
                  reply_timeout: float):
         self.network, self.node, self.frames = network, node, frames
         self.reply_timeout = reply_timeout
+        self._taps = 0  # taps fired through the touch probe so far
         # BaseNode402's waits, scaled to the bus's reply timeout (its defaults assume an idle host)
         node.TIMEOUT_SWITCH_STATE_SINGLE = node.TIMEOUT_SWITCH_OP_MODE = reply_timeout
         node.TIMEOUT_SWITCH_STATE_FINAL = 4 * reply_timeout
@@ -68,10 +71,11 @@ class Cia402Drive(MotorDrive):
 
     # ---- start-up ---------------------------------------------------------------------------
 
-    def _sdo(self, index: int, value: int) -> None:
-        """Write ``value`` to object ``index`` by SDO."""
+    def _sdo(self, index: int, value: int, subindex: int | None = None) -> None:
+        """Write ``value`` to object ``index`` (its ``subindex``) by SDO."""
         try:
-            self.node.sdo[index].raw = value
+            obj = self.node.sdo[index]
+            (obj if subindex is None else obj[subindex]).raw = value
         except canopen.SdoAbortedError as exc:
             raise DriverError(f"CANopen node {self.node.id}: SDO 0x{index:04X}: {exc}") from None
         except canopen.SdoCommunicationError as exc:
@@ -155,6 +159,35 @@ class Cia402Drive(MotorDrive):
 
     def stop(self, acceleration: float | None = None) -> None:
         self.set_speed(0.0, acceleration)
+
+    def tap(self, after: float = 0.01, width: float = 2e-4, peak: float = 1000.0) -> None:
+        """Arm touch probe 1 (0x60B8: first positive edge of input 1), set and fire the tapper (0x2100:
+        pulse width ns, peak 0.01 m/s^2, fire after us), wait for the latch (0x60B9 bit 1) and read its
+        time stamp (0x60D1, us of the drive's clock, 32 bits: unwrapped against the encoder's time)."""
+        self._sdo(TAPPER, round(width * 1e9), 1)
+        self._sdo(TAPPER, round(peak * 100), 2)
+        self._sdo(TOUCH_PROBE_FUNCTION, 0x0011)
+        self._sdo(TAPPER, round(after * 1e6), 3)
+        end = time.monotonic() + after + 4 * self.reply_timeout
+        while not self._read(TOUCH_PROBE_STATUS) & 0x02:
+            if time.monotonic() > end:
+                raise DeviceTimeout(f"CANopen node {self.node.id}: touch probe 1 latched no tap within "
+                                    f"{after + 4 * self.reply_timeout:g} s (is the tapper's trigger on input 1?)")
+            time.sleep(0.005)
+        stamp = self._read(TOUCH_PROBE_TIME) * 1e-6
+        wrap = 2.0**32 * 1e-6
+        ref = self.frames.encoder_time if self.frames.encoder_time is not None else stamp
+        latch = stamp + wrap * round((ref - stamp) / wrap)
+        self.frames.inbox.put(Event("tap", "device: " + tap_message(self._taps, width, peak), time.time(), latch))
+        self._taps += 1
+
+    def _read(self, index: int) -> int:
+        try:
+            return int(self.node.sdo[index].raw)
+        except canopen.SdoAbortedError as exc:
+            raise DriverError(f"CANopen node {self.node.id}: SDO 0x{index:04X}: {exc}") from None
+        except canopen.SdoCommunicationError as exc:
+            raise DeviceTimeout(f"CANopen node {self.node.id}: SDO 0x{index:04X}: {exc}") from None
 
     def state(self) -> MotorState:
         self._fresh()

@@ -214,6 +214,9 @@ class SerialDrive(MotorDrive):
         else:
             self.set_speed(0.0, acceleration)
 
+    def tap(self, after: float = 0.01, width: float = 2e-4, peak: float = 1000.0) -> None:
+        self.link.command(m.Tap(float(after), float(width), float(peak)))
+
     def set_profile(self, times: list[float], speeds: list[float], acceleration: float | None = None) -> None:
         self.link.command(m.SetProfile(tuple(times), tuple(speeds), float(acceleration or 0.0)))
 

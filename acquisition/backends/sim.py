@@ -153,6 +153,9 @@ class SimDrive(MotorDrive):
     def set_profile(self, times: list[float], speeds: list[float], acceleration: float | None = None) -> None:
         self._call("set_profile", list(times), list(speeds), acceleration)
 
+    def tap(self, after: float = 0.01, width: float = 2e-4, peak: float = 1000.0) -> None:
+        self._call("tap", after, width, peak)
+
     def state(self) -> MotorState:
         return _status(self._call("motor_status"))
 

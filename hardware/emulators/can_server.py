@@ -36,6 +36,7 @@ from wearbench.hardware.emulators.device import (
 )
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode, FaultCode, counts_to_m_s2
+from wearbench.hardware.protocol.taps import parse_tap_message
 
 __all__ = ["CAN_ERR_BUSOFF", "CAN_ERR_PROT", "CIA402_STATES", "CanEmulator"]
 
@@ -88,6 +89,8 @@ class CanEmulator:
         self._garbage_sent = False
         self._rng = np.random.default_rng([config.seed, 4])
         self._last_controlword = 0
+        self._raw_taps: set[int] = set()  # taps fired by a TapCommand frame: their latch goes out as TapLatch
+        self._probe = {0x60B9: 0, 0x60BA: 0, 0x60D1: 0}  # touch probe 1: status, position, time stamp (us)
         self.bus: can.BusABC | None = None
         self.network: canopen.Network | None = None
         self.node: canopen.LocalNode | None = None
@@ -119,6 +122,7 @@ class CanEmulator:
                 rpdo.subscribe()
         self.network.subscribe(cf.load_dbc().get_message_by_name("MotorCommand").frame_id, self._on_motor_command)
         self.network.subscribe(cf.load_dbc().get_message_by_name("StreamControl").frame_id, self._on_stream_control)
+        self.network.subscribe(cf.load_dbc().get_message_by_name("TapCommand").frame_id, self._on_tap_command)
         self.network.connect()
         node.nmt.send_command(0x80)  # boot-up -> pre-operational; the host starts it (NMT start)
         self._thread = threading.Thread(target=self._run, name=f"can-emulator-{self.channel}", daemon=True)
@@ -200,6 +204,9 @@ class CanEmulator:
                 for block in self.device.read():
                     self._send_block(block)
                 for ev in self.device.events():
+                    if ev.code == FaultCode.TAP:
+                        self._latch(ev)
+                        continue
                     self._event(ev.code, ev.time)
                     if ev.code == FaultCode.STALL:
                         self._enter_fault()
@@ -262,6 +269,38 @@ class CanEmulator:
 
             self._reply(ack)
 
+    def _latch(self, ev) -> None:
+        """A tap's trigger: a TapLatch frame (to the ns; an Event frame's ms would not do) for a tap
+        fired by TapCommand, else touch probe 1 (0x60B8) latches it when armed for a positive edge."""
+        pulse = parse_tap_message(ev.message)
+        if pulse.number in self._raw_taps:
+            self._send(cf.encode_frame("TapLatch", {"TimeNs": max(0, round(ev.time * 1e9)),
+                                                    "Number": pulse.number & 0xFFFF,
+                                                    "Width": pulse.width, "Peak": pulse.peak}))
+            return
+        function = self._od(0x60B8)
+        if function & 0x11 == 0x11 and not (self._probe[0x60B9] & 0x02 and not function & 0x02):
+            self._probe.update({0x60B9: 0x03, 0x60BA: self.device.encoder_counts(ev.time),
+                                0x60D1: round(ev.time * 1e6) & 0xFFFFFFFF})
+
+    def _on_tap_command(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if self._off():
+            return
+        values = cf.load_dbc().get_message_by_frame_id(can_id).decode(bytes(data))
+        error = ErrorCode.OK
+        with self._lock:
+            try:
+                tap = self.device.tap(float(values["After"]), float(values["Width"]), float(values["Peak"]))
+                self._raw_taps.add(tap.number)
+            except DeviceError as exc:
+                error = exc.code
+
+            def ack() -> None:
+                self._ack = (int(values["Counter"]), int(error))
+                self._send(self._motor_status())
+
+            self._reply(ack)
+
     def _on_stream_control(self, can_id: int, data: bytearray, timestamp: float) -> None:
         if self._off():
             return
@@ -314,6 +353,8 @@ class CanEmulator:
                 return MOTOR_BLOCKED if self.device.fault == "stall" else 0
             if index == 0x6061:
                 return self._od(0x6060)
+            if index in self._probe:
+                return self._probe[index] if self._od(0x60B8) & 0x01 else 0
         return None
 
     def _on_rpdo(self, pdo_map) -> None:
@@ -332,6 +373,13 @@ class CanEmulator:
                     raise SdoAbortedError(0x06090030)  # value range exceeded: only pv mode
             elif index == 0x6040:
                 self._controlword(od.decode_raw(data))
+            elif index == 0x60B8:  # (re-)arming touch probe 1 clears what it stored
+                self._probe.update({0x60B9: od.decode_raw(data) & 0x01, 0x60BA: 0, 0x60D1: 0})
+            elif index == 0x2100 and subindex == 3:  # the tapper: fire after this many us
+                try:
+                    self.device.tap(od.decode_raw(data) * 1e-6, self._od(0x2100, 1) * 1e-9, self._od(0x2100, 2) * 0.01)
+                except DeviceError:
+                    raise SdoAbortedError(0x06090030) from None  # value range exceeded
             elif index == 0x60FF and self.state == "OPERATION ENABLED":
                 self._apply_target(od.decode_raw(data))
 

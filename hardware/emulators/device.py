@@ -19,6 +19,9 @@ the sensor chain's internal rate, then the chain of :mod:`wearbench.hardware.emu
 (mounting resonance, anti-alias filter, sampling, bias, noise, clipping, ADC). The sample clock runs
 at ``rate (1 + drift)`` while blocks are stamped at the nominal rate. Clipped samples are counted
 (:attr:`BenchDevice.clipped_samples`) and reported as INFO events, at most one a second.
+Taps (:meth:`BenchDevice.tap`, the tap test): a half-sine pulse added to the slider's acceleration
+before the same sensor chain and delay as the mechanism's signal, its trigger edge latched on the
+encoder's clock (to 1 us, jittered within it) and reported as a TAP event (hardware/protocol/taps.py).
 Faults of the device itself: dropped blocks, a stalled motor, a hung firmware (``freeze_at``: no
 blocks and no events from then on; the transports stop replying too) and a lost index pulse
 (``index_lost_at``: the encoder blocks carry no index pulse from then on).
@@ -40,6 +43,7 @@ from wearbench.hardware.emulators.sensor import SensorChain
 from wearbench.hardware.emulators.signal import SignalTable, signal_table
 from wearbench.hardware.protocol.blocks import AccelBlock, EncoderBlock, MotorStatus
 from wearbench.hardware.protocol.messages import ErrorCode, FaultCode
+from wearbench.hardware.protocol.taps import LATCH_RESOLUTION, MAX_TAP_WIDTH, tap_message
 
 __all__ = [
     "MAX_SAMPLE_RATE",
@@ -52,6 +56,7 @@ __all__ = [
     "ManualClock",
     "MonotonicClock",
     "MotorStatus",
+    "Tap",
     "table_speed",
 ]
 
@@ -127,6 +132,24 @@ class _Segment:
         return theta, np.where(ramp, self.omega0 + s * dt, self.target)
 
 
+@dataclass(frozen=True)
+class Tap:
+    """A tap on the slider: a half-sine acceleration pulse of ``width`` s peaking at ``peak`` m/s^2
+    that starts at device time ``time`` (the trigger edge); ``latch`` is that edge as the drive's
+    touch probe stamps it (``LATCH_RESOLUTION`` steps of the encoder's clock)."""
+
+    number: int
+    time: float
+    latch: float
+    width: float
+    peak: float
+
+    def pulse(self, t: np.ndarray) -> np.ndarray:
+        """The pulse's acceleration (m/s^2) at physical times ``t`` (s)."""
+        u = (np.asarray(t) - self.time) / self.width
+        return np.where((u >= 0) & (u <= 1), self.peak * np.sin(np.pi * np.clip(u, 0.0, 1.0)), 0.0)
+
+
 @dataclass
 class _Stream:
     start: float      # device time of sample 0
@@ -192,6 +215,10 @@ class BenchDevice:
         self._motion_params = self._true_motion_params()
         self._chain = self._build_chain()
         self._clipped_reported = (0, -math.inf)  # (count, device time) of the last clipping event
+        self._taps: list[Tap] = []  # taps whose pulse a stream may still sample
+        self._taps_pending: list[Tap] = []  # fired taps whose latch is not yet reported
+        self._tap_count = 0
+        self._tap_rng = np.random.default_rng([cfg.seed, 3])  # trigger jitter within the latch step
 
     def _true_motion_params(self) -> tuple[float, float, int, float, int]:
         """(speed scale s, ripple r, harmonic k, phase phi, sigma) of the true motor (module docstring)."""
@@ -257,6 +284,25 @@ class BenchDevice:
         return MotorStatus(time=now, angle=float(self._phase + self._ratio * theta[0]),
                            speed=float(self._ratio * omega[0]), counts=int(counts[0]),
                            index_count=index_count, enabled=self.enabled, fault=self.fault)
+
+    def tap(self, after: float = 0.01, width: float = 2e-4, peak: float = 1000.0) -> Tap:
+        """Fire the tapper ``after`` s from now (plus a jitter below the latch step): a half-sine
+        pulse of ``width`` s peaking at ``peak`` m/s^2 on the slider. Its latch is reported as a TAP
+        event once the device's clock passes the trigger."""
+        now = self._catch_up()
+        if not (math.isfinite(after) and 0 <= after <= 10):
+            raise DeviceError(ErrorCode.BAD_VALUE, f"tap after {after!r} s: expected 0..10 s")
+        if not (math.isfinite(width) and 0 < width <= MAX_TAP_WIDTH):
+            raise DeviceError(ErrorCode.BAD_VALUE, f"tap width {width!r} s: expected 0 < width <= {MAX_TAP_WIDTH:g} s")
+        if not (math.isfinite(peak) and 0 < peak <= 1e6):
+            raise DeviceError(ErrorCode.BAD_VALUE, f"tap peak {peak!r} m/s^2: expected 0 < peak <= 1e6")
+        t = now + after + float(self._tap_rng.uniform(0.0, LATCH_RESOLUTION))
+        latch = math.floor(t / LATCH_RESOLUTION + 1e-9) * LATCH_RESOLUTION
+        tap = Tap(self._tap_count, t, latch, float(width), float(peak))
+        self._tap_count += 1
+        self._taps.append(tap)
+        self._taps_pending.append(tap)
+        return tap
 
     def prepare(self, speed: float) -> SignalTable:
         """Compute (or load) the signal table for motor ``speed`` now, so commanding it later is instant.
@@ -410,6 +456,9 @@ class BenchDevice:
                                                 "while commanded; drive disabled"))
             elif not self.fault:
                 self._command(s.time, s.target, s.accel)
+        while self._taps_pending and self._taps_pending[0].time <= now:
+            tap = self._taps_pending.pop(0)
+            self._events.append(DeviceEvent(tap.latch, FaultCode.TAP, tap_message(tap.number, tap.width, tap.peak)))
         return now
 
     def _nominal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -441,6 +490,10 @@ class BenchDevice:
             theta, omega = theta + (sigma * r / k) * (math.cos(phi) - np.cos(psi)), omega * (1 + r * np.sin(psi))
         return theta, omega
 
+    def encoder_counts(self, t: float) -> int:
+        """The encoder's count at device time ``t`` (what a touch probe latches with a time stamp)."""
+        return int(self._encoder_state(self._motion(np.array([t]))[0])[0][0])
+
     @property
     def clipped_samples(self) -> int:
         """Accelerometer samples clipped at the range since the chain was last configured."""
@@ -461,6 +514,7 @@ class BenchDevice:
         t -= self.config.truth.accel_delay + 0.01
         while len(self._segments) > 1 and self._segments[1].t0 <= t:
             self._segments.pop(0)
+        self._taps = [tap for tap in self._taps if tap.time + tap.width >= t]
 
     def _blocks_due(self, s: _Stream, now: float) -> int:
         """Complete blocks whose last sample's true time is <= now, after handling an overrun."""
@@ -509,18 +563,21 @@ class BenchDevice:
         m = self._chain.oversample
         j = np.arange(first * m, (first + n) * m) - (m - 1)
         t_true = s.start + j / (s.true_rate * m) if m > 1 else s.start + j / s.true_rate
+        t = t_true - self.config.truth.accel_delay
         if self.config.signal == "white":
             x = self._rng.normal(0.0, self.config.accelerometer.white_level, t_true.size)
         else:
-            t = t_true - self.config.truth.accel_delay
             theta_n, omega_n, tspeed = self._nominal(t)
             theta, omega = self._true(theta_n, omega_n)
             # a run holds its own speed error and ripple: scale it by the commanded speed only
             scale_speed = omega if self.config.truth.seed is None else omega_n
-            x = np.empty_like(t)
+            x = np.zeros_like(t)
             for sp in np.unique(tspeed):
-                sel = tspeed == sp
-                x[sel] = self.prepare(sp).at(theta[sel], scale_speed[sel])
+                sel = (tspeed == sp) & (scale_speed != 0)  # at rest the signal is 0: no table needed
+                if np.any(sel):
+                    x[sel] = self.prepare(sp).at(theta[sel], scale_speed[sel])
+        for tap in self._taps:  # a tap reaches the sensor through the mechanism signal's own delay and chain
+            x += tap.pulse(t)
         return self._chain.process(x)
 
     def _report_clipping(self, now: float) -> None:

@@ -120,6 +120,8 @@ class SerialEmulator:
                 replies.append(self.status())
             elif isinstance(msg, m.ClearFault):
                 d.clear_fault()
+            elif isinstance(msg, m.Tap):
+                d.tap(msg.after, msg.width, msg.peak)
             else:
                 return [m.Ack(frame.type, frame.sequence, m.ErrorCode.UNKNOWN_COMMAND)]
         except DeviceError as exc:

@@ -42,6 +42,7 @@ __all__ = [
     "Stop",
     "StopStream",
     "StreamMask",
+    "Tap",
     "counts_to_m_s2",
     "decode",
     "encode",
@@ -64,6 +65,7 @@ class MessageType(IntEnum):
     STOP_STREAM = 0x09
     GET_STATUS = 0x0A
     CLEAR_FAULT = 0x0B
+    TAP = 0x0C
     ACK = 0x80
     STATUS = 0x81
     INFO = 0x82
@@ -94,6 +96,7 @@ class FaultCode(IntEnum):
     BUS_OFF = 4            # CAN controller bus-off (CAN transport)
     DISCONNECT = 5         # link going down (sent if the device still can)
     INFO = 0x80            # not a fault: informational event
+    TAP = 0x81             # not a fault: a tapper's trigger latched (time: the latch; protocol/taps.py)
 
 
 class SampleFormat(IntEnum):
@@ -236,6 +239,18 @@ class ClearFault(Message):
 
 
 # ---- device -> host ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Tap(Message):
+    """Fire the tapper ``after`` s from receipt: a half-sine pulse of ``width`` s peaking at ``peak``
+    m/s^2 on the slider; its trigger's latch comes back as an EVENT with code TAP."""
+
+    TYPE = MessageType.TAP
+    _FMT = struct.Struct("<fff")
+    after: float
+    width: float
+    peak: float
+
 
 @dataclass(frozen=True)
 class Ack(Message):
@@ -395,7 +410,7 @@ class Event(Message):
 
 _BY_TYPE: dict[int, type[Message]] = {
     cls.TYPE: cls for cls in (GetInfo, Enable, Disable, SetSpeed, SetProfile, Stop, ConfigureAccel,
-                              StartStream, StopStream, GetStatus, ClearFault, Ack, Status, Info,
+                              StartStream, StopStream, GetStatus, ClearFault, Tap, Ack, Status, Info,
                               AccelData, EncoderData, Event)
 }
 
