@@ -14,7 +14,9 @@ prior, its own seed) worn with a coefficient ``--life-factor`` (1.3) times the f
 (``--life-cycles`` cycles each) after 0, 100k, 200k, 300k and 400k cycles (``--life-step``); the
 fitted factor's 90 % interval against the truth, and the cycles until a clearance limit the truth
 reaches at 500k cycles (its wear run goes one step further) against the track's cycles-to-limit
-interval.
+interval; ``--life-sessions 0,200k`` (repeatable) tracks that subset of each life's sessions. Each
+subset is tracked as shipped and with the bench's move from new to worn beyond the estimator's
+(``track.life_move``) measured on the other half of the lives, never on the life scored.
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
 wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the

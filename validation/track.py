@@ -288,7 +288,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     if worn < 3 and move is None:
         notes.append(f"{worn} worn cycles-run value{'s' if worn > 1 else ''}: the wear coefficient rests on the change "
                      "from new alone, where the estimator's own error of that change biases it (on simulated lives "
-                     "its interval held the truth in 0.6-0.7 of them); sessions at four or more cycles-run values "
+                     "its 90 % interval held the truth in 0.60-0.75 of them); sessions at four or more cycles-run values "
                      "tell it from the slope")
     edge = post[:, :3].sum() + post[:, inside][:, -3:].sum()  # the lowest and the highest factors allowed
     if edge > 0.1:
