@@ -404,10 +404,35 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
                   f"      {a[:, 2].mean():.2f} ({a[:, 3].mean():.2f})        {a[:, 4].mean():.2f} ({a[:, 5].mean():.2f})"
                   f"         {np.median(a[:, 6]) * 1e3:+.4f} mm     {np.median(a[:, 7]):.2f}-{np.median(a[:, 8]):.2f}"
                   f"         {' '.join(str(h) for h in hist)}", flush=True)
+    along, expected = change_from_new(model, [(means[j], every, c, args.life_factor) for j, ((c, _), _) in enumerate(good)])
+    print("the lives' change from new along the estimator's change from new to its last cycles run (1 = that whole "
+          "change; weighted by one session's inverse covariance, at each life's true clearance), sessions at "
+          + "/".join(f"{n / 1e3:.0f}k" for n in every[1:]) + ": mean " + " ".join(f"{v:.3f}" for v in along.mean(axis=0))
+          + " (se " + " ".join(f"{v:.3f}" for v in along.std(axis=0, ddof=1) / np.sqrt(len(along)))
+          + "); the estimator's at the same effective cycles " + " ".join(f"{v:.3f}" for v in expected.mean(axis=0)))
     ratios = np.asarray(ratios)
     print("the truths' wear depth / the estimator's trajectory at the same effective cycles, after each step: mean "
           + " ".join(f"{v:.3f}" for v in ratios.mean(axis=0)) + ", sd "
           + " ".join(f"{v:.3f}" for v in ratios.std(axis=0)))
+
+
+def change_from_new(model, lives) -> tuple[np.ndarray, np.ndarray]:
+    """Per life (session means, cycles run with 0 first, clearance, factor): each worn session's mean less
+    the new one's, and the estimator's mean change to the same effective cycles, both projected on the
+    estimator's change from new to its last cycles run at the life's clearance (weighted by the inverse
+    of one 20-cycle session's covariance, drift included): (lives, worn sessions) each."""
+    from wearbench.validation.track import session_covariances, wear_drift
+
+    shared, own = session_covariances(model)
+    weight = np.linalg.inv(shared + model.stats[model.reference].within / 20 + own + wear_drift(model))
+    last = model.grid_n[-1]
+    seen, expected = [], []
+    for xbars, runs, c, factor in lives:
+        g = model.mean(c, last) - model.mean(c, 0.0)
+        project = lambda d, g=g: float(d @ weight @ g / (g @ weight @ g))
+        seen.append([project(xbars[k] - xbars[0]) for k in range(1, len(runs))])
+        expected.append([project(model.mean(c, factor * n) - model.mean(c, 0.0)) for n in runs[1:]])
+    return np.asarray(seen), np.asarray(expected)
 
 
 def _rank(interval, value: float) -> float:
