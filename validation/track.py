@@ -146,8 +146,9 @@ def life_move(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[
         r = np.asarray(xbars, float) - model.mean(np.full(runs.shape, clearance), factor * runs)
         rows.append(r[runs > 0].mean(axis=0) - r[runs == 0].mean(axis=0))
     rows = np.asarray(rows)
-    if rows.shape[0] < 2:
-        raise ValueError("life_move: at least two lives are needed (the mean's covariance is their spread)")
+    if rows.shape[0] < 3:
+        raise ValueError(f"life_move: {rows.shape[0]} lives: at least three are needed (the mean's covariance is "
+                         "their spread)")
     return rows.mean(axis=0), shrunk_covariance(rows) / rows.shape[0]
 
 

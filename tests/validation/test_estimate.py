@@ -330,3 +330,5 @@ def test_a_planted_move_from_new_to_worn_is_measured_and_track_given_it_recovers
         track_features(feats, two, model, coefficient=5.2e-14, move=(mean, cov), drift=False)
     with pytest.raises(ValueError, match="a session at 0"):
         life_move(model, [(lives[0][0][1:], runs[1:], c, 1.3)] * 2)
+    with pytest.raises(ValueError, match="at least three"):
+        life_move(model, lives[:2])
