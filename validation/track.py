@@ -286,7 +286,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     horizon = max(1.5 * max(cycles_run), 1.2 * to_limit.hi90 if to_limit else 0.0)
     prediction = [(float(n), depth_at(n)) for n in np.linspace(0.0, horizon, 41)]
     worn = int(np.sum(np.unique(runs) > 0))
-    if worn < 3 and move is None:
+    if worn < 3 and (runs == 0).any() and move is None:
         notes.append(f"{worn} worn cycles-run value{'s' if worn > 1 else ''}: the wear coefficient rests on the change "
                      "from new alone, where the estimator's own error of that change biases it (on simulated lives "
                      "its 90 % interval held the truth in 0.60-0.75 of them); sessions at four or more cycles-run values "
