@@ -326,6 +326,8 @@ def test_a_planted_move_from_new_to_worn_is_measured_and_track_given_it_recovers
     moved = track_features(feats, two, model, coefficient=5.2e-14, move=(mean, cov))
     assert plain.factor.median < 1.0 and not plain.factor.contains(1.3, 50)
     assert moved.factor.median == pytest.approx(1.3, abs=0.1) and moved.factor.contains(1.3, 50)
+    said = lambda t: any("rests on the change from new" in note for note in t.notes)
+    assert said(plain) and not said(moved)
     with pytest.raises(ValueError, match="drift=False"):
         track_features(feats, two, model, coefficient=5.2e-14, move=(mean, cov), drift=False)
     with pytest.raises(ValueError, match="a session at 0"):
