@@ -14,7 +14,9 @@ prior, its own seed) worn with a coefficient ``--life-factor`` (1.3) times the f
 (``--life-cycles`` cycles each) after 0, 100k, 200k, 300k and 400k cycles (``--life-step``); the
 fitted factor's 90 % interval against the truth, and the cycles until a clearance limit the truth
 reaches at 500k cycles (its wear run goes one step further) against the track's cycles-to-limit
-interval.
+interval; ``--life-sessions 0,200k`` (repeatable) tracks that subset of each life's sessions. Each
+subset is tracked as shipped and with the bench's move from new to worn beyond the estimator's
+(``track.life_move``) measured on the other half of the lives, never on the life scored.
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
 wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
@@ -102,6 +104,12 @@ def life_features(bench, clearance: float, factor: float, step: float, stages: i
     return {"features": feats, "depth": depth}
 
 
+def parse_cycles(text: str) -> float:
+    """'200k', '200000' or '2e5' -> 200000.0"""
+    text = text.strip().lower()
+    return float(text[:-1]) * 1e3 if text.endswith("k") else float(text)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--truths", type=int, default=100, help="truths drawn from the prior (100)")
@@ -121,12 +129,22 @@ def main() -> None:
     ap.add_argument("--life-step", type=float, default=100_000.0,
                     help="cycles between a life's sessions (100000); the sessions' effective cycles (x the factor) "
                     "must lie inside the design")
+    ap.add_argument("--life-sessions", action="append", type=lambda v: [parse_cycles(x) for x in v.split(",")],
+                    help="a subset of each life's sessions to track, e.g. 0,200k (repeatable; default all five)")
+    ap.add_argument("--verbose-lives", action="store_true", help="print every life's track")
+    ap.add_argument("--shipped", action="store_true", help="use the shipped estimator when its key matches the design")
     ap.add_argument("--cached-only", action="store_true",
                     help="use only the truths and lives an earlier (interrupted) run left in --cache; say how many")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--cache", help="cache folder (default: a fresh one: the estimator is built cold)")
     ap.add_argument("--seed", type=int, default=20000)
     args = ap.parse_args()
+    args.life_sessions = args.life_sessions or [[k * args.life_step for k in range(5)]]
+    for subset in args.life_sessions:
+        if any(abs(n / args.life_step - round(n / args.life_step)) > 1e-9 or not 0 <= n <= 4 * args.life_step
+               for n in subset) or len(set(subset)) < 2:
+            ap.error(f"--life-sessions {subset}: expected two or more of the lives' sessions, 0 to "
+                     f"{4 * args.life_step:,.0f} in steps of {args.life_step:,.0f}")
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-estimate-")
 
     from wearbench.bench.load import load_bench, shipped_bench
@@ -167,7 +185,7 @@ def main() -> None:
               f"--at, {len(lives)} of {asked[2]} lives")
     with compute_client(workers=args.workers):
         t0 = time.perf_counter()
-        est = build_estimator(bench, design, progress="estimator", shipped=False)
+        est = build_estimator(bench, design, progress="estimator", shipped=args.shipped)
         t_build = time.perf_counter() - t0
         t0 = time.perf_counter()
 
@@ -328,51 +346,100 @@ def recording(model, clearances, at: float) -> None:
 
 
 def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
-    """Coverage of the track's wear factor and cycles to a limit over the simulated lives."""
+    """Coverage of the track's wear factor, cycles to a limit and initial clearance over the simulated
+    lives, for every --life-sessions subset of their sessions: as track gives them, and with the
+    bench's move from new to worn beyond the estimator's measured on the other half of the lives
+    (``track.life_move``; lives split by their order, first half and second half, each scored with
+    the move of the other), so no life is scored with a term measured on it."""
     from wearbench.compute import TaskFailure
     from wearbench.validation.features import CycleFeatures, FeatureSpec
-    from wearbench.validation.track import _depth_curve, track_features
+    from wearbench.validation.track import _depth_curve, life_move, track_features
 
-    cycles_run = [k * args.life_step for k in range(5)]
     n_curve, d_curve = _depth_curve(model)
-    rows, ratios, constant = [], [], []  # constant: track with the bench's offset constant over the life
+    good = [((c, seed), r) for (c, seed), r in zip(lives, runs, strict=True) if not isinstance(r, TaskFailure)]
     for (c, seed), r in zip(lives, runs, strict=True):
         if isinstance(r, TaskFailure):
             print(f"life {seed} failed: {r}")
-            continue
-        limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)
-        feats = [CycleFeatures(FeatureSpec(), f, np.zeros(len(f))) for f in r["features"]]
-        t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit)
-        m = t.cycles_to_limit
-        truth = 5 * args.life_step
-        still = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit, drift=False)
-        constant.append((still.factor.contains(args.life_factor), still.cycles_to_limit is not None
-                         and still.cycles_to_limit.contains(truth), still.clearance.contains(c)))
-        rows.append((c, t.factor, m, t.factor.contains(args.life_factor), m is not None and m.contains(truth),
-                     t.factor.contains(args.life_factor, 50), m is not None and m.contains(truth, 50),
-                     t.clearance.contains(c), t.clearance.median - c))
-        i = int(np.argmin(np.abs(model.grid_c - c)))  # the truth's depth against the estimator's trajectory
+    if not good:
+        return
+    every = [k * args.life_step for k in range(5)]
+    means = [np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]) for _, r in good]
+    half = len(good) // 2
+    halves = [range(half, len(good)), range(half)]  # life i is scored with the move of the other half
+    moves = [life_move(model, [(means[i], every, good[i][0][0], args.life_factor) for i in part]) for part in halves]
+    ratios = []
+    for (c, _), r in good:  # the truth's depth against the estimator's trajectory at the same effective cycles
+        i = int(np.argmin(np.abs(model.grid_c - c)))
         ratios.append([r["depth"][k] / np.interp(args.life_factor * k * args.life_step, n_curve, d_curve[i])
                        for k in range(1, 6)])
-        print(f"life {seed}: clearance {c * 1e3:.3f} mm (estimated {t.clearance.median * 1e3:.3f}, 90 % "
-              f"{t.clearance.lo90 * 1e3:.3f}-{t.clearance.hi90 * 1e3:.3f}), factor {t.factor.median:.2f} (90 % "
-              f"{t.factor.lo90:.2f}-{t.factor.hi90:.2f}), cycles to {limit * 1e3:.4f} mm: "
-              + (f"{m.median:,.0f} (90 % {m.lo90:,.0f}-{m.hi90:,.0f})" if m else "beyond")
-              + f" (truth {truth:,.0f})")
-    if rows:
-        col = lambda k: np.mean([r[k] for r in rows])
-        print(f"\n{len(rows)} lives ({seconds:.0f} s), wear factor {args.life_factor}: its 90 % / 50 % intervals hold it "
-              f"in {col(3):.2f} / {col(5):.2f}; the cycles-to-limit 90 % / 50 % intervals hold the truth's in "
-              f"{col(4):.2f} / {col(6):.2f}; the initial clearance's 90 % interval holds it in {col(7):.2f} (median "
-              f"error {np.median([r[8] for r in rows]) * 1e3:+.4f} mm); median factor interval "
-              f"{np.median([r[1].lo90 for r in rows]):.2f}-{np.median([r[1].hi90 for r in rows]):.2f}")
-        print("with the bench's offset constant over the life (track(drift=False)): the 90 % intervals hold the "
-              "factor / the cycles to the limit / the clearance in "
-              + " / ".join(f"{v:.2f}" for v in np.mean(constant, axis=0)))
-        ratios = np.asarray(ratios)
-        print("the truths' wear depth / the estimator's trajectory at the same effective cycles, after each step: mean "
-              + " ".join(f"{v:.3f}" for v in ratios.mean(axis=0)) + ", sd "
-              + " ".join(f"{v:.3f}" for v in ratios.std(axis=0)))
+    print(f"\n{len(good)} lives ({seconds:.0f} s), wear factor {args.life_factor}, {args.life_cycles} cycles per session; "
+          "90 % (50 %) coverage; factor ranks: the posterior CDF at the truth, 5 bins (flat when calibrated)")
+    print("sessions at (k cycles)   track             factor 90 (50)   to limit 90 (50)   clearance 90 (50)   "
+          "clearance error   factor interval   factor ranks")
+    for subset in args.life_sessions:
+        idx = [round(n / args.life_step) for n in subset]
+        cycles_run = [every[k] for k in idx]
+        for name in ("as is", "move, other half", "offset constant") if len(idx) == 5 else ("as is", "move, other half"):
+            rows = []
+            for j, ((c, seed), r) in enumerate(good):
+                limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)
+                feats = [CycleFeatures(FeatureSpec(), r["features"][k], np.zeros(len(r["features"][k]))) for k in idx]
+                kw = {"move": moves[int(j < half)]} if name.startswith("move") else {}
+                t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit,
+                                   drift=name != "offset constant", **kw)
+                m, truth, post_k = t.cycles_to_limit, 5 * args.life_step, t.factor
+                rows.append((post_k.contains(args.life_factor), post_k.contains(args.life_factor, 50),
+                             m is not None and m.contains(truth), m is not None and m.contains(truth, 50),
+                             t.clearance.contains(c), t.clearance.contains(c, 50), t.clearance.median - c,
+                             post_k.lo90, post_k.hi90, _rank(post_k, args.life_factor)))
+                if args.verbose_lives:
+                    print(f"  life {seed} {name}: clearance {c * 1e3:.3f} mm (estimated {t.clearance.median * 1e3:.3f}, "
+                          f"90 % {t.clearance.lo90 * 1e3:.3f}-{t.clearance.hi90 * 1e3:.3f}), factor {post_k.median:.2f} "
+                          f"(90 % {post_k.lo90:.2f}-{post_k.hi90:.2f}), cycles to {limit * 1e3:.4f} mm: "
+                          + (f"{m.median:,.0f} (90 % {m.lo90:,.0f}-{m.hi90:,.0f})" if m else "beyond")
+                          + f" (truth {truth:,.0f})")
+            a = np.asarray(rows, float)
+            hist = np.histogram(a[:, 9], bins=5, range=(0, 1))[0]
+            print(f"{'/'.join(f'{n / 1e3:.0f}' for n in cycles_run):23s}  {name:16s}  {a[:, 0].mean():.2f} ({a[:, 1].mean():.2f})"
+                  f"      {a[:, 2].mean():.2f} ({a[:, 3].mean():.2f})        {a[:, 4].mean():.2f} ({a[:, 5].mean():.2f})"
+                  f"         {np.median(a[:, 6]) * 1e3:+.4f} mm     {np.median(a[:, 7]):.2f}-{np.median(a[:, 8]):.2f}"
+                  f"         {' '.join(str(h) for h in hist)}", flush=True)
+    along, expected = change_from_new(model, [(means[j], every, c, args.life_factor) for j, ((c, _), _) in enumerate(good)])
+    print("the lives' change from new along the estimator's change from new to its last cycles run (1 = that whole "
+          "change; weighted by one session's inverse covariance, at each life's true clearance), sessions at "
+          + "/".join(f"{n / 1e3:.0f}k" for n in every[1:]) + ": mean " + " ".join(f"{v:.3f}" for v in along.mean(axis=0))
+          + " (se " + " ".join(f"{v:.3f}" for v in along.std(axis=0, ddof=1) / np.sqrt(len(along)))
+          + "); the estimator's at the same effective cycles " + " ".join(f"{v:.3f}" for v in expected.mean(axis=0)))
+    ratios = np.asarray(ratios)
+    print("the truths' wear depth / the estimator's trajectory at the same effective cycles, after each step: mean "
+          + " ".join(f"{v:.3f}" for v in ratios.mean(axis=0)) + ", sd "
+          + " ".join(f"{v:.3f}" for v in ratios.std(axis=0)))
+
+
+def change_from_new(model, lives) -> tuple[np.ndarray, np.ndarray]:
+    """Per life (session means, cycles run with 0 first, clearance, factor): each worn session's mean less
+    the new one's, and the estimator's mean change to the same effective cycles, both projected on the
+    estimator's change from new to its last cycles run at the life's clearance (weighted by the inverse
+    of one 20-cycle session's covariance, drift included): (lives, worn sessions) each."""
+    from wearbench.validation.track import session_covariances, wear_drift
+
+    shared, own = session_covariances(model)
+    weight = np.linalg.inv(shared + model.stats[model.reference].within / 20 + own + wear_drift(model))
+    last = model.grid_n[-1]
+    seen, expected = [], []
+    for xbars, runs, c, factor in lives:
+        g = model.mean(c, last) - model.mean(c, 0.0)
+        project = lambda d, g=g: float(d @ weight @ g / (g @ weight @ g))
+        seen.append([project(xbars[k] - xbars[0]) for k in range(1, len(runs))])
+        expected.append([project(model.mean(c, factor * n) - model.mean(c, 0.0)) for n in runs[1:]])
+    return np.asarray(seen), np.asarray(expected)
+
+
+def _rank(interval, value: float) -> float:
+    """Where ``value`` falls in a posterior given by its median and central intervals: the CDF at it,
+    piecewise linear in log through the 5 / 25 / 50 / 75 / 95 % points (0 or 1 outside them)."""
+    q = np.log([interval.lo90, interval.lo50, interval.median, interval.hi50, interval.hi90])
+    return float(np.interp(np.log(value), q, [0.05, 0.25, 0.5, 0.75, 0.95], left=0.0, right=1.0))
 
 
 def rank(e, value: float, name: str, model) -> float:

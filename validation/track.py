@@ -37,6 +37,23 @@ determinant (which then changes with ``k``) pulled the factor towards its lower 
 interval held 1.3 in 0.70 of 20 simulated lives, against 0.90 with the step). Without the drift,
 those lives read the session differences as the clearance's: its 90 % interval held the truth in
 0.70 of them (median error +0.022 mm), 0.85 with the drift (``benchmarks/estimate.py``).
+With two or three sessions (0 and 200k; 0, 100k and 200k) the factor rests on the change from new to
+worn alone, and there the estimator's error *of that change* decides it. Measured on 20 simulated
+lives (``benchmarks/estimate.py --life-sessions 0,200k``): their worn sessions sit less worn, relative
+to their new one, than the estimator's mean says, by a nearly constant 10-16 % of the change from
+new to 600k cycles at 130k-520k effective cycles (se 5 %): the drift's step shape, with a mean that
+is not zero. Along the direction that tells the factor this is -0.6 sd (se 0.2) at 130k-260k; the
+factor's median came out 0.62 for a truth of 1.3 and its 90 % interval held 1.3 in 0.60 of the lives.
+Not the clearance bias (with the clearance fixed at the truth: 0.70), not the drift's size (D x 2 or
+x 4: 0.75, 0.80, medians still 0.60), not the grid's edge (3x there; intervals ended at 1.5x), not
+the drift's shape (linear up to 200k: 0.20), not an emulator error along the trajectory per session
+(its maximum-likelihood size on the lives: 20k-50k cycles). Lives drawn from this likelihood itself at
+the same truths gave 0.80 (median 1.13). The design's mean move is the mean of its M benches' moves,
+so it carries an error common to every bench the estimator judges (covariance about ``D / M``); with
+five sessions the slope across them tells the factor despite it, with two or three it does not.
+:func:`life_move` measures that error on lives of known truth, and ``track_features(move=...)``
+carries its mean and its standard error (see ``benchmarks/estimate.py``: each life scored with the
+move measured on the other half of the lives).
 ``mu`` at ``k N_i`` is the estimator's emulated mean; a ``k N_i`` beyond the design's last cycles
 run is outside what the estimator knows (zero likelihood there).
 
@@ -61,7 +78,8 @@ from wearbench.validation.estimate import EstimatorModel, Interval, _interval
 from wearbench.validation.features import CycleFeatures
 from wearbench.validation.statistics import _psd, shrunk_covariance
 
-__all__ = ["Track", "joint_log_likelihood", "session_covariances", "track_features", "track_figure", "wear_drift"]
+__all__ = ["Track", "joint_log_likelihood", "life_move", "session_covariances", "track_features", "track_figure",
+           "wear_drift"]
 
 K_RANGE = (0.2, 5.0)
 
@@ -109,6 +127,29 @@ def wear_drift(model: EstimatorModel) -> np.ndarray:
     d = (b[:, 1:].mean(axis=1) - b[:, 0]).reshape(-1, p)
     cov = shrunk_covariance(d) * (d.shape[0] - 1) / (d.shape[0] - nc)  # each clearance's mean taken out
     return _psd(cov - model.stats[model.reference].within / c * (1 + 1 / (nn - 1)))
+
+
+def life_move(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[float], float, float]]
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Mean (p,) of benches' move from new to worn beyond the estimator's own mean change, and that
+    mean's covariance (p, p), from lives whose truth is known: each ``(session means (S, p), cycles run
+    (S,), initial clearance, wear factor)`` with a session at 0 cycles and at least one worn. Per life,
+    the worn sessions' mean residual at the truth less the new session's; averaged over the lives, its
+    covariance the lives' shrunk covariance / their number. :func:`track_features` (``move``) moves
+    the worn sessions' expected means by the mean and adds its covariance to the drift's: a measured error of the
+    estimator's new-to-worn change (the design's is the mean of its M benches' moves)."""
+    rows = []
+    for xbars, runs, clearance, factor in lives:
+        runs = np.asarray(runs, float)
+        if not (runs == 0).any() or not (runs > 0).any():
+            raise ValueError(f"life_move: cycles run {list(runs)}: expected a session at 0 and a worn one")
+        r = np.asarray(xbars, float) - model.mean(np.full(runs.shape, clearance), factor * runs)
+        rows.append(r[runs > 0].mean(axis=0) - r[runs == 0].mean(axis=0))
+    rows = np.asarray(rows)
+    if rows.shape[0] < 3:
+        raise ValueError(f"life_move: {rows.shape[0]} lives: at least three are needed (the mean's covariance is "
+                         "their spread)")
+    return rows.mean(axis=0), shrunk_covariance(rows) / rows.shape[0]
 
 
 def session_covariances(model: EstimatorModel) -> tuple[np.ndarray, np.ndarray]:
@@ -173,13 +214,16 @@ def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Seque
 
 def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float], model: EstimatorModel, *,
                    coefficient: float, limit: float | None = None, labels: Sequence[str] | None = None,
-                   factors: int = 161, depth_spread: float = 0.05, drift: bool = True) -> Track:
+                   factors: int = 161, depth_spread: float = 0.05, drift: bool = True,
+                   move: tuple[np.ndarray, np.ndarray] | None = None) -> Track:
     """Wear over life from sessions' cycle ``features`` recorded after ``cycles_run`` cycles.
 
     coefficient: the bench file's wear coefficient K_n (1/Pa); limit: a clearance limit (m);
     depth_spread: lognormal sd of a bench's wear depth about the estimator's trajectory; drift: the
     worn sessions share the bench's move from new (:func:`wear_drift`; False: the offset is constant
-    over the life, as before it was measured)."""
+    over the life, as before it was measured); move: (mean, covariance) of the worn sessions' move
+    beyond the estimator's mean change (:func:`life_move`, measured on lives of known truth): the worn
+    sessions' expected means move by the mean and the covariance joins the drift's."""
     if len(features) != len(cycles_run) or len(features) < 2:
         raise ValueError(f"track: {len(features)} sessions and {len(cycles_run)} cycles-run values: expected one "
                          "value per session and at least two sessions")
@@ -187,6 +231,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
         raise ValueError(f"track: cycles run {list(cycles_run)}: expected values >= 0, at least two different")
     if any(f.cycles < 1 for f in features):
         raise ValueError("track: a session holds no complete crank cycle")
+    if move is not None and not drift:
+        raise ValueError("track: a measured move (move=...) is part of the drift: drift=False leaves it nowhere")
     if not 0 <= depth_spread < 1:
         raise ValueError(f"track: depth_spread = {depth_spread}: expected a lognormal sd in [0, 1)")
     labels = list(labels or [f"session {i + 1}" for i in range(len(features))])
@@ -201,7 +247,13 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     n_cycles = [f.cycles for f in features]
     log_post = np.full((gc.size, ks.size), -np.inf)  # uniform in c, log-uniform in k (uniform on this grid)
     means = np.stack([model.mean(np.full(eff[inside].shape, c), eff[inside]) for c in gc])  # (c, k inside, S, p)
-    moved = (np.broadcast_to((runs > 0).astype(float), means.shape[:-1]), wear_drift(model)) if drift else ()
+    moved = ()
+    if drift:
+        cov = wear_drift(model)
+        if move is not None:
+            means = means + (runs > 0)[:, None] * np.asarray(move[0], float)
+            cov = cov + np.asarray(move[1], float)
+        moved = (np.broadcast_to((runs > 0).astype(float), means.shape[:-1]), cov)
     log_post[:, inside] = joint_log_likelihood(model, xbars, n_cycles, means, *moved) / model.temperature
     post = np.exp(log_post - special.logsumexp(log_post))
     c_int = _interval(gc, post.sum(axis=1))
@@ -233,6 +285,12 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
                          "(100x the estimator's range): the interval's upper end is a lower bound")
     horizon = max(1.5 * max(cycles_run), 1.2 * to_limit.hi90 if to_limit else 0.0)
     prediction = [(float(n), depth_at(n)) for n in np.linspace(0.0, horizon, 41)]
+    worn = int(np.sum(np.unique(runs) > 0))
+    if worn < 3 and (runs == 0).any() and move is None:
+        notes.append(f"{worn} worn cycles-run value{'s' if worn > 1 else ''}: the wear coefficient rests on the change "
+                     "from new alone, where the estimator's own error of that change biases it (on simulated lives "
+                     "its 90 % interval held the truth in 0.60-0.75 of them); sessions at four or more cycles-run values "
+                     "tell it from the slope")
     edge = post[:, :3].sum() + post[:, inside][:, -3:].sum()  # the lowest and the highest factors allowed
     if edge > 0.1:
         notes.append(f"the wear coefficient's posterior reaches the edge of {K_RANGE[0]}-"
