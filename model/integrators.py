@@ -63,7 +63,7 @@ def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
     n = y.shape[0] // 2
     q = y[:n]
     v = y[n:]
-    st = K.accel(t, q, v, speed, P, alpha, beta, inc, v0i, dy[n:], lam, cout, W)
+    st = K.accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, dy[n:], lam, cout, W)
     for i in range(n):
         dy[i] = v[i]
     return st
