@@ -442,10 +442,11 @@ def _schur(P, Jv, S):
         nr = body_nrows[b]
         for x in range(nr):
             k, sk = body_rows[b, x, 0], body_rows[b, x, 1]
+            # row k's entries times M^-1, formed once per row (the products' order is that of Jv M^-1 Jv^T)
+            wx, wy, wt = Jv[k, sk, 0] * mx, Jv[k, sk, 1] * my, Jv[k, sk, 2] * mt
             for y in range(x, nr):
                 l, sl = body_rows[b, y, 0], body_rows[b, y, 1]
-                val = (Jv[k, sk, 0] * mx * Jv[l, sl, 0] + Jv[k, sk, 1] * my * Jv[l, sl, 1]
-                       + Jv[k, sk, 2] * mt * Jv[l, sl, 2])
+                val = wx * Jv[l, sl, 0] + wy * Jv[l, sl, 1] + wt * Jv[l, sl, 2]
                 S[max(k, l), min(k, l)] += val
 
 
