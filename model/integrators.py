@@ -414,10 +414,9 @@ def _store_sample(out, iout, yo, fo, csamp, peaks, sensor):
 
 
 @njit(cache=True)
-def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, fo, csamp, lo):
+def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, fo, csamp):
     """Output samples on (t, t_new] by cubic Hermite interpolation of y with the modes of the step, f and
-    the contact outputs evaluated there (their peaks tracked too); returns the next sample's index. lo: work
-    array for the multipliers (m), copied into the table's row."""
+    the contact outputs evaluated there (their peaks tracked too); returns the next sample's index."""
     N = y.shape[0]
     out_t = out.t
     while iout < out_t.shape[0] and out_t[iout] <= t_new:
@@ -430,10 +429,7 @@ def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, 
                 yo[i] = ynew[i]
         else:
             _hermite(t, y, f0, t_new, ynew, f1, ts, yo)
-        deriv(ts, yo, mdl.speed, mdl.P, 0.0, 0.0, mdl.inc, mdl.v0i, fo, lo, csamp, mdl.W)
-        ol = out.lam[iout]
-        for r in range(lo.shape[0]):
-            ol[r] = lo[r]
+        deriv(ts, yo, mdl.speed, mdl.P, 0.0, 0.0, mdl.inc, mdl.v0i, fo, out.lam[iout], csamp, mdl.W)
         _store_sample(out, iout, yo, fo, csamp, peaks, sensor)
         iout += 1
     return iout
@@ -592,7 +588,7 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
             iout = _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, hh, t_new, ynew, k, lamk, yo,
                                         fo, csamp, dbs)
         else:
-            iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp, lam)
+            iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
         pst[3] = 0.0
         if _update_modes(cout_old, cnew, inc, v0i):
             deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[end], lamk[end], cnew, W)

@@ -91,13 +91,6 @@ def _output_times(t_end: float, rate: float) -> np.ndarray:
     return times
 
 
-def _outputs(count: int, n: int, m: int, nc: int, order: str) -> tuple[np.ndarray, ...]:
-    """Zeroed output arrays of ``count`` samples in ``order`` ("C" or "F"): states (2n), accelerations (n),
-    contact outputs (nc, NCO), multipliers (m)."""
-    return (np.zeros((count, 2 * n), order=order), np.zeros((count, n), order=order),
-            np.zeros((count, nc, K.NCO), order=order), np.zeros((count, m), order=order))
-
-
 def _table(scene: Scene, times, ys, accs, couts, lams) -> pd.DataFrame:
     n = scene.n
     q, v = ys[:, :n], ys[:, n:]
@@ -271,6 +264,10 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         speed = float(P.profile[0, 2])
     q = scene.q0.copy() if initial is None else np.array(initial[0], dtype=float)
     v = scene.v_unit * speed if initial is None else np.array(initial[1], dtype=float)
+    out_y = np.zeros((times.size, 2 * n))
+    out_a = np.zeros((times.size, n))
+    out_c = np.zeros((times.size, nc, K.NCO))
+    out_lam = np.zeros((times.size, m))
     stats = I.new_stats()
     W = scene.work()
     meth = get_method(method) if isinstance(method, str) else method
@@ -279,7 +276,6 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         if scene.dof != 0 or nc:
             raise ValueError(f"method 'kinematics' needs a fully driven scene with ideal joints; this one "
                              f"has {scene.dof} DOF ({scene.description})")
-        out_y, out_a, out_c, out_lam = _outputs(times.size, n, m, nc, "C")
         status = I.kinematics_loop(times, q, v, speed, P, W, _PROJECTION_TOL, out_y, out_a, out_lam, out_c, stats)
         if status != 0:
             code = I.SINGULAR if status == K.SINGULAR else I.NO_PROJECTION
@@ -289,9 +285,6 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
         table = _table(scene, times, out_y, out_a, out_c, out_lam)
         return SimulationResult(table, _summary(scene, "kinematics", stats, table, wall0, speed), contacts, scene)
 
-    # the integrator's table in column order: a column of the results table is contiguous (filled a sample at
-    # a time, its rows stay in cache; the table is built from it without gathering strided columns)
-    out_y, out_a, out_c, out_lam = _outputs(times.size, n, m, nc, "F")
     if step is not None:
         meth = dataclasses.replace(meth, step=float(step))
     rtol_ = meth.rtol if rtol is None else float(rtol)
