@@ -23,12 +23,12 @@ evaluation ``deriv``; the parts are timed in compiled loops, so call overhead is
 All times are the process's CPU time (``time.process_time``; the loop is single-threaded), so a busy
 shared machine inflates them less than wall time would; ratios are still best measured in one run.
 
-With ``--baseline DIR`` (a scratch copy of an earlier version whose ``wearbench`` package lies in
-``DIR/wearbench``, e.g. main at f183162 exported by ``git archive``) it also times that version in a
+With ``--baseline DIR [DIR ...]`` (scratch copies of earlier versions whose ``wearbench`` package lies in
+``DIR/wearbench``, e.g. main and f183162 exported by ``git archive``) it also times each of them in a
 subprocess, interleaved with this one (best of ``--repeat``), and prints the ratio per state.
 
 Run:  .venv/bin/python benchmarks/profile_revolution.py [--revolutions 3] [--repeat 3]
-          [--baseline /tmp/wb_base_f183162]
+          [--baseline /tmp/wb_main /tmp/wb_base_f183162]
 """
 
 from __future__ import annotations
@@ -93,10 +93,22 @@ def _part_timers():
 
     @njit
     def contacts(reps, ts, ys, speed, P, W, inc, v0i, cout):
+        """The force law alone (as at a table sample: the bodies' cos/sin computed)."""
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
                 K.clearance_forces(ys[i, :n], ys[i, n:], P, inc[i], v0i[i], W, cout)
+
+    @njit
+    def contacts_in_rhs(reps, ts, ys, speed, P, W, inc, v0i, cout, css, sns):
+        """The force law as in a right-hand side: the bodies' cos/sin from the constraints (copied in)."""
+        n = ys.shape[1] // 2
+        for _ in range(reps):
+            for i in range(ts.shape[0]):
+                for b in range(css.shape[1]):
+                    W.cs[b] = css[i, b]
+                    W.sn[b] = sns[i, b]
+                K._clearance_forces(ys[i, :n], ys[i, n:], P, inc[i], v0i[i], W, cout, True)
 
     @njit
     def schur(reps, ts, ys, speed, P, W, Jvs):
@@ -123,7 +135,7 @@ def _part_timers():
             for i in range(ts.shape[0]):
                 I.deriv(ts[i], ys[i], speed, P, 0.0, 0.0, inc[i], v0i[i], dy, lam, cout, W)
 
-    return constraints, elements, contacts, schur, solve, copy_only, evaluation
+    return constraints, elements, contacts, contacts_in_rhs, schur, solve, copy_only, evaluation
 
 
 def _clock(fn, *args, budget: float = 0.3) -> float:
@@ -184,18 +196,21 @@ def _profile(name: str, scene, revolutions: float) -> dict:
     cout = np.zeros((nc, K.NCO))
     Jvs = np.zeros((ts.size, m, 2, 3))
     Ss = np.zeros((ts.size, m, m))
+    css, sns = np.zeros((ts.size, n // 3)), np.zeros((ts.size, n // 3))
     for i in range(ts.size):
         K.constraints(ts[i], ys[i, :n].copy(), ys[i, n:].copy(), speed, P, W)
         Jvs[i] = W.Jv
+        css[i], sns[i] = W.cs, W.sn
         K._schur(P, W.Jv, W.S)
         Ss[i] = W.S
-    constraints, elements, contacts, schur, solve, copy_only, evaluation = _part_timers()
+    constraints, elements, contacts, contacts_in_rhs, schur, solve, copy_only, evaluation = _part_timers()
     solve_args = (Ss, np.ones(m), np.zeros((m, m)), np.zeros(m), P.s_first)
     per = ts.size
     cost = {
         "constraint Jacobian (Phi, Phi_q, gamma)": _clock(constraints, ts, ys, speed, P, W) / per,
         "force elements (gravity, springs)": _clock(elements, ts, ys, speed, P, W) / per,
-        "contact search + contact forces": _clock(contacts, ts, ys, speed, P, W, inc, v0i, cout) / per,
+        "contact search + contact forces": _clock(contacts_in_rhs, ts, ys, speed, P, W, inc, v0i, cout, css, sns)
+                                           / per,
         "Schur complement Phi_q M^-1 Phi_q^T": _clock(schur, ts, ys, speed, P, W, Jvs) / per,
         "linear solve (Cholesky, m x m)": max(0.0, (_clock(solve, *solve_args) - _clock(copy_only, *solve_args))
                                                 / per),
@@ -212,7 +227,7 @@ def _profile(name: str, scene, revolutions: float) -> dict:
     loop = spent[0]
     # table samples and the peak search's points (golden section on the same continuous extension): the
     # contact force law each, no right-hand side
-    law = cost["contact search + contact forces"]
+    law = _clock(contacts, ts, ys, speed, P, W, inc, v0i, cout) / per  # with the bodies' cos/sin computed
     table = res.table.shape[0] * law
     peaks = s["peak_searches"] * (2 * I._GOLDEN_ITERATIONS + 4) * law
     evals = sum(counts.values()) * one + table + peaks
@@ -254,8 +269,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--revolutions", type=float, default=3.0)
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per version (best of)")
-    ap.add_argument("--baseline", help="directory holding an earlier version's wearbench package (timed "
-                    "interleaved with this one)")
+    ap.add_argument("--baseline", nargs="+", default=[], help="directories holding earlier versions' wearbench "
+                    "packages (each timed interleaved with this one)")
     ap.add_argument("--time-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.time_only:
@@ -273,22 +288,24 @@ def main() -> None:
         _print_profile(_profile(name, scene, args.revolutions))
     if not args.baseline:
         return
-    best: dict[str, dict[str, dict]] = {"this": {}, "baseline": {}}
+    best: dict[str, dict[str, dict]] = {label: {} for label in ("this", *args.baseline)}
     for _ in range(args.repeat):
-        for label, runs in (("baseline", _baseline(args.baseline, args.revolutions)),
-                            ("this", _timed_runs(args.revolutions))):
+        timed = [(path, _baseline(path, args.revolutions)) for path in args.baseline]
+        for label, runs in (*timed, ("this", _timed_runs(args.revolutions))):
             for name in STATES:
                 if name not in best[label] or runs[name]["wall"] < best[label][name]["wall"]:
                     best[label][name] = runs[name]
     rev = args.revolutions
-    print(f"\nthis version against {args.baseline} (best of {args.repeat}, interleaved, same machine, "
-          f"{rev:g} revolutions)")
-    print(f"  {'state':<20} {'base ms/rev':>11} {'this ms/rev':>11} {'speed-up':>8} | {'base steps':>10} "
-          f"{'rej':>6} {'this steps':>10} {'rej':>6}")
-    for name in STATES:
-        b, t = best["baseline"][name], best["this"][name]
-        print(f"  {name:<20} {b['wall'] / rev * 1e3:11.1f} {t['wall'] / rev * 1e3:11.1f} "
-              f"{b['wall'] / t['wall']:7.2f}x | {b['steps']:10d} {b['rejected']:6d} {t['steps']:10d} {t['rejected']:6d}")
+    for path in args.baseline:
+        print(f"\nthis version against {path} (best of {args.repeat}, interleaved, same machine, "
+              f"{rev:g} revolutions)")
+        print(f"  {'state':<20} {'base ms/rev':>11} {'this ms/rev':>11} {'speed-up':>8} | {'base steps':>10} "
+              f"{'rej':>6} {'this steps':>10} {'rej':>6}")
+        for name in STATES:
+            b, t = best[path][name], best["this"][name]
+            print(f"  {name:<20} {b['wall'] / rev * 1e3:11.1f} {t['wall'] / rev * 1e3:11.1f} "
+                  f"{b['wall'] / t['wall']:7.2f}x | {b['steps']:10d} {b['rejected']:6d} {t['steps']:10d} "
+                  f"{t['rejected']:6d}")
     new, worn = (best["this"][s]["wall"] for s in STATES)
     print(f"  worn / new (this version): {worn / new:.2f}x")
 

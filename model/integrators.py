@@ -60,10 +60,17 @@ def new_stats() -> np.ndarray:
 
 @njit(cache=True)
 def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
+    """f(t, y) = (v, a) into dy, the multipliers into lam, the contact outputs into cout; returns the
+    kernel's status (:func:`_deriv`, compiled into the stages of :func:`erk_try`)."""
+    return _deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W)
+
+
+@njit(cache=True, inline="always")
+def _deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
     n = y.shape[0] // 2
     q = y[:n]
     v = y[n:]
-    st = K.accel(t, q, v, speed, P, alpha, beta, inc, v0i, dy[n:], lam, cout, W)
+    st = K.accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, dy[n:], lam, cout, W)
     for i in range(n):
         dy[i] = v[i]
     return st
@@ -75,29 +82,29 @@ def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam
     multipliers of stage s in lamk[s]; returns (status, error norm), the norm 0 for a method without an
     embedded estimate."""
     N = y.shape[0]
-    A, C, last = scheme.a, scheme.c, scheme.end
-    for s in range(1, scheme.stages):
-        for i in range(N):
-            acc = 0.0
-            for r in range(s):
-                acc += A[s, r] * k[r, i]
-            ytmp[i] = y[i] + h * acc
-        st = deriv(t + C[s] * h, ytmp, speed, P, alpha, beta, inc, v0i, k[s], lamk[s], cout, W)
+    A, B, C, last = scheme.a, scheme.b, scheme.c, scheme.end
+    # the stages, then (without FSAL) f at the new state as stage ``last``: one evaluation site, compiled in
+    for s in range(1, last + 1):
+        if s < scheme.stages:
+            for i in range(N):
+                acc = 0.0
+                for r in range(s):
+                    acc += A[s, r] * k[r, i]
+                ytmp[i] = y[i] + h * acc
+            ts, ys = t + C[s] * h, ytmp
+        else:
+            for i in range(N):
+                acc = 0.0
+                for r in range(scheme.stages):
+                    acc += B[r] * k[r, i]
+                ynew[i] = y[i] + h / scheme.b_den * acc
+            ts, ys = t + h, ynew
+        st = _deriv(ts, ys, speed, P, alpha, beta, inc, v0i, k[s], lamk[s], cout, W)
         if st != 0:
             return st, 0.0
     if scheme.fsal:
         for i in range(N):
             ynew[i] = ytmp[i]
-    else:
-        B = scheme.b
-        for i in range(N):
-            acc = 0.0
-            for r in range(scheme.stages):
-                acc += B[r] * k[r, i]
-            ynew[i] = y[i] + h / scheme.b_den * acc
-        st = deriv(t + h, ynew, speed, P, alpha, beta, inc, v0i, k[last], lamk[last], cout, W)
-        if st != 0:
-            return st, 0.0
     E = scheme.e
     if E.shape[0] == 0:
         return 0, 0.0
@@ -178,10 +185,11 @@ def _golden_max(j, t0, y0, f0, t1, y1, f1, speed, P, inc, v0i, yo, fo, lam, cout
 
 
 @njit(cache=True)
-def _extension(D, y, h, k, th, yo, fo):
+def _extension(D, y, h, k, th, yo, fo, dbs):
     """The continuous extension (coefficients D) of a step of length h from y with stages k at theta:
     the state y + h sum_i b_i(theta) k_i into yo, its time derivative sum_i b_i'(theta) k_i into fo (the
-    velocities: the state's own). Returns nothing; b_i, b_i' of a stage that is zero are skipped."""
+    velocities: the state's own), the b_i'(theta) into dbs. Returns nothing; b_i, b_i' of a stage that is
+    zero are skipped."""
     N = y.shape[0]
     n = N // 2
     for i in range(N):
@@ -197,6 +205,7 @@ def _extension(D, y, h, k, th, yo, fo):
             db += (j + 1) * D[s, j] * dp
             dp = p
             p *= th
+        dbs[s] = db
         if b == 0.0 and db == 0.0:
             continue
         hb = h * b
@@ -209,10 +218,10 @@ def _extension(D, y, h, k, th, yo, fo):
 
 
 @njit(cache=True)
-def _extension_values(D, mdl, t0, y0, h, k, ts, yo, fo, cout, sensor, vals):
+def _extension_values(D, mdl, t0, y0, h, k, ts, yo, fo, cout, sensor, vals, dbs):
     """The tracked quantities (as :func:`_peak_values`) at ts on a step's continuous extension: normal
     contact forces from the force law at the interpolated state, |sensor acceleration| from its derivative."""
-    _extension(D, y0, h, k, (ts - t0) / h, yo, fo)
+    _extension(D, y0, h, k, (ts - t0) / h, yo, fo, dbs)
     n = y0.shape[0] // 2
     K.clearance_forces(yo[:n], yo[n:], mdl.P, mdl.inc, mdl.v0i, mdl.W, cout)
     nc = cout.shape[0]
@@ -222,25 +231,25 @@ def _extension_values(D, mdl, t0, y0, h, k, ts, yo, fo, cout, sensor, vals):
 
 
 @njit(cache=True)
-def _golden_max_ext(j, D, mdl, t0, y0, h, k, yo, fo, cout, sensor, vals):
+def _golden_max_ext(j, D, mdl, t0, y0, h, k, yo, fo, cout, sensor, vals, dbs):
     """Largest value of tracked quantity j on a step's continuous extension (as :func:`_golden_max`)."""
     g = 0.6180339887498949
     a, b = t0, t0 + h
     c, d = b - g * (b - a), a + g * (b - a)
-    _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals)
+    _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals, dbs)
     fc = vals[j]
-    _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals)
+    _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals, dbs)
     fd = vals[j]
     for _ in range(_GOLDEN_ITERATIONS):
         if fc > fd:
             b, d, fd = d, c, fc
             c = b - g * (b - a)
-            _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals)
+            _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals, dbs)
             fc = vals[j]
         else:
             a, c, fc = c, d, fd
             d = a + g * (b - a)
-            _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals)
+            _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals, dbs)
             fd = vals[j]
     return max(fc, fd)
 
@@ -311,7 +320,7 @@ def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
         st.nfev += 1
         if status != 0:
             return _fail(st, SINGULAR, t_new, -1, math.nan)
-        dp, dv = K.drift(t_new, ynew[:n], ynew[n:], mdl.speed, P, W)
+        dp, dv = K.drift_of(P, ynew[n:], W)  # that evaluation left the constraints at (t_new, ynew) in W
     st.drift_p = max(st.drift_p, dp)
     st.drift_v = max(st.drift_v, dv)
     if dp > control.drift_tol:
@@ -323,7 +332,7 @@ def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
 
 
 @njit(cache=True)
-def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, csamp, enew, vals, D, k):
+def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, csamp, enew, vals, D, k, dbs):
     """Running peaks over the step just accepted: the tracked values at its end (evaluated again under
     Baumgarte stabilisation), and where the previous end was a local maximum near the running peak, the
     golden-section search of the dense output of this step and (modes unchanged) the previous one: the
@@ -348,7 +357,7 @@ def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, c
                 and (pst[2] < 2 or e >= pe[0, j])):
             # a local maximum at t: the peak lies in this step or, modes unchanged, the previous one
             if D.shape[0] > 0:
-                v = _golden_max_ext(j, D, mdl, t, y, t_new - t, k, yo, fo, csamp, sensor, vals)
+                v = _golden_max_ext(j, D, mdl, t, y, t_new - t, k, yo, fo, csamp, sensor, vals, dbs)
             else:
                 v = _golden_max(j, t, y, f0, t_new, ynew, f1, speed, P, inc, v0i, yo, fo, lam, csamp, W, sensor,
                                 vals)
@@ -357,7 +366,7 @@ def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, c
             if pst[2] >= 2 and pst[3] == 0.0:
                 if D.shape[0] > 0:
                     v = _golden_max_ext(j, D, mdl, pst[0], pk[0], pst[1] - pst[0], pk[4:], yo, fo, csamp, sensor,
-                                        vals)
+                                        vals, dbs)
                 else:
                     v = _golden_max(j, pst[0], pk[0], pk[1], pst[1], pk[2], pk[3], speed, P, inc, v0i, yo, fo,
                                     lam, csamp, W, sensor, vals)
@@ -381,13 +390,24 @@ def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, c
 
 
 @njit(cache=True, inline="always")
+def _copy_rows(dst, src):
+    """dst[:] = src for 2-d arrays as a plain loop (numba's slice assignment costs ~40 ns per call)."""
+    for c in range(src.shape[0]):
+        for x in range(src.shape[1]):
+            dst[c, x] = src[c, x]
+
+
+@njit(cache=True, inline="always")
 def _store_sample(out, iout, yo, fo, csamp, peaks, sensor):
     """Output sample iout: state, accelerations, contact outputs; the running peaks raised by its values."""
     n = yo.shape[0] // 2
     nc = csamp.shape[0]
-    out.y[iout] = yo
-    out.a[iout] = fo[n:]
-    out.c[iout] = csamp
+    oy, oa = out.y[iout], out.a[iout]
+    for i in range(2 * n):
+        oy[i] = yo[i]
+    for i in range(n):
+        oa[i] = fo[n + i]
+    _copy_rows(out.c[iout], csamp)
     for c in range(nc):
         peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
     peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
@@ -416,17 +436,19 @@ def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, 
 
 
 @njit(cache=True)
-def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, ynew, k, lamk, yo, fo, csamp):
+def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, ynew, k, lamk, yo, fo, csamp,
+                         dbs):
     """Output samples on (t, t_new] from the tableau's continuous extension (``scheme.d``) of the step
     of length h: the state y + h sum_i b_i(theta) k_i, the accelerations and multipliers as its time
     derivative sum_i b_i'(theta) (k_i, lamk_i) (the stages' values combined: no solve), the contact
     outputs from the force law at the state with the step's modes (their peaks tracked too); the step's
-    end itself takes its evaluated values. Returns the next sample's index."""
+    end itself takes its evaluated values. Returns the next sample's index. dbs: work array, one entry per row of
+    ``scheme.d``."""
     N = y.shape[0]
     n = N // 2
     m = lamk.shape[1]
     D = scheme.d
-    ns, deg = D.shape[0], D.shape[1]
+    ns = D.shape[0]
     out_t = out.t
     end = scheme.end
     while iout < out_t.shape[0] and out_t[iout] <= t_new:
@@ -442,15 +464,11 @@ def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, 
                 lo[r] = lamk[src, r]
         else:
             th = (ts - t) / h
-            _extension(D, y, h, k, th, yo, fo)
+            _extension(D, y, h, k, th, yo, fo, dbs)
             for r in range(m):
                 lo[r] = 0.0
             for s in range(ns):
-                db = 0.0
-                dp = 1.0
-                for j in range(deg):
-                    db += (j + 1) * D[s, j] * dp
-                    dp *= th
+                db = dbs[s]
                 if db != 0.0:
                     for r in range(m):
                         lo[r] += db * lamk[s, r]
@@ -473,14 +491,6 @@ def _record(rec, irec, t, t_new, cnew):
         r[5] = cnew[c, K.CO_PHIB]
         r[6] = cnew[c, K.CO_PHIJ]
         r[7] = cnew[c, K.CO_PEN]
-
-
-@njit(cache=True, inline="always")
-def _copy_rows(dst, src):
-    """dst[:] = src for 2-d arrays as a plain loop (numba's slice assignment costs ~40 ns per call)."""
-    for c in range(src.shape[0]):
-        for x in range(src.shape[1]):
-            dst[c, x] = src[c, x]
 
 
 @njit(cache=True, inline="always")
@@ -540,6 +550,7 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
     err_old = st.err_old if st.err_old > 0.0 else 1e-4
     enew = np.empty(inc.shape[0] + 1)
     vals = np.empty(inc.shape[0] + 1)
+    dbs = np.empty(scheme.d.shape[0])
     if pst[2] == 0:  # values at the start
         _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
         _raise_peaks(peaks, pe[1])
@@ -572,10 +583,10 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         if status != DONE:
             return status
         _track_peaks(mdl, track, t, y, k[0], t_new, ynew, k[end], lam, cnew, st, yo, fo, csamp, enew, vals,
-                     scheme.d if stages_out else no_stages, k)
+                     scheme.d if stages_out else no_stages, k, dbs)
         if stages_out:
             iout = _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, hh, t_new, ynew, k, lamk, yo,
-                                        fo, csamp)
+                                        fo, csamp, dbs)
         else:
             iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
         pst[3] = 0.0

@@ -165,14 +165,15 @@ def motor_angle(t, speed, profile):
 
 @njit(cache=True, inline="always")
 def constraints(t, q, v, speed, P, W):
-    """Fill Phi (m), compact Phi_q values Jv (m, 2, 3), gamma (m) and nu = -Phi_t (m) of the workspace W."""
+    """Fill Phi (m), compact Phi_q values Jv (m, 2, 3), gamma (m) and nu = -Phi_t (m) of the workspace W, and the
+    bodies' cos/sin (W.cs, W.sn)."""
     rev_b, rev_s, pri_b, pri_s, drv_b, drv_p = P.rev_b, P.rev_s, P.pri_b, P.pri_s, P.drv_b, P.drv_p
     phi, Jv, gam, nu, cs, sn = W.phi, W.Jv, W.gam, W.nu, W.cs, W.sn
     nb = q.shape[0] // 3
     for b in range(nb):
         cs[b] = math.cos(q[3 * b + 2])
         sn[b] = math.sin(q[3 * b + 2])
-    _fill(Jv.reshape(-1), 0.0)
+    # Jv's entries outside the fixed pattern written below are zero from :func:`workspace` and never written
     k = 0
     for r in range(rev_b.shape[0]):
         bi, bj = rev_b[r, 0], rev_b[r, 1]
@@ -292,17 +293,47 @@ def _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, nx, ny, pen, hb, hj
 
 
 @njit(cache=True, inline="always")
-def eccentricity(q, bi, bj, p):
+def _pos_t(q, b, c, s, sx, sy):
+    """_pos with the body's cos c and sin s given (the same operations: r_b + (A_b s))."""
+    if b < 0:
+        return sx, sy
+    rx, ry = c * sx - s * sy, s * sx + c * sy
+    return q[3 * b] + rx, q[3 * b + 1] + ry
+
+
+@njit(cache=True, inline="always")
+def _cos_sin(q, b, W, trig):
+    """cos and sin of body b's angle: from the workspace when ``trig`` (W.cs, W.sn hold them for q), else
+    computed (1, 0 for the frame, b < 0, which needs none)."""
+    if b < 0:
+        return 1.0, 0.0
+    if trig:
+        return W.cs[b], W.sn[b]
+    return math.cos(q[3 * b + 2]), math.sin(q[3 * b + 2])
+
+
+@njit(cache=True, inline="always")
+def eccentricity(q, bi, bj, p, W, trig):
     """Bearing centre (pix, piy), journal centre (pjx, pjy) and e = r_journal - r_bearing of a clearance
-    joint with parameter row p (the one place r1 - r2 of the paper's eq. 1 is formed)."""
-    pix, piy = _pos(q, bi, p[CLR_SIX], p[CLR_SIY])
-    pjx, pjy = _pos(q, bj, p[CLR_SJX], p[CLR_SJY])
+    joint with parameter row p (the one place r1 - r2 of the paper's eq. 1 is formed); ``trig`` as in
+    :func:`_cos_sin`."""
+    ci, si = _cos_sin(q, bi, W, trig)
+    cj, sj = _cos_sin(q, bj, W, trig)
+    pix, piy = _pos_t(q, bi, ci, si, p[CLR_SIX], p[CLR_SIY])
+    pjx, pjy = _pos_t(q, bj, cj, sj, p[CLR_SJX], p[CLR_SJY])
     return pix, piy, pjx, pjy, pjx - pix, pjy - piy
 
 
 @njit(cache=True, inline="always")
 def clearance_forces(q, v, P, inc, v0i, W, cout):
-    """Add the clearance contact forces to W.g; fill cout (nc, NCO).
+    """Add the clearance contact forces to W.g; fill cout (nc, NCO) (see :func:`_clearance_forces`)."""
+    _clearance_forces(q, v, P, inc, v0i, W, cout, False)
+
+
+@njit(cache=True, inline="always")
+def _clearance_forces(q, v, P, inc, v0i, W, cout, trig):
+    """Add the clearance contact forces to W.g; fill cout (nc, NCO). ``trig``: W.cs and W.sn hold the bodies'
+    cos/sin at q (inside :func:`accel`, after :func:`constraints`), else they are computed.
 
     Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
@@ -326,7 +357,7 @@ def clearance_forces(q, v, P, inc, v0i, W, cout):
     for k in range(clr_b.shape[0]):
         bi, bj = clr_b[k, 0], clr_b[k, 1]
         p = clr_p[k]
-        pix, piy, pjx, pjy, ex, ey = eccentricity(q, bi, bj, p)
+        pix, piy, pjx, pjy, ex, ey = eccentricity(q, bi, bj, p, W, trig)
         emag = math.sqrt(ex * ex + ey * ey)
         thi = 0.0 if bi < 0 else q[3 * bi + 2]
         thj = 0.0 if bj < 0 else q[3 * bj + 2]
@@ -400,26 +431,29 @@ def element_forces(q, v, P, g):
 
 @njit(cache=True, inline="always")
 def _schur(P, Jv, S):
-    """S = Phi_q M^-1 Phi_q^T from the compact Jacobian."""
-    minv, body_rows, body_nrows = P.minv, P.body_rows, P.body_nrows
-    _fill(S.reshape(-1), 0.0)
+    """S = Phi_q M^-1 Phi_q^T from the compact Jacobian: its lower triangle within the envelope (row k from
+    column ``s_first[k]``), all that :func:`_cholesky_solve` reads; the rest of S is left as it is."""
+    minv, body_rows, body_nrows, first = P.minv, P.body_rows, P.body_nrows, P.s_first
+    for k in range(S.shape[0]):
+        for l in range(first[k], k + 1):
+            S[k, l] = 0.0
     for b in range(body_nrows.shape[0]):
         mx, my, mt = minv[3 * b], minv[3 * b + 1], minv[3 * b + 2]
         nr = body_nrows[b]
         for x in range(nr):
             k, sk = body_rows[b, x, 0], body_rows[b, x, 1]
+            # row k's entries times M^-1, formed once per row (the products' order is that of Jv M^-1 Jv^T)
+            wx, wy, wt = Jv[k, sk, 0] * mx, Jv[k, sk, 1] * my, Jv[k, sk, 2] * mt
             for y in range(x, nr):
                 l, sl = body_rows[b, y, 0], body_rows[b, y, 1]
-                val = (Jv[k, sk, 0] * mx * Jv[l, sl, 0] + Jv[k, sk, 1] * my * Jv[l, sl, 1]
-                       + Jv[k, sk, 2] * mt * Jv[l, sl, 2])
-                S[k, l] += val
-                if l != k:
-                    S[l, k] += val
+                val = wx * Jv[l, sl, 0] + wy * Jv[l, sl, 1] + wt * Jv[l, sl, 2]
+                S[max(k, l), min(k, l)] += val
 
 
 @njit(cache=True)
 def _cholesky_solve(S, rhs, x, first):
-    """Solve S x = rhs in place (S overwritten by its Cholesky factor). Returns OK or SINGULAR.
+    """Solve S x = rhs in place (S's lower triangle overwritten by its Cholesky factor; the upper one is not
+    read). Returns OK or SINGULAR.
 
     Only the envelope of S is worked on: row i's entries left of column ``first[i]`` are zero and
     stay zero in the factor, so the arithmetic on the rest is that of the dense factorisation
@@ -491,13 +525,19 @@ def accel(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
     """Accelerations a (n) and multipliers lam (m) of eq. 30; contact outputs into cout.
 
     alpha, beta: Baumgarte coefficients (0, 0 for none). W: the :class:`Workspace`.
-    Returns OK or SINGULAR.
+    Returns OK or SINGULAR. (:func:`accel_inline` is the same, compiled into its caller.)
     """
+    return accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W)
+
+
+@njit(cache=True, inline="always")
+def accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
+    """:func:`accel` compiled into its caller (the right-hand side of the integrators: one call less)."""
     minv = P.minv
     phi, Jv, gam, nu, g, S, rhs, tmp = W.phi, W.Jv, W.gam, W.nu, W.g, W.S, W.rhs, W.tmp
     constraints(t, q, v, speed, P, W)
     element_forces(q, v, P, g)
-    clearance_forces(q, v, P, inc, v0i, W, cout)
+    _clearance_forces(q, v, P, inc, v0i, W, cout, True)
     m = phi.shape[0]
     n = q.shape[0]
     for i in range(n):

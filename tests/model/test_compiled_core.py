@@ -49,8 +49,24 @@ def _pattern_spd(P, rng):
     m = P.jb.shape[0]
     Jv = rng.standard_normal((m, 2, 3))
     S = np.zeros((m, m))
-    K._schur(P, Jv, S)
-    return S + 1e-3 * np.eye(m)
+    K._schur(P, Jv, S)  # the lower triangle, all the factorisation reads
+    return np.tril(S) + np.tril(S, -1).T + 1e-3 * np.eye(m)
+
+
+def test_schur_complement_is_the_dense_product_in_its_lower_triangle():
+    from wearbench.model.scene import _dense_jacobian
+
+    scene = build_scene(load_bench(shipped_bench("ninebar-testbed")))
+    P = scene.params
+    W = scene.work()
+    K.constraints(0.0, scene.q0.copy(), scene.v_unit * 10.0, 10.0, P, W)
+    J = _dense_jacobian(P, W.Jv, scene.n)
+    S = np.full((scene.m, scene.m), np.nan)  # stale values in the envelope are overwritten, nothing else read
+    K._schur(P, W.Jv, S)
+    dense = J @ np.diag(P.minv) @ J.T
+    low = np.tril(np.ones_like(S, dtype=bool)) & (np.arange(scene.m)[None, :] >= P.s_first[:, None])
+    np.testing.assert_allclose(S[low], dense[low], rtol=1e-12, atol=1e-12 * np.abs(dense).max())
+    assert not dense[~low & (np.arange(scene.m)[None, :] <= np.arange(scene.m)[:, None])].any()  # envelope
 
 
 def test_envelope_cholesky_is_the_dense_factorisation_bit_for_bit():

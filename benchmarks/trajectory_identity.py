@@ -1,0 +1,187 @@
+"""Is this version's trajectory bit for bit an earlier version's? The check for cost work that must not move it.
+
+Runs the same cases with an earlier version (``--baseline DIR``: a scratch copy whose ``wearbench``
+package lies in ``DIR/wearbench``, e.g. ``git archive main``) and with this one, each in its own
+process, and compares everything a run returns with exact equality (NaN equal to NaN): every table
+column (state, slider acceleration, contact columns, joint reactions), the step statistics (accepted
+and rejected steps, right-hand sides, peak searches, drift), the dense-output peaks, the final state
+and, where recorded, the contact records. Cases (test bed ``ninebar-testbed``):
+
+- the nominal bench on new and on 400,000-cycle worn surfaces (0.3 mm), default method;
+- drawn realisations (seeds; tolerances, random journal start, motor speed ripple: the speed-profile
+  path) on both surfaces, with contact records;
+- the paper's RK4 with Baumgarte stabilisation and table samples from full right-hand sides
+  (``evaluate_samples``), the tight method, and kinematics of the fully driven ideal bench.
+
+Prints one row per case and exits with status 1 if any output differs. The motion is chaotic, so one
+changed rounding anywhere shows within a revolution.
+
+Run:  git archive main | tar -x -C /tmp/wb_main/wearbench   (mkdir -p it first)
+      .venv/bin/python benchmarks/trajectory_identity.py --baseline /tmp/wb_main [--revolutions 3] [--seeds 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+STATES = {"new": "0.3 mm new", "worn": "0.3 mm second wear"}
+
+
+def _cases(revolutions: float, seeds: int) -> list[dict]:
+    cases = [{"name": f"nominal {s}", "state": s, "seed": None, "revolutions": revolutions} for s in STATES]
+    for s in STATES:
+        cases += [{"name": f"seed {seed} {s}", "state": s, "seed": seed, "revolutions": 1.0, "settle": 1.0,
+                   "record_contacts": True} for seed in range(seeds)]
+    cases += [
+        {"name": "rk4-paper evaluated new", "state": "new", "seed": None, "revolutions": 0.05, "method": "rk4-paper",
+         "step": 1e-5, "evaluate_samples": True},
+        {"name": "default evaluated worn", "state": "worn", "seed": None, "revolutions": 0.2, "evaluate_samples": True},
+        {"name": "accurate worn", "state": "worn", "seed": None, "revolutions": 0.2, "method": "accurate"},
+        {"name": "kinematics ideal", "state": None, "seed": None, "revolutions": 1.0},
+    ]
+    return cases
+
+
+def _run(case: dict) -> dict[str, np.ndarray]:
+    """Every output of one case as named arrays."""
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.model import simulate
+    from wearbench.model.realisation import simulate_state, state_scene
+
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    options = {k: case[k] for k in ("method", "step", "evaluate_samples", "record_contacts") if k in case}
+    if case["state"] is None:  # the fully driven ideal bench: kinematics + inverse dynamics
+        bench = bench.with_clearances({j.name: None for j in bench.clearance_joints})
+        res = simulate(state_scene(bench), revolutions=case["revolutions"], **options)
+    else:
+        state = {s.name: s for s in bench.states}[STATES[case["state"]]]
+        if case["seed"] is None:
+            res = simulate(state_scene(bench, state), revolutions=case["revolutions"], **options)
+        else:
+            from wearbench.model import realisation as R
+
+            kept = {}
+            inner = R.simulate
+
+            def capture(*args, **kw):
+                kept["res"] = inner(*args, **kw, **options)
+                return kept["res"]
+
+            R.simulate = capture
+            try:
+                simulate_state(bench, state, case["seed"], revolutions=case["revolutions"], settle=case["settle"])
+            finally:
+                R.simulate = inner
+            res = kept["res"]
+    out = {f"table/{c}": res.table[c].to_numpy() for c in res.table.columns}
+    s = res.summary
+    for key in ("steps", "rejected_steps", "function_evaluations", "peak_searches", "peak_slider_acc",
+                "max_constraint_drift", "max_velocity_drift"):
+        if key in s:
+            out[f"summary/{key}"] = np.array([s[key]], dtype=float)
+    for j, v in s["peak_fn"].items():
+        out[f"summary/peak_fn/{j}"] = np.array([v])
+    if res.final is not None:
+        out["final/q"], out["final/v"] = res.final
+    for j, frame in (res.contacts or {}).items():
+        out[f"contacts/{j}"] = frame.to_numpy()
+    return out
+
+
+def _dump(path: str, revolutions: float, seeds: int) -> None:
+    import wearbench.model
+
+    arrays, clock = {}, {}
+    _run({"name": "warm-up", "state": "new", "seed": None, "revolutions": 0.01})  # compiled before timing
+    for case in _cases(revolutions, seeds):
+        t0 = time.process_time()
+        for key, value in _run(case).items():
+            arrays[f"{case['name']}|{key}"] = value
+        clock[case["name"]] = time.process_time() - t0
+    np.savez(path, **arrays)
+    print(json.dumps({"source": os.path.dirname(wearbench.model.__file__), "cpu": clock}))
+
+
+def _in_process(pythonpath: str | None, path: str, revolutions: float, seeds: int) -> dict:
+    env = dict(os.environ)
+    if pythonpath:
+        env["PYTHONPATH"] = pythonpath
+    cmd = [sys.executable, os.path.abspath(__file__), "--dump", path, "--revolutions", str(revolutions),
+           "--seeds", str(seeds)]
+    done = subprocess.run(cmd, check=False, env=env, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"{cmd} failed:\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    if a.shape != b.shape or a.dtype != b.dtype:
+        return False
+    if a.dtype.kind == "f":
+        return bool(np.array_equal(a.view(np.uint64 if a.itemsize == 8 else np.uint32),
+                                   b.view(np.uint64 if b.itemsize == 8 else np.uint32)))
+    return bool(np.array_equal(a, b))
+
+
+def compare(base: str, this: str) -> list[tuple[str, int, int, str]]:
+    """Per case: (name, arrays compared, arrays differing, first difference) between two dumps."""
+    A, B = np.load(base), np.load(this)
+    names = sorted({k.split("|")[0] for k in A.files} | {k.split("|")[0] for k in B.files})
+    rows = []
+    for name in names:
+        keys = sorted({k for k in A.files + B.files if k.startswith(name + "|")})
+        bad = []
+        for k in keys:
+            if k not in A.files or k not in B.files:
+                bad.append(f"{k.split('|')[1]} only in {'this' if k in B.files else 'baseline'}")
+            elif not _same(A[k], B[k]):
+                a, b = A[k], B[k]
+                where = ""
+                if a.shape == b.shape:
+                    i = int(np.argmax(~((a == b) | (np.isnan(a) & np.isnan(b))).ravel()))
+                    where = f" first at flat index {i}: {a.ravel()[i]!r} vs {b.ravel()[i]!r}"
+                else:
+                    where = f" shapes {a.shape} vs {b.shape}"
+                bad.append(f"{k.split('|')[1]}{where}")
+        rows.append((name, len(keys), len(bad), bad[0] if bad else ""))
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--baseline", help="directory holding the earlier version's wearbench package")
+    ap.add_argument("--revolutions", type=float, default=3.0, help="revolutions of the nominal cases")
+    ap.add_argument("--seeds", type=int, default=2, help="drawn realisations per surface state (1 revolution "
+                    "after 1 settling)")
+    ap.add_argument("--dump", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.dump:
+        _dump(args.dump, args.revolutions, args.seeds)
+        return
+    if not args.baseline:
+        ap.error("--baseline DIR is needed (a scratch copy of the earlier version, see the docstring)")
+    with tempfile.TemporaryDirectory() as tmp:
+        base, this = os.path.join(tmp, "base.npz"), os.path.join(tmp, "this.npz")
+        info_b = _in_process(args.baseline, base, args.revolutions, args.seeds)
+        info_t = _in_process(None, this, args.revolutions, args.seeds)
+        rows = compare(base, this)
+    print(f"baseline {info_b['source']}\nthis     {info_t['source']}")
+    print(f"{'case':<28} {'arrays':>6} {'differ':>6} {'base s':>7} {'this s':>7}  first difference")
+    for name, count, bad, first in rows:
+        print(f"{name:<28} {count:6d} {bad:6d} {info_b['cpu'].get(name, 0):7.2f} {info_t['cpu'].get(name, 0):7.2f}"
+              f"  {first}")
+    differ = sum(r[2] for r in rows)
+    print("IDENTICAL: every output bit for bit" if differ == 0 else f"DIFFERENT: {differ} arrays differ")
+    sys.exit(1 if differ else 0)
+
+
+if __name__ == "__main__":
+    main()
