@@ -3,7 +3,7 @@ the same model code, and a result stored under a key is served instead of comput
 
 Results are pickled under :func:`cache_dir` (``$WEARBENCH_CACHE``, default ``~/.cache/wearbench``),
 one file per key, written atomically; a truncated or stale file is a miss. Imports the standard
-library, numpy and the model's source digest.
+library, numpy and the model's results digest.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from wearbench.model.digest import model_source_digest
+from wearbench.model.digest import model_results_digest
 
 __all__ = ["LAYOUT_VERSION", "MISSING", "cache_dir", "cache_load", "cache_store", "task_key"]
 
@@ -66,9 +66,9 @@ def _canonical(x: Any) -> Any:
 
 
 def task_key(*parts: Any) -> str:
-    """SHA-256 (hex) over the canonical JSON of ``parts``, the model source digest and the cache
-    layout version: equal keys mean the same computation by the same model code."""
-    doc = {"layout": LAYOUT_VERSION, "model": model_source_digest(), "parts": [_canonical(p) for p in parts]}
+    """SHA-256 (hex) over the canonical JSON of ``parts``, the model's results digest and the cache
+    layout version: equal keys mean the same computation by model code with the same outputs."""
+    doc = {"layout": LAYOUT_VERSION, "model": model_results_digest(), "parts": [_canonical(p) for p in parts]}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 

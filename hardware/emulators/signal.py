@@ -89,12 +89,12 @@ def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolution
     (every body, joint, contact law, material, point, driver, sensor axis; a bench changed in memory
     is keyed on what it holds), the drawn speed error, ripple and start spread, the true clearances
     and the content of the worn-surface files, the seed, speed, revolutions, settling, rate and the
-    model's source digest."""
-    from wearbench.model.digest import model_source_digest
+    model's results digest."""
+    from wearbench.model.digest import model_results_digest
     from wearbench.model.realisation import draw_realisation
 
     real = draw_realisation(bench, truth.seed)
-    key = {"v": _MODEL_TABLE_VERSION, "kind": kind, "model": model_source_digest(), "bench": canonical(real.bench),
+    key = {"v": _MODEL_TABLE_VERSION, "kind": kind, "model": model_results_digest(), "bench": canonical(real.bench),
            "draw": canonical(real.describe()), "clearances": canonical(dict(truth.clearances)),
            "wear": canonical({j: Path(p) for j, p in truth.wear.items()}), "seed": truth.seed,
            "speed": canonical(float(speed)), "revolutions": revolutions, "settle": canonical(float(settle)),

@@ -62,8 +62,8 @@ def test_task_key_is_a_content_address(monkeypatch):
     assert task_key("run", changed, _Point(1e-4, ("A", "B")), {"b": 1, "a": Path("x/y")}, 2.0) != k
     assert task_key("run", a, _Point(1e-4, ("A",)), {"b": 1, "a": Path("x/y")}, 2.0) != k
     assert task_key("run", a.astype(np.float32), _Point(1e-4, ("A", "B")), {"b": 1, "a": Path("x/y")}, 2.0) != k
-    # a changed model source changes every key
-    monkeypatch.setattr(task_cache, "model_source_digest", lambda: "0" * 64)
+    # a changed model (its results digest) changes every key
+    monkeypatch.setattr(task_cache, "model_results_digest", lambda: "0" * 64)
     assert task_key("run", a, _Point(1e-4, ("A", "B")), {"b": 1, "a": Path("x/y")}, 2.0) != k
     with pytest.raises(TypeError, match="cannot address a object"):
         task_key(object())

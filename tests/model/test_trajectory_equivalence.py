@@ -1,0 +1,64 @@
+"""model/equivalence.toml: a stated equivalence is a checked claim, and it keys results as stated.
+
+The slow test extracts the stated commit with git, checks its model digest, and runs
+benchmarks/trajectory_identity.py against it: every output must be bit for bit the same.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from wearbench.model.digest import (model_results_digest, model_source_digest, package_source_digest,
+                                    results_digest, stated_equivalences)
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_results_digest_follows_the_stated_chain_and_nothing_else(tmp_path):
+    eq = {"c": {"results_of": "b", "commit": "x"}, "b": {"results_of": "a", "commit": "y"}}
+    assert results_digest("c", eq) == "a"
+    assert results_digest("b", eq) == "a"
+    assert results_digest("d", eq) == "d"  # an edited model matches no entry: its own digest
+    with pytest.raises(ValueError, match="circle"):
+        results_digest("a", {"a": {"results_of": "b", "commit": "x"}, "b": {"results_of": "a", "commit": "y"}})
+    bad = tmp_path / "equivalence.toml"
+    bad.write_text('[[equivalent]]\ndigest = "c"\nresults_of = "b"\n')
+    with pytest.raises(ValueError, match=r"entry 1 has \['digest', 'results_of'\]: expected digest, results_of"):
+        stated_equivalences(bad)
+    assert stated_equivalences(tmp_path / "absent.toml") == {}
+
+
+def test_results_are_keyed_on_the_stated_digest():
+    stated = stated_equivalences()
+    source = model_source_digest()
+    expected = stated[source]["results_of"] if source in stated else source
+    assert model_results_digest() == results_digest(source, stated) and results_digest(expected, stated) == model_results_digest()
+
+
+@pytest.mark.slow
+def test_the_stated_equivalence_holds_bit_for_bit(tmp_path):
+    """The current source's entry (if any): its commit's model/ has the stated digest, and every
+    output of trajectory_identity.py's cases is identical between that commit and this code."""
+    entry = stated_equivalences().get(model_source_digest())
+    if entry is None:
+        pytest.skip("no equivalence stated for this model source: its results are keyed on its own digest")
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip(f"{ROOT} is not a git checkout: the stated commit {entry['commit'][:12]} cannot be extracted")
+    have = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", f"{entry['commit']}^{{commit}}"],
+                          capture_output=True)
+    if have.returncode != 0:
+        pytest.skip(f"commit {entry['commit'][:12]} is not in this clone (shallow?): clone with history to check it")
+    base = tmp_path / "base"
+    (base / "wearbench").mkdir(parents=True)
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", entry["commit"]], capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(base / "wearbench")], input=archive.stdout, check=True)
+    assert package_source_digest(base / "wearbench" / "model") == entry["results_of"], (
+        f"model/equivalence.toml: commit {entry['commit'][:12]}'s model/ does not have digest "
+        f"{entry['results_of'][:12]}")
+    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "trajectory_identity.py"), "--baseline", str(base),
+                          "--revolutions", "1", "--seeds", "1"], capture_output=True, text=True, timeout=1800)
+    assert run.returncode == 0 and "IDENTICAL" in run.stdout, run.stdout + run.stderr
