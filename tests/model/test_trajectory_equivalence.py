@@ -12,8 +12,13 @@ import sys
 from pathlib import Path
 
 import pytest
-from wearbench.model.digest import (model_results_digest, model_source_digest, package_source_digest,
-                                    results_digest, stated_equivalences)
+from wearbench.model.digest import (
+    model_results_digest,
+    model_source_digest,
+    package_source_digest,
+    results_digest,
+    stated_equivalences,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 
