@@ -18,6 +18,8 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
     .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
     .venv/bin/python benchmarks/identify.py --sensor-paths --calibrate    # drawn mounts, with calibration
     .venv/bin/python benchmarks/identify.py --ensemble-paths none         # ensembles without drawn paths
+    .venv/bin/python benchmarks/identify.py --draws 10 --seed 41000 --sensor-paths --calibrate gains \
+        --sessions DIR --cache DIR   # a rerun judges the recorded sessions again, nothing re-simulated
 
 The ensembles' realisations are each seen through a drawn sensor path (``EnsembleSettings.sensor_paths``;
 --ensemble-paths none: the model's acceleration as it is, earlier versions). --sensor-paths draws each
@@ -27,8 +29,11 @@ with the band-gain prior of the sensor path (the default), without it and, with 
 each bench calibrated on one session of a known state (0.3 mm new; 0.6 mm new for the 0.3 mm new
 truths, so calibration and test never share a state), same bench and mount: once with the
 calibration's band gains only, once relative to the calibration session and once with the
-ensembles' realisations weighted by it (``validation/calibrated.py``); --brief adds the held-out
-candidates judged with either.
+ensembles' realisations weighted by it (``validation/calibrated.py``; --calibrate gains: the band gains
+only); --brief adds the held-out
+candidates judged with either. --ensemble-modes LO-HI draws the ensembles' modes from another range.
+The full sessions' rates and each held-out state's catch are printed with their counts and 95 %
+Wilson intervals.
 """
 
 from __future__ import annotations
