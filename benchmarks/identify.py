@@ -18,6 +18,8 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
     .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
     .venv/bin/python benchmarks/identify.py --sensor-paths --calibrate    # drawn mounts, with calibration
     .venv/bin/python benchmarks/identify.py --ensemble-paths none         # ensembles without drawn paths
+    .venv/bin/python benchmarks/identify.py --draws 10 --seed 41000 --sensor-paths --calibrate gains \
+        --sessions DIR --cache DIR   # a rerun judges the recorded sessions again, nothing re-simulated
 
 The ensembles' realisations are each seen through a drawn sensor path (``EnsembleSettings.sensor_paths``;
 --ensemble-paths none: the model's acceleration as it is, earlier versions). --sensor-paths draws each
@@ -27,8 +29,11 @@ with the band-gain prior of the sensor path (the default), without it and, with 
 each bench calibrated on one session of a known state (0.3 mm new; 0.6 mm new for the 0.3 mm new
 truths, so calibration and test never share a state), same bench and mount: once with the
 calibration's band gains only, once relative to the calibration session and once with the
-ensembles' realisations weighted by it (``validation/calibrated.py``); --brief adds the held-out
-candidates judged with either.
+ensembles' realisations weighted by it (``validation/calibrated.py``; --calibrate gains: the band gains
+only); --brief adds the held-out
+candidates judged with either. --ensemble-modes LO-HI draws the ensembles' modes from another range.
+The full sessions' rates and each held-out state's catch are printed with their counts and 95 %
+Wilson intervals.
 """
 
 from __future__ import annotations
@@ -59,7 +64,14 @@ def main() -> None:
     ap.add_argument("--ensemble-paths", choices=("drawn", "none"), default="drawn",
                     help="the ensembles' realisations each seen through a drawn sensor path (drawn, the default: "
                     "EnsembleSettings.sensor_paths) or the model's acceleration as it is (none: earlier versions)")
-    ap.add_argument("--calibrate", action="store_true", help="also identify with one calibration session per bench")
+    ap.add_argument("--ensemble-modes", metavar="LO-HI",
+                    help="the drawn paths' mode range of the ensembles, log-uniform, e.g. 300-8500 Hz "
+                    "(default: PathSpread's, 300-3000)")
+    ap.add_argument("--calibrate", nargs="?", const="all", choices=("gains", "all"),
+                    help="also identify with one calibration session per bench: its band gains (gains) or every "
+                    "calibrated likelihood (all, the default of the bare option)")
+    ap.add_argument("--sessions", metavar="DIR", help="where the recorded sessions go; a session already there is "
+                    "judged again, not re-recorded (default: a fresh folder)")
     ap.add_argument("--brief", action="store_true", help="accuracy tables only")
     args = ap.parse_args()
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-identify-")
@@ -76,6 +88,7 @@ def main() -> None:
     from wearbench.validation.features import FeatureSpec
     from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
     from wearbench.validation.measure import calibrate_sessions
+    from wearbench.validation.sensor_path import PathSpread
     from wearbench.validation.theory import simulate_theory
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
@@ -86,9 +99,15 @@ def main() -> None:
         bands = (tuple(tuple(float(v) for v in b.split("-")) for b in args.bands.split(",")) if args.bands
                  else spec.bands)
         spec = FeatureSpec(bins=args.bins or spec.bins, bands=bands)
+    paths_of_ensembles = {}
+    if args.ensemble_paths == "none":
+        paths_of_ensembles = {"sensor_paths": None}
+    elif args.ensemble_modes:
+        paths_of_ensembles = {"sensor_paths": PathSpread(mode=tuple(float(v) for v in args.ensemble_modes.split("-")))}
     settings = EnsembleSettings(realisations=args.realisations, cycles=args.ensemble_cycles, features=spec,
-                                **({"sensor_paths": None} if args.ensemble_paths == "none" else {}))
-    out = Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
+                                **paths_of_ensembles)
+    out = Path(args.sessions) if args.sessions else Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
+    out.mkdir(parents=True, exist_ok=True)
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
     spread = {"spread": {}}  # the emulator's drawn mounts (SensorSpread's defaults)
     emulator = {"accelerometer": spread} if args.sensor_paths else {}
@@ -108,13 +127,18 @@ def main() -> None:
     t0 = time.perf_counter()
     paths = []
     for s, seed in truths:
-        paths.append(out / f"{slug(s.name)}_{seed}.mcap")
+        paths.append(out / f"{slug(s.name)}_{seed}{'_drawn' if args.sensor_paths else ''}_{args.cycles}.mcap")
+        if paths[-1].exists():
+            continue
         # one cycle more than analysed: cycles are cut at crank angle 0, so the partial ends are dropped
         record_state(bench, s, seed, paths[-1], backend="sim", cycles=args.cycles + 1, revolutions=revolutions,
                      **emulator)
     cal_paths = []
     for s, seed in calibrations:
-        cal_paths.append(out / f"calibration_{slug(s.name)}_{seed}.mcap")
+        cal_paths.append(out / f"calibration_{slug(s.name)}_{seed}{'_drawn' if args.sensor_paths else ''}"
+                                 f"_{args.cycles}.mcap")
+        if cal_paths[-1].exists():
+            continue
         record_state(bench, s, seed, cal_paths[-1], backend="sim", cycles=args.cycles + 1, revolutions=revolutions,
                      **emulator)
     t_record = time.perf_counter() - t0
@@ -140,6 +164,8 @@ def main() -> None:
                           for p, (s, _) in zip(cal_paths[1:], calibrations[1:], strict=True)]
         variants["calibrated on one session of a known state: its sensor path only"] = [
             fit_states(ensembles, options, sensor=c.path) for c in cals]
+    t_rel = t_w = float("nan")
+    if args.calibrate == "all":
         t0 = time.process_time()
         relative = {k: RelativeStatistics.fit(ensembles, k, options) for k in {c.state for c in cals}}
         t_rel = (time.process_time() - t0) / len(relative)
@@ -150,6 +176,7 @@ def main() -> None:
         t_w = (time.process_time() - t0) / len(weighted)
         variants["calibrated on one session of a known state: realisations weighted by it"] = [
             weighted[c.state].models(np.asarray(c.features), c.cycles, c.describe()) for c in cals]
+    if calibrations:
         print(f"\ncalibration: {t_cal:.1f} s for one 20-cycle session (ensembles loaded); sessions still far from the "
               f"known state after the fit (p < 0.001): {sum(c.p_value < 0.001 for c in cals)} of {len(cals)}; "
               f"nulls of a calibrated bench, once per known state: relative {t_rel:.1f} s CPU, weighted {t_w:.1f} s CPU")
@@ -164,15 +191,40 @@ def main() -> None:
     print(f"build 4 ensembles: {t_ens:.0f} s   emulator truths: {t_truth:.0f} s   record {len(paths)} sessions: "
           f"{t_record:.0f} s   identify one 20-cycle session (cached ensembles, load to report data): {t_one:.1f} s")
     full = min(min(f.cycles for f in feats), args.cycles)
+    verdicts = {}
     for variant, session_models in variants.items():
         reliability, final = accuracy_table(variant, session_models, feats, truth_names, names, full, options)
+        verdicts[variant] = [final[i] for i in range(len(feats))]
         if variant.endswith("(default)"):
             kept = reliability, final
+    print(f"\nfull sessions ({full} cycles), count of {len(feats)} and 95 % Wilson interval:")
+    print(f"  {'likelihood':52s} " + "  ".join(f"{c:>20s}" for c in ("top-1", "named right", "named wrong",
+                                                                        "undecided", "none")))
+    for variant, rs in verdicts.items():
+        vs = [r.verdict for r in rs]
+        tops = [max(r.posterior, key=r.posterior.get) for r in rs]
+        counts = (sum(t == u for t, u in zip(tops, truth_names, strict=True)),
+                  sum(v == u for v, u in zip(vs, truth_names, strict=True)),
+                  sum(v in names and v != u for v, u in zip(vs, truth_names, strict=True)),
+                  vs.count("undecided"), vs.count("none of the candidates"))
+        print(f"  {variant[:52]:52s} " + "  ".join(f"{rate_interval(k, len(vs)):>20s}" for k in counts))
+    if calibrations:
+        band_gains = "calibrated on one session of a known state: its sensor path only"
+        prior = [r.verdict for r in verdicts["band-gain prior of the sensor path (default)"]]
+        rescued = [f"{t.name} seed {seed}: p {r.p_top:.3f}" for (t, seed), u, r in zip(truths, prior,
+                                                                                      verdicts[band_gains], strict=True)
+                   if u == "none of the candidates" and r.verdict == t.name]
+        print(f"uncalibrated 'none of the candidates', calibrated (band gains) named right: {len(rescued)} of "
+              f"{prior.count('none of the candidates')} 'none' ({len(feats)} sessions)"
+              + "".join(f"\n  {r}" for r in rescued))
     if args.brief:
         for path in ("prior", "none"):
             print(f"\n[sensor path: {path}]", end="")
             held_out(ensembles, feats, truth_names, names, replace(options, sensor_path=path))
         if calibrations:
+            print("\n[calibrated on one session of a known state: its band gains]", end="")
+            held_out(ensembles, feats, truth_names, names, options, cals)
+        if args.calibrate == "all":
             for method in (RelativeStatistics, WeightedStatistics):
                 print(f"\n[calibrated on one session of a known state: {method.__name__}]", end="")
                 held_out(ensembles, feats, truth_names, names, options, cals, method)
@@ -255,16 +307,27 @@ def held_out(ensembles, feats, truth_names, names, options, calibrations=None, m
         rest = {k: v for k, v in ensembles.items() if k != s}
         rows = [(f, calibrations[i] if calibrations else None) for i, (f, t) in enumerate(zip(feats, truth_names,
                                                                                              strict=True)) if t == s]
-        if calibrations:
+        if calibrations and method is None:
+            rs = [identify_features(f, fit_states(rest, options, sensor=c.path)) for f, c in rows]
+        elif calibrations:
             relative = {k: method.fit(rest, k, options) for k in {c.state for _, c in rows}}
             rs = [identify_features(f, relative[c.state].models(np.asarray(c.features), c.cycles)) for f, c in rows]
         else:
             held = fit_states(rest, options)
             rs = [identify_features(f, held) for f, _ in rows]
-        named = np.mean([r.verdict not in ("undecided", "none of the candidates") for r in rs])
-        print(f"  truth {s:20s} named a wrong state with p >= {options.threshold}: {named:.2f}   "
-              f"'none of the candidates': {np.mean([r.verdict == 'none of the candidates' for r in rs]):.2f}   "
+        named = sum(r.verdict not in ("undecided", "none of the candidates") for r in rs)
+        none = sum(r.verdict == "none of the candidates" for r in rs)
+        print(f"  truth {s:20s} caught (not named): {rate_interval(len(rs) - named, len(rs))}   named a wrong state "
+              f"with p >= {options.threshold}: {named / len(rs):.2f}   'none of the candidates': {none / len(rs):.2f}   "
               f"max p {max(r.p_top for r in rs):.3f}")
+
+
+def rate_interval(k: int, n: int) -> str:
+    """``k`` of ``n`` as a rate with its 95 % Wilson score interval: ``0.90 [0.77, 0.96] 36/40``."""
+    from scipy.stats import binomtest
+
+    ci = binomtest(k, n).proportion_ci(method="wilson")
+    return f"{k / n:.2f} [{ci.low:.2f}, {ci.high:.2f}] {k}/{n}"
 
 
 def accuracy_table(variant, session_models, feats, truth_names, names, full, options):
