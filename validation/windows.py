@@ -88,7 +88,7 @@ class WindowOptions:
 
     cycles: int = 5
     alpha: float = 0.05          # false-alarm rate of the verdict (per window)
-    statistic: str = "features_direction"  # the verdict's statistic, one of STATISTICS (README: chosen on fresh truths)
+    statistic: str = "features_lr"  # the verdict's statistic, one of STATISTICS (README: chosen on fresh truths)
     max_delay: float = 2e-3      # s, without a statement the sensor chain's delay is fitted in [0, max_delay]
     delay_floor: float = 7.5e-4  # s, how far a fit on the signal alone scatters: p95 of its error (README)
     delay_step: float = 2.5e-5   # s, grid of the delay search (then refined by a parabola)
