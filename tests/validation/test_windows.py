@@ -415,3 +415,25 @@ def test_likelihood_ratio_power_matches_a_simulation_of_the_statistic(gaussian_s
     d2 = {s: v[sub[s]] for s, v in d2.items()}
     assert np.mean(min_p("first") < np.quantile(min_p("new"), 0.05)) == pytest.approx(got["power_lr_all"], abs=0.03)
     assert got["power_direction"] < got["power_lr"] <= got["power"] + 1e-9
+
+
+def test_a_window_away_from_every_candidate_passes_the_ratio_but_not_its_combination(gaussian_states):
+    """The ratio is one-sided: a bench far from the state but toward no candidate (beyond new wear,
+    away from the worn stages and the other state) is consistent by ``features_lr`` and caught by
+    ``features_lr_all`` (the all-feature distance in it), each against its held-out null."""
+    from wearbench.validation.windows import _min_p
+
+    _, models = gaussian_states
+    rng = np.random.default_rng(14)
+    st, null = models.stats["new"], models.window_null["new"]
+    others = [models.stats[t].mean for t in models.states if t != "new"]
+    away = gaussian_benches(rng, -2.5 * np.eye(6)[0] - 2.5 * np.eye(6)[3], 200, 5).mean(axis=1)
+    combined = _min_p(null[:, [0, 2]])
+
+    def p(col: int, v: float) -> float:
+        return (1 + np.sum(null[:, col] >= v)) / (1 + null.shape[0])
+
+    p_lr = np.array([p(2, candidate_ratio(st, others, x, 5)) for x in away])
+    p_all = np.array([p(0, st.distance2(x, 5)) for x in away])
+    p_comb = np.array([(1 + np.sum(combined <= min(a, b))) / (1 + combined.size) for a, b in zip(p_lr, p_all)])
+    assert np.mean(p_lr < 0.05) < 0.05 and np.mean(p_comb < 0.05) > 0.9, (np.mean(p_lr < 0.05), np.mean(p_comb < 0.05))
