@@ -27,44 +27,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from windows import _with_chain, record_truths, truth_specs
-
-
-def chain_delay(config, bench) -> tuple[float, float]:
-    """(delay s of the truth's chain in 1-100 Hz: accel_delay + its digital filters' mean group delay,
-    its sample clock's drift) from the emulator config ``config`` of that truth."""
-    from scipy import signal as sps
-    from wearbench.hardware.emulators.sensor import SensorChain
-
-    acc = bench.sensor("accelerometer")
-    chain = SensorChain(config.accelerometer, acc.sample_rate, acc.range, np.random.default_rng(0))
-    filters = 0.0
-    if chain.sos is not None:
-        _, gd = sps.group_delay(sps.sos2tf(chain.sos), w=np.linspace(1.0, 100.0, 64), fs=chain.internal_rate)
-        filters = float(np.mean(gd)) / chain.internal_rate
-    return config.truth.accel_delay + filters, config.accelerometer.drift
-
-
-def tap_latencies(bench, specs, folder: Path, taps: int) -> dict[Path, tuple[float, object]]:
-    """Session path -> (tap-tested latency s, the truth's emulator config): a tap session of each truth's
-    emulated bench, recorded once into ``folder``."""
-    from wearbench.acquisition.backends import open_rig
-    from wearbench.acquisition.recorder import record_session
-    from wearbench.acquisition.session import SessionPlan
-    from wearbench.hardware.emulators.config import emulator_config
-    from wearbench.validation.tap_test import tap_test
-
-    out = {}
-    for state, seed, table, _, path in specs:
-        config = emulator_config(bench, state, seed, table=table)
-        tap_path = folder / f"taps_{path.name}"
-        if not tap_path.exists():
-            rig = open_rig(bench, "sim", {"speedup": float("inf"), "config": config.to_table()})
-            result = record_session(rig, bench, SessionPlan(0.0, taps=taps), tap_path)
-            if not result.completed:
-                raise RuntimeError(f"{tap_path}: tap session stopped early: {result.reason}")
-        out[path] = (tap_test(tap_path, bench).latency, config)
-    return out
+from windows import _with_chain, chain_delay, record_truths, tap_latencies, truth_specs
 
 
 def main() -> None:

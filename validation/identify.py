@@ -87,8 +87,10 @@ class StateModels:
     hi: Mapping[str, np.ndarray]
     options: IdentifyOptions
     columns: slice = field(default_factory=lambda: slice(None))  # the features used
-    # state -> (windows, 2): (all-feature, along-the-candidates) squared distances of the held-out
-    # realisations' windows of ``window_cycles`` consecutive cycles (validation.windows' null)
+    # state -> (windows, 3): (all-feature, along-the-candidates) squared distances and the likelihood
+    # ratio toward the best other candidate (``candidate_ratio``) of the held-out realisations'
+    # windows of ``window_cycles`` consecutive cycles (validation.windows' null; 2 columns from
+    # ``calibrated.py``, which holds no ratio)
     window_null: Mapping[str, np.ndarray] = field(default_factory=dict)
     window_cycles: int = 5
     spec: FeatureSpec = field(default_factory=FeatureSpec)
@@ -148,6 +150,19 @@ def direction_distance2(st: StateStatistics, others: list[np.ndarray], xbar: np.
     q, _ = np.linalg.qr(u)
     z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - st.mean, lower=True)
     return float(np.sum((q.T @ z) ** 2))
+
+
+def candidate_ratio(st: StateStatistics, others: list[np.ndarray], xbar: np.ndarray, n: float) -> float:
+    """The generalised likelihood ratio of "the best other candidate" against state ``st`` for a
+    session's mean over ``n`` cycles: max over the means ``others`` of log N(xbar; other, C) - log
+    N(xbar; st.mean, C), with C ``st``'s covariance of an ``n``-cycle mean (0 when there are none).
+    Whitened by C it is max_j (z . u_j - |u_j|^2 / 2): one-sided, toward the candidates only."""
+    if not others:
+        return 0.0
+    chol = st.whitener(n)
+    u = np.stack([linalg.solve_triangular(chol, m - st.mean, lower=True) for m in others], axis=1)
+    z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - st.mean, lower=True)
+    return float(np.max(z @ u - 0.5 * np.sum(u * u, axis=0)))
 
 
 def with_sensor(st: StateStatistics, spec: FeatureSpec, sensor: SensorPath | None,
@@ -217,8 +232,9 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
             for k in range(max(0, n - window_cycles + 1)):
                 wbar = f[r, k:k + window_cycles].mean(axis=0)
                 wn.append((models[s].distance2(wbar, window_cycles),
-                           direction_distance2(models[s], others, wbar, window_cycles)))
-        window_null[s] = np.asarray(wn).reshape(-1, 2)
+                           direction_distance2(models[s], others, wbar, window_cycles),
+                           candidate_ratio(models[s], others, wbar, window_cycles)))
+        window_null[s] = np.asarray(wn).reshape(-1, 3)
         null[s] = _gamma(d2)
         null_direction[s] = _gamma(t2) if others else (1.0, 1.0)  # one candidate: distance 0, p 1
     temperature = temper(np.asarray(lls), np.asarray(truth)) if len(names) > 1 else 1.0

@@ -25,6 +25,11 @@ the choice of the verdict's statistic):
   features (the identification's) from the state, in all features / along the directions to the
   other candidates only (``identify``'s consistency test, for one window); ``features``: the smaller
   of those two p-values (itself calibrated on the held-out windows);
+- ``features_lr``: the generalised likelihood ratio of the best other candidate against the state
+  (``identify.candidate_ratio``, same whitened features and covariance): one-sided, it spends no
+  power on departures away from every candidate, and so does not catch them (an unmodelled state, a
+  sensor path unlike the prior); ``features_lr_all``: the smaller of its p-value and the all-feature
+  distance's, calibrated on the held-out windows as ``features`` is;
 - ``outside``: fraction of the window outside the band;
 - ``z2``: mean over the window of ((x - mean) / sd)^2 per crank angle;
 - ``energy``: energy distance between the window's cycles and the ensemble's cycles, both as 10 deg
@@ -50,22 +55,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, signal, stats
+from scipy import linalg, optimize, signal, stats
 from wearbench.validation.chain_delay import StatedDelay
 from wearbench.validation.cycles import WindowSpec, choose_windows, crank_turns
 from wearbench.validation.ensemble import Ensemble
 from wearbench.validation.features import CycleFeatures, FeatureSpec, sample_rate
 from wearbench.validation.filters import apply_filter, parse_filter
-from wearbench.validation.identify import StateModels, _ranges, direction_distance2, feature_ranges
+from wearbench.validation.identify import (
+    StateModels,
+    _ranges,
+    candidate_ratio,
+    direction_distance2,
+    feature_ranges,
+)
 from wearbench.validation.metrics import iso18571
 
-__all__ = ["FEATURE_STATISTICS", "STATISTICS", "DelayFit", "MeasuredCurves", "SessionWindows", "WindowOptions", "WindowTheory", "WindowVerdict",
+__all__ = ["COMBINED", "FEATURE_STATISTICS", "STATISTICS", "DelayFit", "MeasuredCurves", "SessionWindows", "WindowOptions", "WindowTheory", "WindowVerdict",
            "fit_delay", "measured_curves", "score_windows", "separation", "window_theory"]
 
 TWO_PI = 2.0 * np.pi
 BINS = 36  # 10 deg bins for the energy distance and the departure angles
 # each: larger = worse; the feature ones need the candidates' fitted statistics (``StateModels``)
-FEATURE_STATISTICS = ("features", "features_all", "features_direction")
+FEATURE_STATISTICS = ("features", "features_all", "features_direction", "features_lr", "features_lr_all")
+# the min-p statistics: name -> the two statistics whose smaller p-value they are
+COMBINED = {"features": ("features_all", "features_direction"), "features_lr_all": ("features_all", "features_lr")}
 STATISTICS = (*FEATURE_STATISTICS, "outside", "z2", "energy", "iso", "iso_lowpass")
 
 
@@ -75,7 +88,7 @@ class WindowOptions:
 
     cycles: int = 5
     alpha: float = 0.05          # false-alarm rate of the verdict (per window)
-    statistic: str = "features_direction"  # the verdict's statistic, one of STATISTICS (README: chosen on fresh truths)
+    statistic: str = "features_lr"  # the verdict's statistic, one of STATISTICS (README: chosen on fresh truths)
     max_delay: float = 2e-3      # s, without a statement the sensor chain's delay is fitted in [0, max_delay]
     delay_floor: float = 7.5e-4  # s, how far a fit on the signal alone scatters: p95 of its error (README)
     delay_step: float = 2.5e-5   # s, grid of the delay search (then refined by a parabola)
@@ -224,15 +237,17 @@ class WindowTheory:
         r = self.reference
         return r.lo, np.median(self.windows.reshape(-1, self.grid), axis=0), r.hi
 
-    def feature_distances(self, features: np.ndarray) -> tuple[float, float]:
-        """(all-feature, along-the-candidates) squared distances of a window's cycle features
-        (cycles, p) from this state (``identify``'s consistency test, for one window)."""
+    def feature_distances(self, features: np.ndarray) -> dict[str, float]:
+        """``features_all``, ``features_direction`` (squared distances: ``identify``'s consistency
+        test, for one window) and ``features_lr`` (``identify.candidate_ratio``) of a window's cycle
+        features (cycles, p) against this state."""
         mod = self.models
         st = mod.stats[self.state]
         wbar = np.asarray(features, dtype=float)[:, mod.columns].mean(axis=0)
         n = features.shape[0]
         others = [mod.stats[t].mean for t in mod.states if t != self.state]
-        return st.distance2(wbar, n), direction_distance2(st, others, wbar, n)
+        return {"features_all": st.distance2(wbar, n), "features_direction": direction_distance2(st, others, wbar, n),
+                "features_lr": candidate_ratio(st, others, wbar, n)}
 
     def feature_departures(self, features: np.ndarray, spec: FeatureSpec) -> list[str]:
         """Crank-angle ranges of the features whose window mean lies beyond the Bonferroni limit
@@ -267,7 +282,8 @@ class WindowTheory:
         return values, sub, _binned(out.astype(float)).mean(axis=0)
 
 
-def separation(models: StateModels, judged: str, truth: str, cycles: int = 5, alpha: float = 0.05) -> dict[str, float]:
+def separation(models: StateModels, judged: str, truth: str, cycles: int = 5, alpha: float = 0.05,
+               draws: int = 40000) -> dict[str, float]:
     """How well ``cycles``-cycle windows of ``truth`` can be told from ``judged`` at all, from the
     fitted feature statistics alone (Gaussian; the truth's windows spread as the judged state's do,
     as the pooled statistics have them): ``distance``, the Mahalanobis distance between the two means
@@ -275,15 +291,54 @@ def separation(models: StateModels, judged: str, truth: str, cycles: int = 5, al
     ``power``, the most any test of "consistent with judged" at false-alarm ``alpha`` can call the
     truth's windows inconsistent (Neyman-Pearson: the likelihood ratio, here the projection on the
     line between the means); ``power_direction``, the same for the chi-square test along the
-    directions to all other candidates (``features_direction`` with an exact null); ``bayes_error``,
-    the least misclassification rate between the two at equal priors."""
+    directions to all other candidates (``features_direction`` with an exact null); ``power_lr``, for
+    the likelihood ratio toward the best other candidate (``features_lr`` with an exact null: the
+    maximum of correlated Gaussians, by ``scipy.stats.multivariate_normal.cdf`` to 1e-6);
+    ``power_lr_all``, for the smaller p-value of that and the all-feature distance (``features_lr_all``,
+    by simulation: ``draws`` seeded windows under each state); ``bayes_error``, the least
+    misclassification rate between the two at equal priors."""
     st = models.stats[judged]
-    z = linalg.solve_triangular(st.whitener(cycles), models.stats[truth].mean - st.mean, lower=True)
+    chol = st.whitener(cycles)
+    z = linalg.solve_triangular(chol, models.stats[truth].mean - st.mean, lower=True)
     delta = float(np.linalg.norm(z))
     k = max(1, len(models.states) - 1)
-    return {"distance": delta, "power": float(stats.norm.sf(stats.norm.isf(alpha) - delta)),
-            "power_direction": float(stats.ncx2.sf(stats.chi2.isf(alpha, k), k, delta ** 2)),
-            "bayes_error": float(stats.norm.cdf(-delta / 2))}
+    out = {"distance": delta, "power": float(stats.norm.sf(stats.norm.isf(alpha) - delta)),
+           "power_direction": float(stats.ncx2.sf(stats.chi2.isf(alpha, k), k, delta ** 2)),
+           "bayes_error": float(stats.norm.cdf(-delta / 2))}
+    others = [models.stats[t].mean for t in models.states if t != judged]
+    if not others:
+        return {**out, "power_lr": 0.0, "power_lr_all": float(stats.ncx2.sf(stats.chi2.isf(alpha, z.size), z.size,
+                                                                              delta ** 2))}
+    # whitened by the judged state's covariance: T = max_j (x . u_j - |u_j|^2 / 2), x ~ N(0, I) or N(z, I)
+    u = np.stack([linalg.solve_triangular(chol, m - st.mean, lower=True) for m in others], axis=1)
+    half = 0.5 * np.sum(u * u, axis=0)
+    gram = u.T @ u
+    gram = gram + 1e-9 * np.trace(gram) * np.eye(len(others))  # collinear candidates: a singular Gram matrix
+
+    def below(t: float, mean: np.ndarray) -> float:  # P(T <= t)
+        return float(stats.multivariate_normal.cdf(np.full(len(others), t), mean, gram, abseps=1e-7, releps=1e-7,
+                                                   rng=np.random.default_rng(0)))
+
+    spread = float(np.sqrt(np.max(np.diag(gram))))
+    lo, hi = -float(half.max()) - 10 * spread, float(np.max(-half)) + 10 * spread
+    threshold = optimize.brentq(lambda t: below(t, -half) - (1 - alpha), lo, hi, xtol=1e-9)
+    out["power_lr"] = 1.0 - below(threshold, u.T @ z - half)
+    # the min-p combination with the all-feature distance |x|^2, by simulation
+    rng = np.random.default_rng(1)
+    null = rng.standard_normal((draws, z.size))
+    alt = z + rng.standard_normal((draws, z.size))
+
+    def pair(x: np.ndarray) -> np.ndarray:
+        return np.stack([np.max(x @ u - half, axis=1), np.sum(x * x, axis=1)], axis=1)
+
+    t0, t1 = pair(null), pair(alt)
+    ref = np.sort(t0, axis=0)
+
+    def min_p(t: np.ndarray) -> np.ndarray:
+        return np.min([1.0 - np.searchsorted(ref[:, j], t[:, j], side="left") / draws for j in range(2)], axis=0)
+
+    out["power_lr_all"] = float(np.mean(min_p(t1) < np.quantile(min_p(t0), alpha)))
+    return out
 
 
 def _min_p(null: np.ndarray) -> np.ndarray:
@@ -340,7 +395,12 @@ def window_theory(ensemble: Ensemble, *, crank_speed: float, models: StateModels
     theory.null = {key: np.asarray(v) for key, v in null.items()}
     if models is not None:
         held_out = models.window_null[ensemble.state]
-        theory.null.update(features=_min_p(held_out), features_all=held_out[:, 0], features_direction=held_out[:, 1])
+        theory.null.update(features_all=held_out[:, 0], features_direction=held_out[:, 1])
+        if held_out.shape[1] > 2:  # the likelihood ratio toward the candidates (not in calibrated.py's nulls)
+            theory.null["features_lr"] = held_out[:, 2]
+        for name, parts in COMBINED.items():
+            if all(p in theory.null for p in parts):
+                theory.null[name] = _min_p(np.stack([theory.null[p] for p in parts], axis=1))
     theory.null_bins = np.asarray(bins)
     theory.null_iso = np.asarray(iso)
     return theory
@@ -511,6 +571,9 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
     if opts.statistic in FEATURE_STATISTICS and not use_features:
         raise ValueError(f"windows: the {opts.statistic!r} verdict needs the session's cycle features and the fitted "
                          "state statistics (window_theory(..., models=fit_states(...)))")
+    if use_features and opts.statistic not in theory.null:
+        raise ValueError(f"windows: the fitted statistics hold no held-out {opts.statistic!r} of {theory.state!r} "
+                         "(identify.fit_states keeps it; these came from elsewhere)")
     if use_features and features.cycles != measured.times.shape[0]:
         raise ValueError(f"windows: {features.cycles} cycles of features for {measured.times.shape[0]} cycles of "
                          "curves; compute both from the same record")
@@ -529,17 +592,19 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
         p = {k: _p_value(theory.null[k], v) for k, v in values.items()}
         departs = [f"band {r}" for r in _ranges(bins > theory.null_bins.max(axis=0), BINS)]
         if use_features:
-            values["features_all"], values["features_direction"] = theory.feature_distances(features.values[cyc])
-            p.update({k: _p_value(theory.null[k], values[k]) for k in ("features_all", "features_direction")})
-            values["features"] = -min(p["features_all"], p["features_direction"])
-            p["features"] = float((1 + np.sum(theory.null["features"] <= -values["features"]))
-                                  / (1 + theory.null["features"].size))
+            distances = theory.feature_distances(features.values[cyc])
+            values.update({k: v for k, v in distances.items() if k in theory.null})
+            p.update({k: _p_value(theory.null[k], values[k]) for k in distances if k in theory.null})
+            for name, parts in COMBINED.items():  # the smaller p-value, against the held-out windows' smaller ones
+                if name in theory.null:
+                    values[name] = -min(p[parts[0]], p[parts[1]])
+                    p[name] = float((1 + np.sum(theory.null[name] <= -values[name])) / (1 + theory.null[name].size))
             departs = theory.feature_departures(features.values[cyc], features.spec) + departs
         consistent = p[opts.statistic] >= opts.alpha
         departs = [] if consistent else departs  # where an inconsistent window departs; none otherwise
         null = theory.null[opts.statistic]
         v = values[opts.statistic]
-        percentile = float(100.0 * np.mean(-null < v)) if opts.statistic == "features" else float(
+        percentile = float(100.0 * np.mean(-null < v)) if opts.statistic in COMBINED else float(
             100.0 * np.mean(null < v))
         shown = int(theory.iso_pool[np.argsort(sub.pop("ratings"))[len(theory.iso_pool) // 2]])
         t0 = float(measured.times[s, 0])

@@ -18,11 +18,12 @@ import pytest
 from wearbench.validation.assess import assess_sessions, write_assessment_report
 from wearbench.validation.chain_delay import StatedDelay
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings
-from wearbench.validation.features import cycle_curves, cycle_features
+from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
 from wearbench.validation.identify import (
     IdentifyOptions,
     StateModels,
+    candidate_ratio,
     direction_distance2,
     fit_states,
 )
@@ -300,3 +301,139 @@ def test_separation_matches_a_simulation_of_the_tests_it_bounds():
     t_b = [direction_distance2(st["A"], others, x, 5) for x in under_b[:3000]]
     assert np.mean(np.array(t_b) > np.quantile(t_a, 0.95)) == pytest.approx(got["power_direction"], abs=0.03)
     assert got["power_direction"] < got["power"] and 0 < got["bayes_error"] < 0.5
+
+
+GAUSS_SPEC = FeatureSpec(bins=3, bands=((50.0, 150.0),))  # 6 features
+GAUSS_MEANS = {"new": 0.0, "first": 0.9, "second": 1.8, "other": None}  # along one direction; "other" apart
+
+
+def gaussian_benches(rng, mean: np.ndarray, benches: int, cycles: int) -> np.ndarray:
+    """(benches, cycles, p) features: each bench its own offset (between-bench spread), each cycle its
+    own scatter (cycle to cycle), as an ensemble's realisations."""
+    p = mean.size
+    return (mean + 0.3 * rng.standard_normal((benches, 1, p)) + rng.standard_normal((benches, cycles, p)))
+
+
+@pytest.fixture(scope="module")
+def gaussian_states():
+    """Four states whose features are Gaussian (independent truth: the generator), three of them on
+    one line (wear stages), one off it; their ensembles (80 realisations of 10 cycles) and fitted
+    statistics, the sensor path taken as exact."""
+    rng = np.random.default_rng(11)
+    line, off = np.eye(6)[0], np.eye(6)[3]
+    means = {s: (1.2 * off if v is None else v * line) for s, v in GAUSS_MEANS.items()}
+    settings = EnsembleSettings(realisations=80, cycles=10, features=GAUSS_SPEC, sensor_paths=None)
+    ensembles = {s: Ensemble(s, settings, gaussian_benches(rng, m, 80, 10), np.zeros((80, 10, 36)),
+                             np.zeros((80, 10)), OMEGA) for s, m in means.items()}
+    options = IdentifyOptions(floor_curve=1e-3, floor_energy=1e-3, sensor_path="none")
+    return means, fit_states(ensembles, options, window_cycles=5)
+
+
+def test_likelihood_ratio_null_is_calibrated_on_fresh_benches(gaussian_states):
+    """Fresh benches of each state (drawn from the generator, never in the ensemble), judged by
+    ``features_lr`` against the held-out realisation windows' ratios, are called inconsistent at
+    alpha within the binomial error of the fresh windows and of the null's size; the windows of the
+    next wear stage are caught more often than by the chi-square along the candidates."""
+    means, models = gaussian_states
+    rng = np.random.default_rng(12)
+    alpha = 0.1
+    for state in ("new", "first"):
+        st, null = models.stats[state], models.window_null[state]
+        assert null.shape[1] == 3
+        others = [models.stats[t].mean for t in models.states if t != state]
+        fresh = gaussian_benches(rng, means[state], 600, 5).mean(axis=1)  # one five-cycle window per bench
+        lr = np.array([candidate_ratio(st, others, x, 5) for x in fresh])
+        rate = np.mean([(1 + np.sum(null[:, 2] >= v)) / (1 + null.shape[0]) < alpha for v in lr])
+        # binomial error of the fresh windows and of the null's: 6 overlapping windows per realisation,
+        # counted as 2 independent ones
+        sigma = np.sqrt(alpha * (1 - alpha) * (1 / fresh.shape[0] + 1 / (null.shape[0] / 3)))
+        assert abs(rate - alpha) <= 3 * sigma, (state, rate, sigma)
+    st, null = models.stats["new"], models.window_null["new"]
+    others = [models.stats[t].mean for t in models.states if t != "new"]
+    worn = gaussian_benches(rng, means["first"], 600, 5).mean(axis=1)
+    caught = {j: np.mean([(1 + np.sum(null[:, j] >= f(x))) / (1 + null.shape[0]) < alpha for x in worn])
+              for j, f in ((1, lambda x: direction_distance2(st, others, x, 5)),
+                           (2, lambda x: candidate_ratio(st, others, x, 5)))}
+    assert caught[2] > caught[1] + 0.05, caught
+
+
+def test_likelihood_ratio_power_matches_the_closed_form_for_collinear_states():
+    """Candidates on one line through the judged state: the ratio's rejection region is x > a or
+    x < -b along that line (x the window's whitened offset), so its power has a closed form; with
+    all candidates on one side it is the Neyman-Pearson test against the truth itself."""
+    p = 4
+    cov = np.eye(p)
+    e = np.eye(p)[0]
+
+    def models_of(positions: dict[str, float]) -> StateModels:
+        st = {k: StateStatistics(v * e, 5 * cov, np.zeros((p, p)), np.zeros(p), 10 ** 6, 10 ** 6)
+              for k, v in positions.items()}  # covariance of a 5-cycle mean: the identity
+        return StateModels(tuple(st), st, 1.0, {}, {}, {}, {}, {}, IdentifyOptions())
+
+    alpha = 0.05
+    one_side = separation(models_of({"S": 0.0, "A": 1.5, "B": 3.0}), "S", "A", alpha=alpha)
+    assert one_side["power_lr"] == pytest.approx(one_side["power"], abs=1e-4)
+    # both sides: new (-c1) and second wear (+c2) about first wear; c1 (-x - c1/2) > t or c2 (x - c2/2) > t
+    c1, c2 = 2.1, 2.3
+    got = separation(models_of({"S": 0.0, "new": -c1, "second": c2}), "S", "second", alpha=alpha)
+
+    def region(t: float) -> tuple[float, float]:
+        return t / c2 + c2 / 2, t / c1 + c1 / 2  # x > a or x < -b
+
+    from scipy import optimize
+    from scipy import stats as st
+    t = optimize.brentq(lambda t: st.norm.sf(region(t)[0]) + st.norm.cdf(-region(t)[1]) - alpha, -20, 20)
+    a, b = region(t)
+    power = st.norm.sf(a - c2) + st.norm.cdf(-b - c2)
+    assert got["power_lr"] == pytest.approx(power, abs=1e-4)
+    assert got["power_direction"] < got["power_lr"] < got["power"]
+    # the combination with the all-feature distance spends some of alpha on it: between the two
+    assert got["power_direction"] < got["power_lr_all"] < got["power_lr"] + 0.01
+
+
+def test_likelihood_ratio_power_matches_a_simulation_of_the_statistic(gaussian_states):
+    """``separation``'s ``power_lr`` (multivariate normal integral) and ``power_lr_all`` (its own
+    simulation) against windows drawn from the fitted Gaussians and judged by
+    ``identify.candidate_ratio`` and the all-feature distance."""
+    _, models = gaussian_states
+    rng = np.random.default_rng(13)
+    got = separation(models, "new", "first", cycles=5, alpha=0.05)
+    st = models.stats["new"]
+    cov = st.covariance(5)
+    others = [models.stats[t].mean for t in models.states if t != "new"]
+    draws = {s: rng.multivariate_normal(models.stats[s].mean, cov, 20000) for s in ("new", "first")}
+    lr = {s: np.array([candidate_ratio(st, others, x, 5) for x in d]) for s, d in draws.items()}
+    d2 = {s: np.array([st.distance2(x, 5) for x in d]) for s, d in draws.items()}
+    assert np.mean(lr["first"] > np.quantile(lr["new"], 0.95)) == pytest.approx(got["power_lr"], abs=0.012)
+
+    def min_p(s):
+        return np.minimum(np.mean(lr["new"][None, :] >= lr[s][:, None], axis=1),
+                          np.mean(d2["new"][None, :] >= d2[s][:, None], axis=1))
+
+    sub = {s: slice(None, 4000) for s in draws}
+    lr = {s: v[sub[s]] for s, v in lr.items()}
+    d2 = {s: v[sub[s]] for s, v in d2.items()}
+    assert np.mean(min_p("first") < np.quantile(min_p("new"), 0.05)) == pytest.approx(got["power_lr_all"], abs=0.03)
+    assert got["power_direction"] < got["power_lr"] <= got["power"] + 1e-9
+
+
+def test_a_window_away_from_every_candidate_passes_the_ratio_but_not_its_combination(gaussian_states):
+    """The ratio is one-sided: a bench far from the state but toward no candidate (beyond new wear,
+    away from the worn stages and the other state) is consistent by ``features_lr`` and caught by
+    ``features_lr_all`` (the all-feature distance in it), each against its held-out null."""
+    from wearbench.validation.windows import _min_p
+
+    _, models = gaussian_states
+    rng = np.random.default_rng(14)
+    st, null = models.stats["new"], models.window_null["new"]
+    others = [models.stats[t].mean for t in models.states if t != "new"]
+    away = gaussian_benches(rng, -2.5 * np.eye(6)[0] - 2.5 * np.eye(6)[3], 200, 5).mean(axis=1)
+    combined = _min_p(null[:, [0, 2]])
+
+    def p(col: int, v: float) -> float:
+        return (1 + np.sum(null[:, col] >= v)) / (1 + null.shape[0])
+
+    p_lr = np.array([p(2, candidate_ratio(st, others, x, 5)) for x in away])
+    p_all = np.array([p(0, st.distance2(x, 5)) for x in away])
+    p_comb = np.array([(1 + np.sum(combined <= min(a, b))) / (1 + combined.size) for a, b in zip(p_lr, p_all)])
+    assert np.mean(p_lr < 0.05) < 0.05 and np.mean(p_comb < 0.05) > 0.9, (np.mean(p_lr < 0.05), np.mean(p_comb < 0.05))
