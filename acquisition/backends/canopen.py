@@ -14,8 +14,9 @@ shipped ``cia402_drive.eds``). Imports python-can, canopen and the ``can`` backe
 
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import can
@@ -71,15 +72,26 @@ class Cia402Drive(MotorDrive):
 
     # ---- start-up ---------------------------------------------------------------------------
 
-    def _sdo(self, index: int, value: int, subindex: int | None = None) -> None:
-        """Write ``value`` to object ``index`` (its ``subindex``) by SDO."""
+    @contextlib.contextmanager
+    def _sdo_errors(self, index: int) -> Iterator[None]:
+        """An SDO transfer of object ``index``: an abort is a DriverError, no answer a DeviceTimeout."""
         try:
-            obj = self.node.sdo[index]
-            (obj if subindex is None else obj[subindex]).raw = value
+            yield
         except canopen.SdoAbortedError as exc:
             raise DriverError(f"CANopen node {self.node.id}: SDO 0x{index:04X}: {exc}") from None
         except canopen.SdoCommunicationError as exc:
             raise DeviceTimeout(f"CANopen node {self.node.id}: SDO 0x{index:04X}: {exc}") from None
+
+    def _sdo(self, index: int, value: int, subindex: int | None = None) -> None:
+        """Write ``value`` to object ``index`` (its ``subindex``) by SDO."""
+        with self._sdo_errors(index):
+            obj = self.node.sdo[index]
+            (obj if subindex is None else obj[subindex]).raw = value
+
+    def _read(self, index: int) -> int:
+        """Read object ``index`` by SDO."""
+        with self._sdo_errors(index):
+            return int(self.node.sdo[index].raw)
 
     def setup(self) -> None:
         node = self.node
@@ -180,14 +192,6 @@ class Cia402Drive(MotorDrive):
         latch = stamp + wrap * round((ref - stamp) / wrap)
         self.frames.inbox.put(Event("tap", "device: " + tap_message(self._taps, width, peak), time.time(), latch))
         self._taps += 1
-
-    def _read(self, index: int) -> int:
-        try:
-            return int(self.node.sdo[index].raw)
-        except canopen.SdoAbortedError as exc:
-            raise DriverError(f"CANopen node {self.node.id}: SDO 0x{index:04X}: {exc}") from None
-        except canopen.SdoCommunicationError as exc:
-            raise DeviceTimeout(f"CANopen node {self.node.id}: SDO 0x{index:04X}: {exc}") from None
 
     def state(self) -> MotorState:
         self._fresh()
