@@ -89,7 +89,7 @@ def main() -> None:
         err, flag = [], []
         for (truth, path, _), s, a in zip(truths, sessions, assessed, strict=True):
             constant, drift = chain_delay(tapped[path][1], bench)
-            start = stream_start(s)
+            start = stream_start(s.acceleration, s.fs)
             sw = a.windows[truth]
             err += [w.delay_s - (constant + drift / (1 + drift) * (0.5 * (w.t_start + w.t_end) - start))
                     for w in sw.windows]

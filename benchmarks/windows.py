@@ -227,7 +227,7 @@ def delay_rates(bench, truths, tapped, ensembles, options) -> None:
         for (truth, path, _), s, a in zip(truths, sessions, assessed, strict=True):
             sw = a.windows[truth]
             constant, drift = chain_delay(tapped[path][1], bench)
-            start = stream_start(s)
+            start = stream_start(s.acceleration, s.fs)
             for w in sw.windows:
                 true = constant + drift / (1 + drift) * (0.5 * (w.t_start + w.t_end) - start)
                 err.append(w.delay_s - true)

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
 from wearbench.validation.bands import BandComparison, compare_bands
@@ -96,16 +97,15 @@ def session_stated_delay(session: MeasuredSession, band: tuple[float, float] = (
     return stated_delay(chain, band) if chain is not None else None
 
 
-def stream_start(session: MeasuredSession) -> float:
-    """When the session's accelerometer stream began (s): its first sample, less the blocks before it
-    (sequence numbers count blocks from the stream's start)."""
-    acc = session.acceleration
+def stream_start(acc: pd.DataFrame, fs: float) -> float:
+    """When an accelerometer stream (a session's ``acceleration``, sampled at ``fs`` Hz) began (s): its
+    first sample, less the blocks before it (sequence numbers count blocks from the stream's start)."""
     t0 = float(acc["time"].iloc[0])
     if "sequence" not in acc.columns:
         return t0
     seq = acc["sequence"].to_numpy()
     block = int(np.count_nonzero(seq == seq[0]))
-    return t0 - int(seq[0]) * block / session.fs
+    return t0 - int(seq[0]) * block / fs
 
 
 def commanded_speed(session: MeasuredSession) -> float:
@@ -218,7 +218,7 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
                 ident.notes.append(f"sensor path: {cal.describe()}")
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
             mc = measured_curves(*s.samples, grid=st.grid, filter_spec=st.curve_filter,
-                                 lowpass=window_options.delay_lowpass, fs=s.fs, stream_start=stream_start(s))
+                                 lowpass=window_options.delay_lowpass, fs=s.fs, stream_start=stream_start(s.acceleration, s.fs))
             bands = compare_bands(mc.at(0.0), mc.peaks, ens[state])
             stated = session_stated_delay(s)
             windows = {name: score_windows(mc, th, feats, stated) for name, th in theories.items()}

@@ -18,7 +18,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 from scipy import optimize, stats
@@ -167,7 +166,7 @@ def tap_test(path: str | Path, bench: Bench | None = None, *, band: tuple[float,
     x = acc["acc"].to_numpy()
     clipped = acc["clipped"].to_numpy() if "clipped" in acc.columns else np.zeros(t.size, bool)
     fs = float(bench.sensor("accelerometer").sample_rate)
-    start = stream_start(SimpleNamespace(acceleration=acc, fs=fs))
+    start = stream_start(acc, fs)
     fits = [_fit_tap(tap, taps, t, x, clipped, fs, chain, band, start, source) for tap in taps]
     lat = np.array([f.latency for f in fits])
     med = float(np.median(lat))

@@ -271,7 +271,7 @@ def test_stream_start_counts_the_blocks_before_the_first_recorded_one():
     keep = slice(600, None)  # the first three 200-sample blocks were not recorded
     frame = pd.DataFrame({"time": t[keep], "acc": acc[keep], "sequence": np.arange(t.size)[keep] // 200})
     s = MeasuredSession("late start", frame, pd.DataFrame({"time": t[::5], "angle": angle[::5]}))
-    assert stream_start(s) == pytest.approx(t[0], abs=1e-9)
+    assert stream_start(s.acceleration, s.fs) == pytest.approx(t[0], abs=1e-9)
 
 
 def test_separation_matches_a_simulation_of_the_tests_it_bounds():
