@@ -12,7 +12,8 @@ over 1-100 Hz) plus its sample clock's drift at the window's middle.
 Prints per truth the tap test's latency against the latency the windows need (the true delay less
 the statement's filters), and over all windows the fitted delay's error with the tap-tested
 statement, with the latency copied from the truth's accel_delay (the old benchmark's way), and from
-the signal alone: the fraction within 0.2 ms (the mark: >= 0.90) and the error's p5/p50/p95.
+the signal alone: the fraction within 0.2 ms (the mark: >= 0.90), the error's p5/p50/p95 and how often the fitted
+residual sits at its bound or the statement is flagged (``windows.delay_rates``).
 
     .venv/bin/python benchmarks/tap_delay.py [--draws 5] [--seed 31000] [--sensor-paths] [--sessions DIR] [--taps 10]
 """
@@ -27,7 +28,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from windows import _with_chain, chain_delay, record_truths, tap_latencies, truth_specs
+from windows import chain_delay, delay_rates, record_truths, tap_latencies, truth_specs
 
 
 def main() -> None:
@@ -45,10 +46,8 @@ def main() -> None:
     os.environ.setdefault("WEARBENCH_CACHE", tempfile.mkdtemp(prefix="wearbench-tap-delay-"))
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.validation.assess import assess_sessions, stream_start
     from wearbench.validation.chain_delay import stated_delay
     from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
-    from wearbench.validation.measured import load_session
     from wearbench.validation.windows import WindowOptions
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
@@ -77,27 +76,10 @@ def main() -> None:
           f"({len(errors)} truths)")
 
     ensembles = build_ensembles(bench, bench.states, settings=EnsembleSettings(), progress=None)
-    options = WindowOptions(alpha=args.alpha)
-    ways = {"tap-tested statement (wearbench taptest)": lambda p, d: replace(chain, latency=round(tapped[p][0], 6)),
-            "latency copied from the truth (to 0.01 ms)": lambda p, d: replace(chain, latency=round(d, 5)),
+    ways = {"stated, latency from wearbench taptest": lambda p, d: replace(chain, latency=round(tapped[p][0], 6)),
+            "stated, latency copied from the truth": lambda p, d: replace(chain, latency=round(d, 5)),
             "signal alone (no statement)": lambda p, d: None}
-    print("\nfitted window delay against the true delay (windows against their true state; mark: >= 0.90 within 0.2 ms)")
-    print(f"{'delay from':44s} {'within 0.2 ms':>13s} {'error p5/p50/p95 ms':>24s} {'flagged disagrees':>18s}")
-    for label, statement in ways.items():
-        sessions = [_with_chain(load_session(p, label=f"{name} #{p.stem}"), statement(p, d)) for name, p, d in truths]
-        assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, progress=None)
-        err, flag = [], []
-        for (truth, path, _), s, a in zip(truths, sessions, assessed, strict=True):
-            constant, drift = chain_delay(tapped[path][1], bench)
-            start = stream_start(s.acceleration, s.fs)
-            sw = a.windows[truth]
-            err += [w.delay_s - (constant + drift / (1 + drift) * (0.5 * (w.t_start + w.t_end) - start))
-                    for w in sw.windows]
-            flag.append(sw.delay.disagrees)
-        err = np.asarray(err)
-        p5, p50, p95 = np.percentile(err, [5, 50, 95]) * 1e3
-        print(f"{label:44s} {np.mean(np.abs(err) <= 0.2e-3):13.2f} {p5:+8.3f}/{p50:+.3f}/{p95:+.3f} "
-              f"{np.mean(flag):18.2f}   ({err.size} windows, {len(flag)} sessions)")
+    delay_rates(bench, truths, tapped, ensembles, WindowOptions(alpha=args.alpha), ways)
 
 
 if __name__ == "__main__":

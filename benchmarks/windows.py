@@ -202,26 +202,28 @@ def _with_chain(session, chain):
     return session
 
 
-def delay_rates(bench, truths, tapped, ensembles, options) -> None:
-    """The delay found three ways (module docstring) against the emulator's true delay per window;
-    ``tapped``: ``tap_latencies`` of the truths."""
+def delay_rates(bench, truths, tapped, ensembles, options, ways=None) -> None:
+    """The delay found several ways against the emulator's true delay per window; ``tapped``:
+    ``tap_latencies`` of the truths; ``ways``: label -> the statement of a session (path, its truth's
+    accel_delay; None: no statement), default the module docstring's four."""
     from dataclasses import replace
 
     from wearbench.validation.assess import assess_sessions, stream_start
     from wearbench.validation.measured import load_session
 
     chain = bench.sensor("accelerometer").chain
-    ways = {"signal alone (no statement)": lambda p: None,
-            "stated (tap-tested latency)": lambda p: replace(chain, latency=round(tapped[p][0], 6)),
-            "wrong statement (latency +0.5 ms)": lambda p: replace(chain, latency=round(tapped[p][0], 6) + 5e-4),
-            "wrong statement (latency +1.5 ms)": lambda p: replace(chain, latency=round(tapped[p][0], 6) + 1.5e-3)}
+    ways = ways or {
+        "signal alone (no statement)": lambda p, d: None,
+        "stated (tap-tested latency)": lambda p, d: replace(chain, latency=round(tapped[p][0], 6)),
+        "wrong statement (latency +0.5 ms)": lambda p, d: replace(chain, latency=round(tapped[p][0], 6) + 5e-4),
+        "wrong statement (latency +1.5 ms)": lambda p, d: replace(chain, latency=round(tapped[p][0], 6) + 1.5e-3)}
     print(f"\nsensor delay, true = accel_delay (0-{max(t[2] for t in truths) * 1e3:.2f} ms) + the group delay of the "
           f"truth's own chain (its mount and filter, 1-100 Hz; benchmarks/tap_delay.py's) + its clock drift since the "
           f"stream began; statement: {chain} with each truth's tap-tested latency")
     print(f"{'delay from':40s} {'within 0.2 ms':>13s} {'error p5/p50/p95 ms':>22s} {'residual at bound':>18s} "
           f"{'flagged disagrees':>18s}")
     for label, statement in ways.items():
-        sessions = [_with_chain(load_session(p, label=f"{name} #{p.stem}"), statement(p)) for name, p, _ in truths]
+        sessions = [_with_chain(load_session(p, label=f"{name} #{p.stem}"), statement(p, d)) for name, p, d in truths]
         assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, progress=None)
         err, bound, flag = [], [], []
         for (truth, path, _), s, a in zip(truths, sessions, assessed, strict=True):
