@@ -140,15 +140,23 @@ def _gamma(values: list[float]) -> tuple[float, float]:
     return mean * mean / var, var / mean
 
 
+def whitened_offsets(st: StateStatistics, others: list[np.ndarray], xbar: np.ndarray,
+                     n: float) -> tuple[np.ndarray, np.ndarray]:
+    """(u, z): the offsets of the means ``others`` (columns of ``u``) and of ``xbar`` from state
+    ``st``'s mean, whitened by its covariance of an ``n``-cycle mean."""
+    chol = st.whitener(n)
+    u = np.stack([linalg.solve_triangular(chol, m - st.mean, lower=True) for m in others], axis=1)
+    z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - st.mean, lower=True)
+    return u, z
+
+
 def direction_distance2(st: StateStatistics, others: list[np.ndarray], xbar: np.ndarray, n: float) -> float:
     """Squared Mahalanobis distance of a session's mean over ``n`` cycles from state ``st`` along the
     directions to the means ``others`` only (0 when there are none)."""
     if not others:
         return 0.0
-    chol = st.whitener(n)
-    u = np.stack([linalg.solve_triangular(chol, m - st.mean, lower=True) for m in others], axis=1)
+    u, z = whitened_offsets(st, others, xbar, n)
     q, _ = np.linalg.qr(u)
-    z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - st.mean, lower=True)
     return float(np.sum((q.T @ z) ** 2))
 
 
@@ -159,9 +167,7 @@ def candidate_ratio(st: StateStatistics, others: list[np.ndarray], xbar: np.ndar
     Whitened by C it is max_j (z . u_j - |u_j|^2 / 2): one-sided, toward the candidates only."""
     if not others:
         return 0.0
-    chol = st.whitener(n)
-    u = np.stack([linalg.solve_triangular(chol, m - st.mean, lower=True) for m in others], axis=1)
-    z = linalg.solve_triangular(chol, np.asarray(xbar, dtype=float) - st.mean, lower=True)
+    u, z = whitened_offsets(st, others, xbar, n)
     return float(np.max(z @ u - 0.5 * np.sum(u * u, axis=0)))
 
 
