@@ -31,11 +31,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("bench", metavar="BENCH.toml")
     add_plan_arguments(p)
     p.add_argument("--realisations", type=positive_int, default=None,
-                   help="realisations per state, after wear spread over the wear runs (default 12; --quick 4)")
+                   help="realisations per state, after wear spread over the wear runs (default 40; --quick 4)")
     p.add_argument("--cycles", type=positive_int, default=None,
                    help="crank cycles kept per realisation (default 8; --quick 3)")
     p.add_argument("--wear-runs", type=positive_int, default=None,
-                   help="wear runs per case from drawn benches and starts (default 6; --quick 2)")
+                   help="wear runs per case from drawn benches and starts (default 20; --quick 2)")
     p.add_argument("--seed", type=int, default=None, help="first seed (default 1): realisation i uses seed + i")
     p.add_argument("--quick", action="store_true",
                    help="cut-down study for tests: one surface update per stage, 2 wear runs, 4 realisations "

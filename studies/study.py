@@ -91,10 +91,10 @@ class StudyConfig:
     the per-cycle maxima are taken from (None: the model's 20 kHz). Intervals at ``level``."""
 
     plan: StagePlan = field(default_factory=StagePlan)
-    realisations: int = 12
+    realisations: int = 40
     cycles: int = 8
     settle: float = 2.0
-    wear_runs: int = 6
+    wear_runs: int = 20
     seed: int = 1
     output_rate: float | None = None
     level: float = 0.95
