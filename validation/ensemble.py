@@ -29,7 +29,7 @@ from wearbench.validation.filters import parse_filter
 from wearbench.validation.sensor_path import PathSpread
 
 __all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "build_ensembles", "check_ensembles_fit",
-           "ensembles_key", "load_ensembles", "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
+           "ensembles_key", "load_ensembles", "realisation_keys", "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
 
 @dataclass(frozen=True)
 class EnsembleSettings:
@@ -117,6 +117,18 @@ def ensembles_key(bench: Bench, states: Sequence[WearState], speed: float, setti
                     round(speed, 9), asdict(settings))
 
 
+def realisation_keys(bench: Bench, states: Sequence[WearState], speed: float,
+                     settings: EnsembleSettings) -> list[str]:
+    """Result-cache keys of the realisations :func:`build_ensembles` runs, state by state, seed by seed.
+    A realisation is its seed and how it is run: ensembles of other sizes or first seeds share it."""
+    from wearbench.compute import task_key
+
+    physics = bench_key(bench)
+    how = {k: v for k, v in asdict(settings).items() if k not in ("realisations", "seed")}
+    return [task_key("ensemble-realisation", physics, asdict(bench.tolerances), _state_key(state), settings.seed + i,
+                     round(speed, 9), how) for state in states for i in range(settings.realisations)]
+
+
 def shipped_ensembles_path(bench: Bench) -> Path:
     """Where precomputed ensembles of a shipped bench live (``hardware/benches/ensembles/NAME.npz``)."""
     from wearbench.bench.load import BENCH_DIR
@@ -135,7 +147,7 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     go to the compute layer as one batch. A realisation that fails numerically is reported in
     ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
     """
-    from wearbench.compute import Task, TaskFailure, run_tasks, task_key
+    from wearbench.compute import Task, TaskFailure, run_tasks
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
@@ -151,17 +163,13 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
         found = load_ensembles(shipped_ensembles_path(bench), key=ensembles_key(bench, states, speed, settings))
         if found is not None:
             return found
-    physics = bench_key(bench)
-    # a realisation is its seed and how it is run: ensembles of other sizes or first seeds share it
-    how = {k: v for k, v in asdict(settings).items() if k not in ("realisations", "seed")}
     tasks, owners = [], []
+    keys = iter(realisation_keys(bench, states, speed, settings))
     for state in states:
         for i in range(settings.realisations):
             seed = settings.seed + i
-            key = task_key("ensemble-realisation", physics, asdict(bench.tolerances), _state_key(state), seed,
-                           round(speed, 9), how)
             tasks.append(Task(realisation_summary, {"bench": bench, "state": state, "seed": seed, "speed": speed,
-                                                    "settings": settings}, key, f"{state.name} #{i}"))
+                                                    "settings": settings}, next(keys), f"{state.name} #{i}"))
             owners.append(state.name)
     results = run_tasks(tasks, scheduler=scheduler, workers=workers, cache=cache, progress=progress)
     out: dict[str, Ensemble] = {}

@@ -64,6 +64,11 @@ def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, 
     ran = []
     real = module.realisation_summary
     monkeypatch.setattr(module, "realisation_summary", lambda *a, **k: ran.append(k["seed"]) or real(*a, **k))
+    # realisation_keys names the cache entries the build reads: only seed 0's is missing
+    from wearbench.compute.task_cache import MISSING, cache_load
+
+    keys = module.realisation_keys(BENCH, [state], BENCH.speed, replace(settings, realisations=4, seed=0))
+    assert [cache_load(k) is MISSING for k in keys] == [True, False, False, False]
     wider = build_ensembles(BENCH, [state], settings=replace(settings, realisations=4, seed=0), workers=0,
                             progress=None)[state.name]
     assert ran == [0]
