@@ -302,7 +302,8 @@ def test_a_planted_move_from_new_to_worn_is_measured_and_track_given_it_recovers
     error, and says that error; two sessions (0 and 200k) of a bench worn 1.3x the
     file's, their cycle means exactly the model's plus m, give a factor well below 1.3 without the
     move and 1.3 with it."""
-    from wearbench.validation.track import life_move, track_features
+    from wearbench.validation.track import track_features
+    from wearbench.validation.track_move import life_move
 
     rng = np.random.default_rng(13)
     c, runs = 0.4e-3, np.array([0.0, 1e5, 2e5])
@@ -313,7 +314,8 @@ def test_a_planted_move_from_new_to_worn_is_measured_and_track_given_it_recovers
         xbars = np.stack([true_mean(c, 1.3 * n) + offset + (n > 0) * m + rng.normal(0.0, np.sqrt(SW / 20), P)
                           for n in runs])
         lives.append((xbars, runs, c, 1.3))
-    mean, cov = life_move(model, lives)
+    move = life_move(model, lives)
+    mean, cov = move.mean, move.covariance
     se = np.sqrt((SW / 20 + SW / 40) / 12)  # the new session's and the two worn sessions' noise, over 12 lives
     error = lambda n: true_mean(c, n) - model.mean(c, n)
     target = m + np.mean([error(1.3 * n) for n in runs[1:]], axis=0) - error(0.0)
@@ -323,13 +325,13 @@ def test_a_planted_move_from_new_to_worn_is_measured_and_track_given_it_recovers
     feats = [CycleFeatures(SPEC, np.repeat((true_mean(c, 1.3 * n) + (n > 0) * m)[None], 20, axis=0), np.zeros(20))
              for n in two]
     plain = track_features(feats, two, model, coefficient=5.2e-14)
-    moved = track_features(feats, two, model, coefficient=5.2e-14, move=(mean, cov))
+    moved = track_features(feats, two, model, coefficient=5.2e-14, move=move)
     assert plain.factor.median < 1.0 and not plain.factor.contains(1.3, 50)
     assert moved.factor.median == pytest.approx(1.3, abs=0.1) and moved.factor.contains(1.3, 50)
     said = lambda t: any("rests on the change from new" in note for note in t.notes)
     assert said(plain) and not said(moved)
     with pytest.raises(ValueError, match="drift=False"):
-        track_features(feats, two, model, coefficient=5.2e-14, move=(mean, cov), drift=False)
+        track_features(feats, two, model, coefficient=5.2e-14, move=move, drift=False)
     with pytest.raises(ValueError, match="a session at 0"):
         life_move(model, [(lives[0][0][1:], runs[1:], c, 1.3)] * 2)
     with pytest.raises(ValueError, match="at least three"):
