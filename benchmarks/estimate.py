@@ -312,6 +312,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
     from scipy import stats
     from wearbench.compute import Task, TaskFailure, run_tasks
     from wearbench.compute.task_cache import MISSING, cache_load
+    from wearbench.validation.statistics import shrunk_covariance
     from wearbench.validation.track import session_covariances, wear_drift
     from wearbench.validation.track_move import life_move, save_move
 
@@ -319,7 +320,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
     kinds = {"default": False, "drawn": True}
     shared, own = session_covariances(model)
     weight = np.linalg.inv(shared + model.stats[model.reference].within / 20 + own + wear_drift(model))
-    pooled, about, per_kind = [], {"sensor_paths": [], "seeds": [], "clearances": []}, {}
+    pooled, about, per_kind, kind_seeds = [], {"sensor_paths": [], "seeds": [], "clearances": []}, {}, []
     for kind in args.move_from.split(","):
         if kind not in kinds:
             raise SystemExit(f"--move-from {args.move_from!r}: {kind!r}: expected default or drawn")
@@ -341,16 +342,23 @@ def store_move(bench, model, lives, life_key, args) -> None:
         pooled += rows
         about["sensor_paths"].append("drawn mounts" if kinds[kind] else "default path")
         about["seeds"] += [s for (_, s), _ in done]
+        kind_seeds.append([s for (_, s), _ in done])
         about["clearances"] += [c for (c, _), _ in done]
-    if len(per_kind) == 2:
-        a, b = per_kind.values()
-        d = a.mean - b.mean
-        t2 = float(d @ np.linalg.solve(a.covariance + b.covariance, d))
-        print(f"the two kinds' moves differ by T^2 = {t2:.1f} over {d.size} features (chi-square p "
-              f"{stats.chi2.sf(t2, d.size):.2g})")
+    if len(per_kind) == 2 and len({tuple(seeds) for seeds in kind_seeds}) == 1:
+        a, b = per_kind.values()  # paired by seed: one seed's two lives are one bench, clearance and wear run
+        diff = a.rows - b.rows
+        d = diff.mean(axis=0)
+        t2 = float(d @ np.linalg.solve(shrunk_covariance(diff) / len(diff), d))
+        same = [np.corrcoef(a.rows[:, k], b.rows[:, k])[0, 1] for k in range(d.size)]
+        print(f"the two kinds' moves differ (paired by seed) by T^2 = {t2:.1f} over {d.size} features (chi-square p "
+              f"{stats.chi2.sf(t2, d.size):.2g}); one seed's two lives (one bench seen through two sensor paths) "
+              f"correlate {np.median(same):.2f} (median over features)")
+    # a seed is one drawn bench (its tolerances, clearance and wear run): its lives through the two path kinds
+    # are one bench seen twice, averaged before the move's error is taken (life_move's benches)
     move = life_move(model, pooled, {"bench": bench.name, **about, "factor": args.life_factor, "sessions": every,
                                      "cycles": args.life_cycles,
-                                     "measured_by": "benchmarks/estimate.py --store-move --move-from " + args.move_from})
+                                     "measured_by": "benchmarks/estimate.py --store-move --move-from " + args.move_from},
+                     benches=about["seeds"])
     save_move(move, args.store_move)
     print(f"stored: {args.store_move}: move from new to worn {move.describe()}")
 

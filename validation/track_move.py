@@ -54,7 +54,10 @@ class Move:
         seed_text = f"seeds {min(seeds)}-{max(seeds)}" if seeds else "unstated seeds"
         factor = a.get("factor")
         sessions = "/".join(f"{n / 1e3:.0f}k" for n in a.get("sessions", []))
-        return (f"measured on {self.rows.shape[0]} simulated lives ({paths}; {seed_text}; wear factor "
+        benches = a.get("benches", self.rows.shape[0])
+        lives = f"{self.rows.shape[0]} simulated lives" + (f" of {benches} benches" if benches != self.rows.shape[0]
+                                                            else "")
+        return (f"measured on {lives} ({paths}; {seed_text}; wear factor "
                 f"{factor if factor is not None else '?'} x the file's; sessions at {sessions or '?'} cycles run, "
                 f"{a.get('cycles', '?')} cycles each)" + (f", {self.path}" if self.path else ""))
 
@@ -65,11 +68,14 @@ class Move:
 
 
 def life_move(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[float], float, float]],
-              about: Mapping | None = None) -> Move:
+              about: Mapping | None = None, benches: Sequence | None = None) -> Move:
     """The move measured on lives whose truth is known: each ``(session means (S, p), cycles run (S,),
     initial clearance, wear factor)`` with a session at 0 cycles and at least one worn. Per life, the
     worn sessions' mean residual at the truth less the new session's; the mean over the lives, and its
-    covariance the lives' shrunk covariance / their number. ``about``: what the lives are (see :class:`Move`)."""
+    covariance the lives' shrunk covariance / their number. ``benches``: each life's bench (lives of one
+    drawn bench seen through different sensor paths are not independent): the lives of a bench are
+    averaged first, and the mean and its covariance taken over the benches. ``about``: what the lives
+    are (see :class:`Move`)."""
     rows = []
     for xbars, runs, clearance, factor in lives:
         runs = np.asarray(runs, float)
@@ -78,11 +84,15 @@ def life_move(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[
         r = np.asarray(xbars, float) - model.mean(np.full(runs.shape, clearance), factor * runs)
         rows.append(r[runs > 0].mean(axis=0) - r[runs == 0].mean(axis=0))
     rows = np.asarray(rows)
-    if rows.shape[0] < 3:
-        raise ValueError(f"life_move: {rows.shape[0]} lives: at least three are needed (the mean's covariance is "
-                         "their spread)")
-    return Move(rows.mean(axis=0), shrunk_covariance(rows) / rows.shape[0], model.estimator.key, rows,
-                dict(about or {}))
+    ids = list(range(len(rows))) if benches is None else list(benches)
+    if len(ids) != len(rows):
+        raise ValueError(f"life_move: {len(ids)} benches for {len(rows)} lives: expected one per life")
+    per = np.stack([rows[[i for i, b in enumerate(ids) if b == u]].mean(axis=0) for u in dict.fromkeys(ids)])
+    if per.shape[0] < 3:
+        raise ValueError(f"life_move: {per.shape[0]} lives (benches): at least three are needed (the mean's "
+                         "covariance is their spread)")
+    return Move(per.mean(axis=0), shrunk_covariance(per) / per.shape[0], model.estimator.key, rows,
+                {**dict(about or {}), "benches": int(per.shape[0])})
 
 
 def move_path(estimator_path: str | Path) -> Path:

@@ -61,10 +61,14 @@ def test_a_move_stored_beside_its_estimator_is_loaded_with_it_and_track_uses_it(
     est = load_estimator(path)
     assert est.path == path
     stored = stored_move(est)
-    assert stored.estimator == est.key and stored.path == str(move_path(path)) and stored.about == about
+    assert stored.estimator == est.key and stored.path == str(move_path(path)) and stored.about == {**about, "benches": 12}
     assert np.array_equal(stored.mean, measured.mean) and np.array_equal(stored.covariance, measured.covariance)
     assert stored.rows.shape == (12, P)
     assert "12 simulated lives (default path; seeds 500-511; wear factor 1.3" in stored.describe()
+    # lives of one bench through two sensor paths count once in the move's error, not twice
+    twice = life_move(model, lives + lives, about, benches=list(range(12)) * 2)
+    assert np.allclose(twice.mean, measured.mean) and np.allclose(twice.covariance, measured.covariance)
+    assert twice.rows.shape == (24, P) and "24 simulated lives of 12 benches" in twice.describe()
 
     plain = track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14)
     moved = track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14, move=stored)
@@ -127,15 +131,16 @@ def test_track_uses_the_stored_move_unless_told_not_to(model, sessions, tmp_path
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
 def test_the_estimator_command_measures_and_stores_the_move_on_simulated_lives(tmp_path, monkeypatch, capsys):
-    """A tiny design (2 clearances x 0 and 200k cycles, 3 realisations of 2 cycles) and 3 lives of 2
-    cycles per session, in this process: the move is stored beside the estimator, keyed to it and saying
+    """A tiny design (2 clearances x 0 and 200k cycles, 3 realisations of 2 cycles) and 3 lives of 1
+    cycle per session, in this process: the move is stored beside the estimator, keyed to it and saying
     what it was measured on; a second run keeps the estimator and refuses the existing move."""
     monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "tiny.npz"
     args = ["estimator", "ninebar-testbed", "--design-clearances", "0.3mm,0.5mm", "--design-cycles", "0,200000",
             "--realisations", "3", "--ensemble-cycles", "2", "--out", str(out), "--workers", "0",
-            "--lives", "3", "--life-cycles", "2", "--life-seed", "700"]
+            "--lives", "3", "--life-cycles", "1", "--life-seed", "700"]
     assert main(args) == 0
     text = capsys.readouterr().out
     est = load_estimator(out)
@@ -149,3 +154,15 @@ def test_the_estimator_command_measures_and_stores_the_move_on_simulated_lives(t
     before = out.stat().st_mtime_ns
     assert main(args) == 2  # the move exists: refused, the estimator kept as it was
     assert "tiny.move.npz" in capsys.readouterr().err and out.stat().st_mtime_ns == before
+
+
+def test_the_shipped_move_belongs_to_the_shipped_estimator():
+    """The test bed's move ships beside its estimator (in the wheel: benches/estimators/*.npz), keyed to
+    that file's key; rebuilding the estimator means measuring the move again (README, track)."""
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.validation.estimate import shipped_estimator_path
+
+    est = load_estimator(shipped_estimator_path(load_bench(shipped_bench("ninebar-testbed"))))
+    move = stored_move(est)
+    assert move is not None and move.estimator == est.key and move.mean.shape == (est.features.shape[-1],)
+    assert move.about["factor"] == 1.3 and move.about["benches"] >= 20
