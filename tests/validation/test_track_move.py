@@ -50,6 +50,32 @@ def two_sessions(m) -> list[CycleFeatures]:
             for n in (0.0, 2e5)]
 
 
+def test_a_planted_move_is_measured_to_its_standard_error_and_track_given_it_recovers_the_factor(model):
+    """life_move measures the planted m plus the estimator's own error of the change from new (true less
+    emulated mean) to its standard error, and says that error; two sessions (0 and 200k) of a bench worn
+    1.3x the file's, their cycle means exactly the model's plus m, give a factor well below 1.3 without
+    the move and 1.3 with it."""
+    m, lives = planted(model, np.random.default_rng(13))
+    move = life_move(model, lives)
+    se = np.sqrt((SW / 20 + SW / 40) / 12)  # the new session's and the two worn sessions' noise, over 12 lives
+    error = lambda n: true_mean(C, n) - model.mean(C, n)
+    target = m + np.mean([error(1.3 * n) for n in RUNS[1:]], axis=0) - error(0.0)
+    assert np.sqrt(np.mean((move.mean - target) ** 2)) == pytest.approx(se, rel=0.35)
+    assert np.sqrt(np.median(np.diag(move.covariance))) == pytest.approx(se, rel=0.35)
+    plain = track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14)
+    moved = track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14, move=move)
+    assert plain.factor.median < 1.0 and not plain.factor.contains(1.3, 50)
+    assert moved.factor.median == pytest.approx(1.3, abs=0.1) and moved.factor.contains(1.3, 50)
+    with pytest.raises(ValueError, match="drift=False"):
+        track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14, move=move, drift=False)
+    with pytest.raises(ValueError, match="a session at 0"):
+        life_move(model, [(lives[0][0][1:], RUNS[1:], C, 1.3)] * 3)
+    with pytest.raises(ValueError, match="at least three"):
+        life_move(model, lives[:2])
+    with pytest.raises(ValueError, match="at least three"):  # six lives of two benches
+        life_move(model, lives[:6], benches=[0, 1] * 3)
+
+
 def test_a_move_stored_beside_its_estimator_is_loaded_with_it_and_track_uses_it(model, tmp_path):
     m, lives = planted(model, np.random.default_rng(13))
     about = {"sensor_paths": ["default path"], "seeds": list(range(500, 512)), "factor": 1.3,
@@ -72,8 +98,8 @@ def test_a_move_stored_beside_its_estimator_is_loaded_with_it_and_track_uses_it(
 
     plain = track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14)
     moved = track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14, move=stored)
-    assert plain.factor.median < 1.0 and not plain.factor.contains(1.3, 50)
-    assert moved.factor.median == pytest.approx(1.3, abs=0.1) and moved.factor.contains(1.3, 50)
+    direct = track_features(two_sessions(m), [0.0, 2e5], model, coefficient=5.2e-14, move=measured)
+    assert moved.factor == direct.factor and plain.factor.median < 1.0 < moved.factor.median
     assert plain.move is None and moved.move["lives"] == 12 and moved.move["file"] == str(move_path(path))
     said = lambda t: any("no measured move from new to worn" in note for note in t.notes)
     assert said(plain) and not said(moved)
