@@ -364,11 +364,16 @@ def store_move(bench, model, lives, life_key, args) -> None:
 
 
 def _held_out(move, lives, args) -> str:
-    """Whether the scored lives are outside the lives ``move`` was measured on (seed and path kind)."""
-    kind = "drawn mounts" if args.sensor_paths else "default path"
-    seeds = set(move.about.get("seeds", [])) if kind in move.about.get("sensor_paths", []) else set()
+    """Whether the scored lives are outside the lives ``move`` was measured on: their seeds (a seed is
+    one drawn bench, clearance and wear run) and their sensor path kind."""
+    seeds = set(move.about.get("seeds", []))
     overlap = sum(s in seeds for _, s in lives)
-    return "held out" if not overlap else f"measured on {overlap} of these {len(lives)} lives: NOT held out"
+    if not overlap:
+        return "held out (other benches)"
+    kind = "drawn mounts" if args.sensor_paths else "default path"
+    if kind not in move.about.get("sensor_paths", []):
+        return f"{overlap} of these {len(lives)} benches measured through another sensor path: held out by path only"
+    return f"measured on {overlap} of these {len(lives)} lives: NOT held out"
 
 
 def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -> None:
