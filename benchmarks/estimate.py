@@ -399,7 +399,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     means = [np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]) for _, r in good]
     half = len(good) // 2
     halves = [range(half, len(good)), range(half)]  # life i is scored with the move of the other half
-    moves = [life_move(model, [(means[i], every, good[i][0][0], args.life_factor) for i in part]) for part in halves]
+    moves = [life_move(model, [(means[i], every, good[i][0][0], args.life_factor) for i in part]) for part in halves
+             ] if half >= 3 else []  # each half's move needs three lives
     ratios = []
     for (c, _), r in good:  # the truth's depth against the estimator's trajectory at the same effective cycles
         i = int(np.argmin(np.abs(model.grid_c - c)))
@@ -414,7 +415,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     for subset in args.life_sessions:
         idx = [round(n / args.life_step) for n in subset]
         cycles_run = [every[k] for k in idx]
-        names = ["no move", "move, other half"] + ["stored move"] * (stored is not None) + ["offset constant"] * (len(idx) == 5)
+        names = (["no move"] + ["move, other half"] * bool(moves) + ["stored move"] * (stored is not None)
+                 + ["offset constant"] * (len(idx) == 5))
         for name in names:
             rows = []
             for j, ((c, seed), r) in enumerate(good):
