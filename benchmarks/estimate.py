@@ -15,8 +15,12 @@ prior, its own seed) worn with a coefficient ``--life-factor`` (1.3) times the f
 fitted factor's 90 % interval against the truth, and the cycles until a clearance limit the truth
 reaches at 500k cycles (its wear run goes one step further) against the track's cycles-to-limit
 interval; ``--life-sessions 0,200k`` (repeatable) tracks that subset of each life's sessions. Each
-subset is tracked as shipped and with the bench's move from new to worn beyond the estimator's
-(``track.life_move``) measured on the other half of the lives, never on the life scored.
+subset is tracked without a move, with the bench's move from new to worn beyond the estimator's
+(``track_move.life_move``) measured on the other half of the lives (never on the life scored), and
+with the move stored beside the shipped estimator (``--shipped``; or ``--move FILE``), which ``track``
+uses by default (the table says whether it was measured on the lives scored).
+``--store-move FILE --move-from default,drawn`` measures the move on the lives of those path kinds
+(this run's seeds) and stores it: how the shipped one was made (``--cached-only``: from the cache).
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
 wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
@@ -41,67 +45,7 @@ import tempfile
 import time
 
 import numpy as np
-
-
-def truth_features(bench, clearance: float, cycles_run: float, seed: int, cycles: int, spread: bool,
-                   files: dict | None = None) -> dict:
-    """One truth's cycle features through the sensor chain (a compute-layer task); ``files``: worn
-    surfaces to use instead of a wear run of ``cycles_run``."""
-    from pathlib import Path
-
-    from wearbench.acquisition.layout import clip_level
-    from wearbench.bench.schema import WearState
-    from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
-    from wearbench.hardware.emulators.sensor import SensorChain
-    from wearbench.model.realisation import simulate_state
-    from wearbench.model.wear_stages import StagePlan, run_stages
-    from wearbench.validation.features import FeatureSpec, cycle_features
-
-    joints = [j.name for j in bench.clearance_joints]
-    files, depth = dict(files or {}), 0.0
-    with tempfile.TemporaryDirectory() as tmp:
-        if cycles_run > 0:
-            run = run_stages(bench, StagePlan.from_bench(bench, stages=1, stage_cycles=cycles_run),
-                             clearances=dict.fromkeys(joints, clearance))
-            for j, s in run.final.items():
-                files[j] = s.save(Path(tmp) / f"{j}.npz")
-                depth = max(depth, sum(s.max_depth))
-        acc = EmulatorConfig.from_bench(bench).accelerometer
-        if spread:
-            acc = SensorSpread().draw(acc, seed)
-        sensor = bench.sensor("accelerometer")
-        chain = SensorChain(acc, sensor.sample_rate, sensor.range, np.random.default_rng([seed, 7]))
-        state = WearState("truth", dict.fromkeys(joints, clearance), files)
-        run = simulate_state(bench, state, seed, revolutions=cycles + 1.0, settle=2.0,
-                             output_rate=chain.internal_rate)
-    m = chain.oversample
-    samples = chain.process(run.acc)
-    t, crank = run.t[m - 1::m], run.crank[m - 1::m]
-    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), clip_level=clip_level(sensor.range))
-    return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance}
-
-
-def life_features(bench, clearance: float, factor: float, step: float, stages: int, seed: int, cycles: int,
-                  spread: bool) -> dict:
-    """One simulated life (a compute-layer task): the bench worn from ``clearance`` with ``factor`` x
-    the file's wear coefficient through ``stages`` stages of ``step`` cycles; a session of ``cycles``
-    through the sensor chain at 0 and after every stage but the last; the truth's depth after each."""
-    from dataclasses import replace
-    from pathlib import Path
-
-    from wearbench.model.wear_stages import StagePlan, run_stages
-
-    joints = [j.name for j in bench.clearance_joints]
-    plan = StagePlan.from_bench(bench, stages=stages, stage_cycles=step)
-    run = run_stages(bench, replace(plan, coefficient=bench.wear.coefficient * factor),
-                     clearances=dict.fromkeys(joints, clearance))
-    depth = [0.0] + [max(sum(s.max_depth) for s in st.surfaces.values()) for st in run.stages]
-    feats = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for k in range(stages):  # sessions at 0 and after stages 1 .. stages-1
-            files = {j: s.save(Path(tmp) / f"{j}_{k}.npz") for j, s in run.stages[k - 1].surfaces.items()} if k else {}
-            feats.append(truth_features(bench, clearance, 0.0, seed, cycles, spread, files=files)["features"])
-    return {"features": feats, "depth": depth}
+from wearbench.testing.lives import life_features, truth_features
 
 
 def parse_cycles(text: str) -> float:
@@ -132,6 +76,12 @@ def main() -> None:
     ap.add_argument("--life-sessions", action="append", type=lambda v: [parse_cycles(x) for x in v.split(",")],
                     help="a subset of each life's sessions to track, e.g. 0,200k (repeatable; default all five)")
     ap.add_argument("--verbose-lives", action="store_true", help="print every life's track")
+    ap.add_argument("--move", metavar="FILE.move.npz", help="score this stored move on the lives (default: the one "
+                    "stored beside the shipped estimator, with --shipped)")
+    ap.add_argument("--store-move", metavar="FILE.move.npz", help="measure the move on the lives of --move-from "
+                    "(this run's seeds; with --cached-only, those in the cache) and store it (never over a file)")
+    ap.add_argument("--move-from", default="default,drawn", help="path kinds whose lives --store-move pools: "
+                    "default, drawn or default,drawn (default,drawn)")
     ap.add_argument("--shipped", action="store_true", help="use the shipped estimator when its key matches the design")
     ap.add_argument("--cached-only", action="store_true",
                     help="use only the truths and lives an earlier (interrupted) run left in --cache; say how many")
@@ -145,6 +95,8 @@ def main() -> None:
                for n in subset) or len(set(subset)) < 2:
             ap.error(f"--life-sessions {subset}: expected two or more of the lives' sessions, 0 to "
                      f"{4 * args.life_step:,.0f} in steps of {args.life_step:,.0f}")
+    if args.store_move and os.path.exists(args.store_move):
+        ap.error(f"--store-move {args.store_move}: exists; expected a new file (remove it to measure again)")
     os.environ["WEARBENCH_CACHE"] = args.cache or tempfile.mkdtemp(prefix="wearbench-estimate-")
 
     from wearbench.bench.load import load_bench, shipped_bench
@@ -157,6 +109,7 @@ def main() -> None:
         fit_estimator,
     )
     from wearbench.validation.features import CycleFeatures, FeatureSpec
+    from wearbench.validation.track_move import load_move, stored_move
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     design = EstimatorDesign.small() if args.small else EstimatorDesign.parse(
@@ -173,9 +126,10 @@ def main() -> None:
     def truth_key(c, n, s):
         return task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths)
 
-    def life_key(c, s):
-        return task_key("estimate-life", c, args.life_factor, args.life_step, s, args.life_cycles, args.sensor_paths)
+    def life_key(c, s, spread=args.sensor_paths):
+        return task_key("estimate-life", c, args.life_factor, args.life_step, s, args.life_cycles, spread)
 
+    lives_asked = list(lives)
     if args.cached_only:  # what an interrupted run finished (the draws are the same for every size)
         asked = (len(truths), len(at_truths), len(lives))
         truths = [t for t in truths if cache_load(truth_key(*t)) is not MISSING]
@@ -263,8 +217,11 @@ def main() -> None:
               f"{np.median([e.cycles_run.hi90 for *_, e in at]):,.0f}")
         information(model, [t[0] for t, _, _ in at], args.at)
         recording(model, [t[0] for t, _, _ in at], args.at)
+    if args.store_move:
+        store_move(bench, model, lives_asked, life_key, args)
     if lives:
-        report_lives(bench, model, lives, life_runs, args, t_lives)
+        stored = load_move(args.move, model.estimator) if args.move else stored_move(est)
+        report_lives(bench, model, lives, life_runs, args, t_lives, stored)
 
 
 def information(model, clearances, at: float) -> None:
@@ -345,15 +302,91 @@ def recording(model, clearances, at: float) -> None:
         print(f"{name:45s}  " + "  ".join(cells))
 
 
-def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
+def store_move(bench, model, lives, life_key, args) -> None:
+    """Measure the move from new to worn (``track_move.life_move``) on the lives of the --move-from
+    path kinds (this run's seeds; cached ones only with --cached-only), store it at --store-move, and
+    print how the kinds' moves compare: along the direction that tells the factor (the estimator's
+    change from new to 1.3 x 200k cycles at each life's clearance, weighted by one 20-cycle session's
+    inverse covariance with the drift; in units of that change) and overall (Hotelling's T^2 of the
+    difference, against its chi-square with p degrees of freedom)."""
+    from scipy import stats
+    from wearbench.compute import Task, TaskFailure, run_tasks
+    from wearbench.compute.task_cache import MISSING, cache_load
+    from wearbench.validation.statistics import shrunk_covariance
+    from wearbench.validation.track import session_covariances, wear_drift
+    from wearbench.validation.track_move import life_move, save_move
+
+    every = [k * args.life_step for k in range(5)]
+    kinds = {"default": False, "drawn": True}
+    shared, own = session_covariances(model)
+    weight = np.linalg.inv(shared + model.stats[model.reference].within / 20 + own + wear_drift(model))
+    pooled, about, per_kind, kind_seeds = [], {"sensor_paths": [], "seeds": [], "clearances": []}, {}, []
+    for kind in args.move_from.split(","):
+        if kind not in kinds:
+            raise SystemExit(f"--move-from {args.move_from!r}: {kind!r}: expected default or drawn")
+        chosen = [(c, s) for c, s in lives if not args.cached_only or cache_load(life_key(c, s, kinds[kind])) is not MISSING]
+        runs = run_tasks([Task(life_features, {"bench": bench, "clearance": c, "factor": args.life_factor,
+                                               "step": args.life_step, "stages": 5, "seed": s,
+                                               "cycles": args.life_cycles, "spread": kinds[kind]},
+                               life_key(c, s, kinds[kind]), f"life {s}") for c, s in chosen], progress=f"lives, {kind}")
+        done = [((c, s), r) for (c, s), r in zip(chosen, runs, strict=True) if not isinstance(r, TaskFailure)]
+        rows = [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), every, c, args.life_factor)
+                for (c, _), r in done]
+        per_kind[kind] = life_move(model, rows)
+        along = []
+        for xbars, _, c, f in rows:
+            g = model.mean(c, f * 2 * args.life_step) - model.mean(c, 0.0)
+            along.append(float(per_kind[kind].rows[len(along)] @ weight @ g / (g @ weight @ g)))
+        print(f"move, {kind} path: {len(rows)} lives; along the change from new to {args.life_factor * 2 * args.life_step:,.0f}"
+              f" effective cycles: {np.mean(along):+.3f} (se {np.std(along, ddof=1) / np.sqrt(len(along)):.3f}) of it")
+        pooled += rows
+        about["sensor_paths"].append("drawn mounts" if kinds[kind] else "default path")
+        about["seeds"] += [s for (_, s), _ in done]
+        kind_seeds.append([s for (_, s), _ in done])
+        about["clearances"] += [c for (c, _), _ in done]
+    if len(per_kind) == 2 and len({tuple(seeds) for seeds in kind_seeds}) == 1:
+        a, b = per_kind.values()  # paired by seed: one seed's two lives are one bench, clearance and wear run
+        diff = a.rows - b.rows
+        d = diff.mean(axis=0)
+        t2 = float(d @ np.linalg.solve(shrunk_covariance(diff) / len(diff), d))
+        same = [np.corrcoef(a.rows[:, k], b.rows[:, k])[0, 1] for k in range(d.size)]
+        print(f"the two kinds' moves differ (paired by seed) by T^2 = {t2:.1f} over {d.size} features (chi-square p "
+              f"{stats.chi2.sf(t2, d.size):.2g}); one seed's two lives (one bench seen through two sensor paths) "
+              f"correlate {np.median(same):.2f} (median over features)")
+    # a seed is one drawn bench (its tolerances, clearance and wear run): its lives through the two path kinds
+    # are one bench seen twice, averaged before the move's error is taken (life_move's benches)
+    move = life_move(model, pooled, {"bench": bench.name, **about, "factor": args.life_factor, "sessions": every,
+                                     "cycles": args.life_cycles,
+                                     "measured_by": "benchmarks/estimate.py --store-move --move-from " + args.move_from},
+                     benches=about["seeds"])
+    save_move(move, args.store_move)
+    print(f"stored: {args.store_move}: move from new to worn {move.describe()}")
+
+
+def _held_out(move, lives, args) -> str:
+    """Whether the scored lives are outside the lives ``move`` was measured on: their seeds (a seed is
+    one drawn bench, clearance and wear run) and their sensor path kind."""
+    seeds = set(move.about.get("seeds", []))
+    overlap = sum(s in seeds for _, s in lives)
+    if not overlap:
+        return "held out (other benches)"
+    kind = "drawn mounts" if args.sensor_paths else "default path"
+    if kind not in move.about.get("sensor_paths", []):
+        return f"{overlap} of these {len(lives)} benches measured through another sensor path: held out by path only"
+    return f"measured on {overlap} of these {len(lives)} lives: NOT held out"
+
+
+def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -> None:
     """Coverage of the track's wear factor, cycles to a limit and initial clearance over the simulated
-    lives, for every --life-sessions subset of their sessions: as track gives them, and with the
-    bench's move from new to worn beyond the estimator's measured on the other half of the lives
-    (``track.life_move``; lives split by their order, first half and second half, each scored with
-    the move of the other), so no life is scored with a term measured on it."""
+    lives, for every --life-sessions subset of their sessions: without a move (as track gave them before
+    a move was stored), with the bench's move from new to worn beyond the estimator's measured on the
+    other half of the lives (``track_move.life_move``; lives split by their order, first half and second
+    half, each scored with the move of the other), so no life is scored with a term measured on it, and
+    with the ``stored`` move (track's default; said whether it was measured on these lives)."""
     from wearbench.compute import TaskFailure
     from wearbench.validation.features import CycleFeatures, FeatureSpec
-    from wearbench.validation.track import _depth_curve, life_move, track_features
+    from wearbench.validation.track import _depth_curve, track_features
+    from wearbench.validation.track_move import life_move
 
     n_curve, d_curve = _depth_curve(model)
     good = [((c, seed), r) for (c, seed), r in zip(lives, runs, strict=True) if not isinstance(r, TaskFailure)]
@@ -366,7 +399,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
     means = [np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]) for _, r in good]
     half = len(good) // 2
     halves = [range(half, len(good)), range(half)]  # life i is scored with the move of the other half
-    moves = [life_move(model, [(means[i], every, good[i][0][0], args.life_factor) for i in part]) for part in halves]
+    moves = [life_move(model, [(means[i], every, good[i][0][0], args.life_factor) for i in part]) for part in halves
+             ] if half >= 3 else []  # each half's move needs three lives
     ratios = []
     for (c, _), r in good:  # the truth's depth against the estimator's trajectory at the same effective cycles
         i = int(np.argmin(np.abs(model.grid_c - c)))
@@ -374,17 +408,21 @@ def report_lives(bench, model, lives, runs, args, seconds: float) -> None:
                        for k in range(1, 6)])
     print(f"\n{len(good)} lives ({seconds:.0f} s), wear factor {args.life_factor}, {args.life_cycles} cycles per session; "
           "90 % (50 %) coverage; factor ranks: the posterior CDF at the truth, 5 bins (flat when calibrated)")
+    if stored is not None:
+        print(f"stored move {stored.describe()}: {_held_out(stored, [life for life, _ in good], args)}")
     print("sessions at (k cycles)   track             factor 90 (50)   to limit 90 (50)   clearance 90 (50)   "
           "clearance error   factor interval   factor ranks")
     for subset in args.life_sessions:
         idx = [round(n / args.life_step) for n in subset]
         cycles_run = [every[k] for k in idx]
-        for name in ("as is", "move, other half", "offset constant") if len(idx) == 5 else ("as is", "move, other half"):
+        names = (["no move"] + ["move, other half"] * bool(moves) + ["stored move"] * (stored is not None)
+                 + ["offset constant"] * (len(idx) == 5))
+        for name in names:
             rows = []
             for j, ((c, seed), r) in enumerate(good):
                 limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)
                 feats = [CycleFeatures(FeatureSpec(), r["features"][k], np.zeros(len(r["features"][k]))) for k in idx]
-                kw = {"move": moves[int(j < half)]} if name.startswith("move") else {}
+                kw = {"move": moves[int(j < half)]} if name.startswith("move") else {"move": stored} if name == "stored move" else {}
                 t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit,
                                    drift=name != "offset constant", **kw)
                 m, truth, post_k = t.cycles_to_limit, 5 * args.life_step, t.factor

@@ -2,7 +2,10 @@
 
 ``estimate`` builds the estimator on demand (cached by content); this command builds it ahead of time
 (e.g. on a cluster, ``--scheduler``) and saves it to one file that ``estimate --estimator`` reads, or
-where a shipped bench's precomputed estimator lives (``--ship``, maintainers).
+where a shipped bench's precomputed estimator lives (``--ship``, maintainers). ``--lives N`` also
+measures the benches' move from new to worn beyond the estimator's on N simulated lives and stores
+it beside the file (``validation/track_move.py``), which ``track`` uses by default: here, because the
+move belongs to one estimator (keyed to it) and is built, like it, once per bench on the compute layer.
 """
 
 from __future__ import annotations
@@ -45,6 +48,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ship", action="store_true",
                    help="save where wearbench looks for a shipped bench's precomputed estimator, replacing it "
                    "(maintainers)")
+    p.add_argument("--lives", type=positive_int, metavar="N",
+                   help="also simulate N lives of the bench (known truth, sessions at five cycles-run values) on the "
+                   "compute layer and store the benches' move from new to worn beyond the estimator's beside it "
+                   "(FILE.move.npz), which 'wearbench track' then uses; an --out that already holds this design's "
+                   "estimator is kept as it is (about 90 s of CPU per life; 20 or more)")
+    p.add_argument("--life-factor", type=float, default=1.3,
+                   help="the lives' wear coefficient / the bench file's (1.3; up to 1.5)")
+    p.add_argument("--life-sensor-paths", action="store_true",
+                   help="draw each life's sensor path (a mount or carriage mode and sensitivity) instead of the "
+                   "bench file's emulated one")
+    p.add_argument("--life-cycles", type=positive_int, default=20,
+                   help="cycles per session of a life (20; as many as the lab's sessions hold)")
+    p.add_argument("--life-seed", type=int, default=100_000, help="first life's seed (100000)")
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
@@ -56,20 +72,39 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.bench.output_file import check_output, output_file
     from wearbench.validation.estimate import (
         build_estimator,
+        estimator_key,
+        load_estimator,
         save_estimator,
         shipped_estimator_path,
     )
+    from wearbench.validation.track_move import move_path, save_move
 
     bench = load_bench(resolve_bench(args.bench))
     design = design_from_args(args)
     out = shipped_estimator_path(bench) if args.ship else Path(args.out or f"{bench.name}-estimator.npz")
     force = args.force or args.ship  # --ship refreshes the package's own file
-    check_output(out, force=force)  # refused before the design is simulated
-    est = build_estimator(bench, design, shipped=False, **compute_options(args, bench))
-    with output_file(out, force=force) as tmp:
-        save_estimator(est, tmp)
+    key = estimator_key(bench, design, bench.speed)
+    kept = load_estimator(out, key=key) if args.lives and out.is_file() else None
+    if kept is None:
+        check_output(out, force=force)  # refused before the design is simulated
+    if args.lives:
+        check_output(move_path(out), force=force, option="--lives")
+    est = kept or build_estimator(bench, design, shipped=False, **compute_options(args, bench))
+    if kept is None:
+        with output_file(out, force=force) as tmp:
+            save_estimator(est, tmp)
     print(f"{len(design.clearances)} clearances x {len(design.cycles)} cycles-run values, "
           f"{est.features.shape[2]} realisations x {est.features.shape[3]} cycles each; largest wear depth "
           f"{est.depth.max() * 1e6:.1f} um")
-    print(f"saved: {out}")
+    print(f"{'kept (this design, key matches)' if kept is not None else 'saved'}: {out}")
+    if args.lives:
+        from wearbench.testing.lives import measure_move
+
+        move = measure_move(bench, est, lives=args.lives, factor=args.life_factor, spread=args.life_sensor_paths,
+                            cycles=args.life_cycles, seed=args.life_seed, **compute_options(args, bench))
+        with output_file(move_path(out), force=force, option="--lives") as tmp:
+            save_move(move, tmp)
+        print(f"move from new to worn {move.describe()}: largest |mean| / its standard error "
+              f"{float((abs(move.mean) / move.covariance.diagonal() ** 0.5).max()):.1f}")
+        print(f"saved: {move_path(out)}")
     return 0

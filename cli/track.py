@@ -26,6 +26,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "default: as each session records it ('wearbench record --cycles-run N')")
     p.add_argument("--limit", help="clearance limit, e.g. 0.5mm: print the cycles until the clearance reaches it")
     p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
+    p.add_argument("--no-move", action="store_true",
+                   help="do not use the move from new to worn measured on simulated lives and stored with the "
+                   "estimator (FILE.move.npz beside it; the shipped test bed's has one): with fewer than three worn "
+                   "sessions the wear coefficient then comes out biased low")
     add_design_arguments(p)
     add_calibration_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write the result as JSON (never over an existing file unless "
@@ -61,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     limit = parse_quantity(args.limit, "length", bare_unit="mm") if args.limit else None
     estimator = load_estimator(args.estimator) if args.estimator else None
     t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=estimator,
-                       **calibration_options(args), **compute_options(args))
+                       move=not args.no_move, **calibration_options(args), **compute_options(args))
     for label, n, d in zip(t.sessions, t.cycles_run, t.depth, strict=True):
         print(f"{label}: {n:,.0f} cycles run, wear depth {d.median * 1e6:.1f} um (90 % {d.lo90 * 1e6:.1f}-"
               f"{d.hi90 * 1e6:.1f})")
@@ -76,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
             m = t.cycles_to_limit
             print(f"clearance limit {limit * 1e3:g} mm reached after {m.median:,.0f} cycles from new "
                   f"(90 % {m.lo90:,.0f}-{m.hi90:,.0f}); {max(0.0, m.median - max(t.cycles_run)):,.0f} after the last session")
+    print(f"move from new to worn {t.move['described']}" if t.move else
+          "no measured move from new to worn used" + (" (--no-move)" if args.no_move else ""))
     for note in t.notes:
         print(note)
     if args.json:

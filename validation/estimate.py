@@ -126,6 +126,7 @@ class Estimator:
     features: np.ndarray  # (clearances, cycles, M, C, p)
     depth: np.ndarray  # (clearances, cycles) wear depth: largest bearing + journal max depth of any joint (m)
     speed: float
+    path: Path | None = field(default=None, compare=False)  # the file it was loaded from (its move beside it)
 
     @property
     def spec(self) -> FeatureSpec:
@@ -245,7 +246,7 @@ def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | N
             settings = EnsembleSettings.from_dict(d["settings"])
             design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]), settings)
             return Estimator(meta["bench"], str(data["key"]), design, data["features"], data["depth"],
-                             float(meta["speed"]))
+                             float(meta["speed"]), path)
     except FileNotFoundError:
         raise OSError(f"{path}: no such estimator file") from None
     except KeyError as exc:

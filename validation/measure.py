@@ -33,6 +33,7 @@ from wearbench.validation.estimate import (
 from wearbench.validation.identify import IdentifyOptions, fit_states
 from wearbench.validation.measured import MeasuredSession, load_session
 from wearbench.validation.track import Track, track_features
+from wearbench.validation.track_move import Move, stored_move
 
 __all__ = ["calibrate_sessions", "estimate_assessed", "estimate_sessions", "named_outside", "recorded_cycles_run",
            "track_sessions"]
@@ -188,11 +189,14 @@ def _cycles_run(loaded: Sequence[MeasuredSession], given: Sequence[float] | None
 def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run: Sequence[float] | None = None, *,
                    limit: float | None = None, design: EstimatorDesign | None = None,
                    estimator: Estimator | None = None, options: IdentifyOptions | None = None,
-                   calibration: str | Path | None = "auto", mount: str = "", scheduler: str | None = None,
-                   workers: int | None = None, progress: str | None = "estimator") -> Track:
+                   calibration: str | Path | None = "auto", mount: str = "", move: Move | bool = True,
+                   scheduler: str | None = None, workers: int | None = None,
+                   progress: str | None = "estimator") -> Track:
     """Wear over one bench's life from ``sessions`` recorded after ``cycles_run`` cycles (see
     ``track.py``; None: as each session records it, ``wearbench record --cycles-run``); ``limit``: a
-    clearance limit (m). Other arguments as :func:`estimate_sessions`."""
+    clearance limit (m); ``move``: True uses the measured move stored with the estimator when it has
+    one (``track_move.stored_move``; one keyed to another estimator is an error), False none, or this
+    one (checked against the estimator's key). Other arguments as :func:`estimate_sessions`."""
     design, options = design or EstimatorDesign(), options or IdentifyOptions()
     loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
     first = _one_bench(loaded, "tracking", "track")
@@ -201,8 +205,13 @@ def track_sessions(sessions: Sequence[str | Path | MeasuredSession], cycles_run:
                                        workers=workers, progress=progress)
     cal = session_calibration(first, est.spec, calibration, mount)
     model = fit_estimator(est, options, sensor=cal.path if cal else None)
+    if isinstance(move, Move) and move.estimator != est.key:
+        raise ValueError(f"move {move.path or '(given)'}: field 'estimator' = {move.estimator!r}: measured against "
+                         f"another estimator; expected {est.key!r}")
+    used = move if isinstance(move, Move) else stored_move(est) if move else None
     track = track_features([session_features(s, est.spec) for s in loaded], cycles_run, model,
-                           coefficient=first.bench.wear.coefficient, limit=limit, labels=[s.label for s in loaded])
+                           coefficient=first.bench.wear.coefficient, limit=limit, labels=[s.label for s in loaded],
+                           move=used)
     if cal is not None:
         track.notes.append(f"sensor path: {cal.describe()}")
     track.notes.extend(differ)

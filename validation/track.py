@@ -51,9 +51,10 @@ the drift's shape (linear up to 200k: 0.20), not an emulator error along the tra
 the same truths gave 0.80 (median 1.13). The design's mean move is the mean of its M benches' moves,
 so it carries an error common to every bench the estimator judges (covariance about ``D / M``); with
 five sessions the slope across them tells the factor despite it, with two or three it does not.
-:func:`life_move` measures that error on lives of known truth, and ``track_features(move=...)``
-carries its mean and its standard error (see ``benchmarks/estimate.py``: each life scored with the
-move measured on the other half of the lives).
+:func:`~wearbench.validation.track_move.life_move` measures that error on lives of known truth, and
+``track_features(move=...)`` carries its mean and its standard error (see ``benchmarks/estimate.py``:
+lives scored with a move measured on other lives). The move is stored beside the estimator it was
+measured against (``track_move.py``) and ``track`` uses it by default.
 ``mu`` at ``k N_i`` is the estimator's emulated mean; a ``k N_i`` beyond the design's last cycles
 run is outside what the estimator knows (zero likelihood there).
 
@@ -77,9 +78,9 @@ from scipy import linalg, special
 from wearbench.validation.estimate import EstimatorModel, Interval, _interval
 from wearbench.validation.features import CycleFeatures
 from wearbench.validation.statistics import _psd, shrunk_covariance
+from wearbench.validation.track_move import Move
 
-__all__ = ["Track", "joint_log_likelihood", "life_move", "session_covariances", "track_features", "track_figure",
-           "wear_drift"]
+__all__ = ["Track", "joint_log_likelihood", "session_covariances", "track_features", "track_figure", "wear_drift"]
 
 K_RANGE = (0.2, 5.0)
 
@@ -99,6 +100,7 @@ class Track:
     beyond: float  # posterior mass whose limit lies beyond 100 x the estimator's range
     prediction: list[tuple[float, Interval]] = field(default_factory=list)  # (cycles, wear depth m)
     notes: list[str] = field(default_factory=list)
+    move: dict | None = None  # the measured move from new to worn used (Move.as_dict), None: none used
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -127,29 +129,6 @@ def wear_drift(model: EstimatorModel) -> np.ndarray:
     d = (b[:, 1:].mean(axis=1) - b[:, 0]).reshape(-1, p)
     cov = shrunk_covariance(d) * (d.shape[0] - 1) / (d.shape[0] - nc)  # each clearance's mean taken out
     return _psd(cov - model.stats[model.reference].within / c * (1 + 1 / (nn - 1)))
-
-
-def life_move(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[float], float, float]]
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """Mean (p,) of benches' move from new to worn beyond the estimator's own mean change, and that
-    mean's covariance (p, p), from lives whose truth is known: each ``(session means (S, p), cycles run
-    (S,), initial clearance, wear factor)`` with a session at 0 cycles and at least one worn. Per life,
-    the worn sessions' mean residual at the truth less the new session's; averaged over the lives, its
-    covariance the lives' shrunk covariance / their number. :func:`track_features` (``move``) moves
-    the worn sessions' expected means by the mean and adds its covariance to the drift's: a measured error of the
-    estimator's new-to-worn change (the design's is the mean of its M benches' moves)."""
-    rows = []
-    for xbars, runs, clearance, factor in lives:
-        runs = np.asarray(runs, float)
-        if not (runs == 0).any() or not (runs > 0).any():
-            raise ValueError(f"life_move: cycles run {list(runs)}: expected a session at 0 and a worn one")
-        r = np.asarray(xbars, float) - model.mean(np.full(runs.shape, clearance), factor * runs)
-        rows.append(r[runs > 0].mean(axis=0) - r[runs == 0].mean(axis=0))
-    rows = np.asarray(rows)
-    if rows.shape[0] < 3:
-        raise ValueError(f"life_move: {rows.shape[0]} lives: at least three are needed (the mean's covariance is "
-                         "their spread)")
-    return rows.mean(axis=0), shrunk_covariance(rows) / rows.shape[0]
 
 
 def session_covariances(model: EstimatorModel) -> tuple[np.ndarray, np.ndarray]:
@@ -215,15 +194,15 @@ def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Seque
 def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float], model: EstimatorModel, *,
                    coefficient: float, limit: float | None = None, labels: Sequence[str] | None = None,
                    factors: int = 161, depth_spread: float = 0.05, drift: bool = True,
-                   move: tuple[np.ndarray, np.ndarray] | None = None) -> Track:
+                   move: Move | None = None) -> Track:
     """Wear over life from sessions' cycle ``features`` recorded after ``cycles_run`` cycles.
 
     coefficient: the bench file's wear coefficient K_n (1/Pa); limit: a clearance limit (m);
     depth_spread: lognormal sd of a bench's wear depth about the estimator's trajectory; drift: the
     worn sessions share the bench's move from new (:func:`wear_drift`; False: the offset is constant
-    over the life, as before it was measured); move: (mean, covariance) of the worn sessions' move
-    beyond the estimator's mean change (:func:`life_move`, measured on lives of known truth): the worn
-    sessions' expected means move by the mean and the covariance joins the drift's."""
+    over the life, as before it was measured); move: the worn sessions' move beyond the estimator's mean
+    change (``track_move.life_move``, measured on lives of known truth, or ``track_move.stored_move``):
+    the worn sessions' expected means move by its mean and its covariance joins the drift's."""
     if len(features) != len(cycles_run) or len(features) < 2:
         raise ValueError(f"track: {len(features)} sessions and {len(cycles_run)} cycles-run values: expected one "
                          "value per session and at least two sessions")
@@ -251,8 +230,10 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     if drift:
         cov = wear_drift(model)
         if move is not None:
-            means = means + (runs > 0)[:, None] * np.asarray(move[0], float)
-            cov = cov + np.asarray(move[1], float)
+            if move.mean.shape != means.shape[-1:]:
+                raise ValueError(f"track: the move has {move.mean.size} features, the estimator {means.shape[-1]}")
+            means = means + (runs > 0)[:, None] * move.mean
+            cov = cov + move.covariance
         moved = (np.broadcast_to((runs > 0).astype(float), means.shape[:-1]), cov)
     log_post[:, inside] = joint_log_likelihood(model, xbars, n_cycles, means, *moved) / model.temperature
     post = np.exp(log_post - special.logsumexp(log_post))
@@ -287,17 +268,18 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     prediction = [(float(n), depth_at(n)) for n in np.linspace(0.0, horizon, 41)]
     worn = int(np.sum(np.unique(runs) > 0))
     if worn < 3 and (runs == 0).any() and move is None:
-        notes.append(f"{worn} worn cycles-run value{'s' if worn > 1 else ''}: the wear coefficient rests on the change "
-                     "from new alone, where the estimator's own error of that change biases it (on simulated lives "
-                     "its 90 % interval held the truth in 0.60-0.75 of them); sessions at four or more cycles-run values "
-                     "tell it from the slope")
+        notes.append(f"{worn} worn cycles-run value{'s' if worn > 1 else ''} and no measured move from new to worn: the "
+                     "wear coefficient rests on the change from new alone, where the estimator's own error of that "
+                     "change biases it (on simulated lives its 90 % interval held the truth in 0.60-0.75 of them); "
+                     "an estimator with a measured move ('wearbench estimator --lives N') corrects it, sessions at "
+                     "four or more cycles-run values tell it from the slope")
     edge = post[:, :3].sum() + post[:, inside][:, -3:].sum()  # the lowest and the highest factors allowed
     if edge > 0.1:
         notes.append(f"the wear coefficient's posterior reaches the edge of {K_RANGE[0]}-"
                      f"{min(K_RANGE[1], float(ks[inside][-1])):.3g} x the file's (the last session's cycles run times "
                      "the factor must lie within the estimator's range)")
     return Track(labels, [float(n) for n in cycles_run], c_int, k_int, coef, depth, limit, to_limit, beyond,
-                 prediction, notes)
+                 prediction, notes, move.as_dict() if move is not None else None)
 
 
 def track_figure(track: Track, path, *, title: str = "wear over the bench's life"):
@@ -327,6 +309,10 @@ def track_figure(track: Track, path, *, title: str = "wear over the bench's life
     k = track.factor
     ax.set_title(f"{title}\nwear coefficient {track.coefficient.median:.3g} 1/Pa "
                  f"({k.median:.2f}x the file's, 90 % {k.lo90:.2f}-{k.hi90:.2f})", fontsize=8)
+    fig.subplots_adjust(bottom=0.16)
+    fig.text(0.01, 0.01, f"move from new to worn {track.move['described']}" if track.move else
+             "no measured move from new to worn: with fewer than three worn sessions the coefficient is biased low",
+             fontsize=5, color="0.3", wrap=True)
     ax.set_xlabel("cycles run (thousands)")
     ax.set_ylabel("wear depth: clearance growth (um)")
     ax.legend(fontsize=7, loc="upper left")

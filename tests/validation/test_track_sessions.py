@@ -39,8 +39,9 @@ def test_record_stores_the_cycles_run_and_track_reads_them(sessions, tmp_path, m
     assert measure.recorded_cycles_run(load_session(plain)) is None
     seen = []
 
-    class Fitted:  # what track needs of the estimator here: its feature spec
+    class Fitted:  # what track needs of the estimator here: its feature spec, its file (none: no stored move)
         spec = FeatureSpec()
+        path = None
 
     def fake_track(features, cycles_run, model, **kw):
         from wearbench.validation.estimate import Interval

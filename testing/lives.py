@@ -1,0 +1,133 @@
+"""Simulated truths and lives of known truth through the emulator's sensor chain, for the estimator:
+what ``benchmarks/estimate.py`` scores it on, and what ``wearbench estimator --lives`` measures the
+benches' move from new to worn on (``validation/track_move.py``).
+
+A truth is the bench drawn from the bench file's ``[tolerances]`` with its own seed (the estimator's
+design uses seeds 1..M), worn from a clearance, run from a random start, and seen through the
+emulator's sensor chain (the bench file's ``[emulator.accelerometer]``; ``spread``: a mount or
+carriage mode drawn per truth, ``SensorSpread``) applied in-process to the model's acceleration. A
+life is one such bench worn with a factor times the file's wear coefficient and recorded after 0 and
+every stage. The top layer: imports the model, the emulators and the validation layer.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import replace
+
+import numpy as np
+from wearbench.bench.schema import Bench
+from wearbench.validation.estimate import Estimator
+
+__all__ = ["life_features", "life_plan", "measure_move", "truth_features"]
+
+
+def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int, cycles: int, spread: bool,
+                   files: dict | None = None) -> dict:
+    """One truth's cycle features through the sensor chain (a compute-layer task); ``files``: worn
+    surfaces to use instead of a wear run of ``cycles_run``."""
+    from pathlib import Path
+
+    from wearbench.acquisition.layout import clip_level
+    from wearbench.bench.schema import WearState
+    from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
+    from wearbench.hardware.emulators.sensor import SensorChain
+    from wearbench.model.realisation import simulate_state
+    from wearbench.model.wear_stages import StagePlan, run_stages
+    from wearbench.validation.features import FeatureSpec, cycle_features
+
+    joints = [j.name for j in bench.clearance_joints]
+    files, depth = dict(files or {}), 0.0
+    with tempfile.TemporaryDirectory() as tmp:
+        if cycles_run > 0:
+            run = run_stages(bench, StagePlan.from_bench(bench, stages=1, stage_cycles=cycles_run),
+                             clearances=dict.fromkeys(joints, clearance))
+            for j, s in run.final.items():
+                files[j] = s.save(Path(tmp) / f"{j}.npz")
+                depth = max(depth, sum(s.max_depth))
+        acc = EmulatorConfig.from_bench(bench).accelerometer
+        if spread:
+            acc = SensorSpread().draw(acc, seed)
+        sensor = bench.sensor("accelerometer")
+        chain = SensorChain(acc, sensor.sample_rate, sensor.range, np.random.default_rng([seed, 7]))
+        state = WearState("truth", dict.fromkeys(joints, clearance), files)
+        run = simulate_state(bench, state, seed, revolutions=cycles + 1.0, settle=2.0,
+                             output_rate=chain.internal_rate)
+    m = chain.oversample
+    samples = chain.process(run.acc)
+    t, crank = run.t[m - 1::m], run.crank[m - 1::m]
+    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), clip_level=clip_level(sensor.range))
+    return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance}
+
+
+def life_features(bench: Bench, clearance: float, factor: float, step: float, stages: int, seed: int, cycles: int,
+                  spread: bool) -> dict:
+    """One simulated life (a compute-layer task): the bench worn from ``clearance`` with ``factor`` x
+    the file's wear coefficient through ``stages`` stages of ``step`` cycles; a session of ``cycles``
+    through the sensor chain at 0 and after every stage but the last; the truth's depth after each."""
+    from pathlib import Path
+
+    from wearbench.model.wear_stages import StagePlan, run_stages
+
+    joints = [j.name for j in bench.clearance_joints]
+    plan = StagePlan.from_bench(bench, stages=stages, stage_cycles=step)
+    run = run_stages(bench, replace(plan, coefficient=bench.wear.coefficient * factor),
+                     clearances=dict.fromkeys(joints, clearance))
+    depth = [0.0] + [max(sum(s.max_depth) for s in st.surfaces.values()) for st in run.stages]
+    feats = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(stages):  # sessions at 0 and after stages 1 .. stages-1
+            files = {j: s.save(Path(tmp) / f"{j}_{k}.npz") for j, s in run.stages[k - 1].surfaces.items()} if k else {}
+            feats.append(truth_features(bench, clearance, 0.0, seed, cycles, spread, files=files)["features"])
+    return {"features": feats, "depth": depth}
+
+
+def life_plan(est: Estimator, lives: int, factor: float, seed: int) -> tuple[float, list[tuple[float, int]]]:
+    """The cycles between a life's sessions (a sixth of the design's last cycles run, so the last of
+    its five sessions at ``factor`` <= 1.5 lies inside the design) and each life's (initial clearance,
+    seed): clearances uniform over the design's range less its lowest eighth and highest quarter (the
+    test bed's 0.30-0.55 mm of 0.25-0.65 mm, where a life's wear stays inside the design), seeds
+    ``seed`` + k (the design's benches are seeds 1..M)."""
+    lo, hi = est.design.clearances[0], est.design.clearances[-1]
+    step = est.design.cycles[-1] / 6
+    if not 0 < factor <= 1.5:
+        raise ValueError(f"lives: wear factor {factor}: expected within (0, 1.5] (the last session, 4 x "
+                         f"{step:,.0f} cycles x the factor, must lie inside the design's {est.design.cycles[-1]:,.0f})")
+    if seed <= est.design.settings.realisations:
+        raise ValueError(f"lives: seed {seed}: expected above the design's seeds 1..{est.design.settings.realisations}")
+    rng = np.random.default_rng(seed)
+    span = hi - lo
+    return step, [(float(rng.uniform(lo + span / 8, hi - span / 4)), seed + k) for k in range(lives)]
+
+
+def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float = 1.3, spread: bool = False,
+                 cycles: int = 20, seed: int = 100_000, scheduler: str | None = None, workers: int | None = None,
+                 progress: str | None = "lives"):
+    """The benches' move from new to worn beyond ``est``'s mean change (``track_move.Move``), measured
+    on ``lives`` simulated lives of ``bench`` (:func:`life_plan`; ``spread``: each with a drawn sensor
+    path) run on the compute layer and cached by content (the estimator's key, the bench, its
+    emulated sensor chain, the life). A failed life raises (a move measured on fewer lives than asked
+    would say otherwise)."""
+    from wearbench.bench.content import bench_key, canonical
+    from wearbench.compute import Task, TaskFailure, run_tasks, task_key
+    from wearbench.hardware.emulators.config import EmulatorConfig
+    from wearbench.validation.estimate import fit_estimator
+    from wearbench.validation.track_move import life_move
+
+    step, plan = life_plan(est, lives, factor, seed)
+    chain = canonical(EmulatorConfig.from_bench(bench).accelerometer)
+    tasks = [Task(life_features, {"bench": bench, "clearance": c, "factor": factor, "step": step, "stages": 5,
+                                  "seed": s, "cycles": cycles, "spread": spread},
+                  task_key("estimator-life", est.key, bench_key(bench), chain, c, factor, step, s, cycles, spread),
+                  f"life {s}") for c, s in plan]
+    runs = run_tasks(tasks, scheduler=scheduler, workers=workers, progress=progress)
+    failed = [r for r in runs if isinstance(r, TaskFailure)]
+    if failed:
+        raise RuntimeError(f"{len(failed)} of {lives} simulated lives failed; the first: {failed[0]}")
+    sessions = [k * step for k in range(5)]
+    model = fit_estimator(est)
+    about = {"bench": bench.name, "sensor_paths": ["drawn mounts" if spread else "default path"],
+             "seeds": [s for _, s in plan], "clearances": [c for c, _ in plan], "factor": factor,
+             "sessions": sessions, "cycles": cycles}
+    return life_move(model, [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), sessions, c, factor)
+                             for r, (c, _) in zip(runs, plan, strict=True)], about)
