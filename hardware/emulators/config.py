@@ -4,7 +4,7 @@
 with. Every value is validated; a mistake raises :class:`~wearbench.bench.schema.BenchError`
 naming the file, the key, the value and what was expected. Every imperfection can be switched off
 (0, "0 ppm", false, or leaving the key out: the defaults are a clean device). Fault times count
-from the first START_STREAM. Imports only the bench module.
+from the first START_STREAM. Imports only the bench module and the carriage's.
 
 Example::
 
@@ -73,6 +73,7 @@ from typing import Any
 import numpy as np
 from wearbench.bench.load import _Reader
 from wearbench.bench.schema import Bench, WearState
+from wearbench.hardware.emulators.carriage import carriage
 
 __all__ = [
     "AA_FILTERS",
@@ -382,8 +383,6 @@ def _check_carriage(r: _Reader, d: dict, acc: Accelerometer, bench: Bench | None
     """A cross-axis signal needs the lateral force on the sensor's body (``signal.lateral_force``)."""
     if not acc.lateral or bench is None:
         return
-    from wearbench.hardware.emulators.signal import carriage
-
     if carriage(bench) is None:
         key, raw = (("spread.cross_axis", d["spread"].get("cross_axis", list(SensorSpread().cross_axis)))
                     if "spread" in d else ("cross_axis", d.get("cross_axis")))

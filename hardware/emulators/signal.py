@@ -16,7 +16,7 @@ device's TRUE state (clearances and worn surfaces of ``[emulator.truth]``):
 
 Every model table also holds ``lateral``: the force the rest of the mechanism puts on the sensor's
 body perpendicular to its guide (and to the sensor axis), divided by the body's mass (m/s^2)
-(:func:`lateral_force`): what drives the carriage's lateral mode, whose acceleration reaches the
+(:func:`~wearbench.hardware.emulators.carriage.lateral_force`): what drives the carriage's lateral mode, whose acceleration reaches the
 sensor through its cross-axis sensitivity (:mod:`wearbench.hardware.emulators.sensor`). On the
 model's ideal guide that force is exactly minus the guide's lateral reaction (the body does not
 move sideways), and it comes from the ideal pins' reactions the model writes to its table.
@@ -40,10 +40,11 @@ from pathlib import Path
 import numpy as np
 from wearbench.bench.content import canonical
 from wearbench.bench.schema import Bench
+from wearbench.hardware.emulators.carriage import lateral_force
 from wearbench.hardware.emulators.config import Truth
 
-__all__ = ["FADE", "SignalTable", "cache_dir", "carriage", "harmonic_table", "lateral_force", "model_table", "run_table",
-           "signal_table", "table_key"]
+__all__ = ["FADE", "SignalTable", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
+           "table_key"]
 
 TWO_PI = 2 * np.pi
 FADE = 0.25 * TWO_PI  # rad of motor angle: the crossfade before a long run wraps to its start
@@ -119,52 +120,6 @@ def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolution
            "speed": canonical(float(speed)), "revolutions": revolutions, "settle": canonical(float(settle)),
            "rate": canonical(float(rate)), "columns": list(_COLUMNS)}
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
-
-
-def carriage(bench: Bench) -> tuple[float, tuple[tuple[str, float], ...]] | None:
-    """(lateral direction, rad; the reaction columns' prefixes with their signs) of the accelerometer's
-    body, or None where the table cannot give its lateral force exactly. The body must slide on a
-    prismatic guide fixed to the frame (its angle is then the guide's axis, so the sensor axis rotated
-    +90 deg is the lateral direction) and be joined to the rest by ideal pins (their reactions are
-    columns of the model's table: force on a pin's later body from its first)."""
-    from wearbench.bench.schema import GROUND
-
-    try:
-        sensor = bench.sensor("accelerometer")
-    except KeyError:
-        return None
-    body = sensor.body
-    guides = [j for j in bench.joints if j.kind == "prismatic" and j.bodies == (GROUND, body)]
-    others = [j for j in bench.joints if body in j.bodies and j not in guides]
-    if len(guides) != 1 or any(j.kind != "revolute" or j.clearance is not None for j in others):
-        return None
-    pins: list[tuple[str, float]] = []
-    for j in others:
-        if len(j.bodies) == 2:
-            pins.append((j.name, 1.0 if j.bodies[1] == body else -1.0))
-        elif j.bodies[0] == body:  # a shared pin's reactions act on its later bodies from the first
-            pins += [(f"{j.name}_{b}", -1.0) for b in j.bodies[1:]]
-        else:
-            pins.append((f"{j.name}_{body}", 1.0))
-    return guides[0].axis + sensor.axis + 0.5 * math.pi, tuple(pins)
-
-
-def lateral_force(bench: Bench, table) -> np.ndarray | None:
-    """The force on the accelerometer's body along the lateral direction of :func:`carriage` from every
-    pin it shares with the mechanism, plus its weight's component, over its mass (m/s^2), at each row
-    of a simulation ``table`` of ``bench``; None where :func:`carriage` is None. With the body held on
-    its ideal guide this is minus the guide's lateral reaction over the mass, exactly."""
-    found = carriage(bench)
-    if found is None:
-        return None
-    angle, pins = found
-    ux, uy = math.cos(angle), math.sin(angle)
-    body = bench.sensor("accelerometer").body
-    mass = bench.body(body).mass
-    f = np.full(len(table), mass * (bench.gravity[0] * ux + bench.gravity[1] * uy))
-    for prefix, sign in pins:
-        f += sign * (ux * table[f"{prefix}_fx"].to_numpy() + uy * table[f"{prefix}_fy"].to_numpy())
-    return f / mass
 
 
 def _cached(path: Path, cache: bool) -> SignalTable | None:

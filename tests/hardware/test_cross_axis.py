@@ -10,9 +10,9 @@ import math
 import numpy as np
 import pytest
 from wearbench.bench.schema import BenchError
+from wearbench.hardware.emulators.carriage import carriage, lateral_force
 from wearbench.hardware.emulators.config import Accelerometer, EmulatorConfig, emulator_config
 from wearbench.hardware.emulators.sensor import SensorChain
-from wearbench.hardware.emulators.signal import carriage, lateral_force
 
 FS = 50000.0  # no anti-alias filter: the chain runs at the sample rate, the bilinear warp stays below 0.2 %
 
