@@ -24,7 +24,9 @@ the earlier pointwise ISO ranking (one nominal simulation per state) on the same
 The ensembles' realisations are each seen through a drawn sensor path (``EnsembleSettings.sensor_paths``;
 --ensemble-paths none: the model's acceleration as it is, earlier versions). --sensor-paths draws each
 truth's sensor path (a mount/carriage mode log-uniform in 0.3-3 kHz, damping 0.02-0.1, sensitivity
-+/-5 %: ``[emulator.accelerometer.spread]``); the accuracy table is then printed for the likelihood
++/-5 %, and a cross-axis sensitivity of 1-5 % at a drawn angle seeing the carriage's lateral mode,
+log-uniform in 0.3-3 kHz, damping 0.02-0.1: ``[emulator.accelerometer.spread]``; --cross-axis off:
+the same axial paths without it, as before cross-axis was drawn); the accuracy table is then printed for the likelihood
 with the band-gain prior of the sensor path (the default), without it and, with --calibrate, with
 each bench calibrated on one session of a known state (0.3 mm new; 0.6 mm new for the 0.3 mm new
 truths, so calibration and test never share a state), same bench and mount: once with the
@@ -61,6 +63,9 @@ def main() -> None:
     ap.add_argument("--bands", help="impact bands, e.g. 100-1000 or 50-150,150-400,400-1000 Hz "
                     "(default: FeatureSpec's)")
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
+    ap.add_argument("--cross-axis", choices=("on", "off"), default="on",
+                    help="with --sensor-paths: draw the cross-axis sensitivity and lateral carriage mode too (on) or "
+                    "keep the paths axial (off: the same seeds' axial paths, for a paired comparison)")
     ap.add_argument("--ensemble-paths", choices=("drawn", "none"), default="drawn",
                     help="the ensembles' realisations each seen through a drawn sensor path (drawn, the default: "
                     "EnsembleSettings.sensor_paths) or the model's acceleration as it is (none: earlier versions)")
@@ -109,8 +114,10 @@ def main() -> None:
     out = Path(args.sessions) if args.sessions else Path(tempfile.mkdtemp(prefix="wearbench-identify-sessions-"))
     out.mkdir(parents=True, exist_ok=True)
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
-    spread = {"spread": {}}  # the emulator's drawn mounts (SensorSpread's defaults)
+    # the emulator's drawn paths (SensorSpread's defaults; cross-axis off: its magnitude range [0, 0])
+    spread = {"spread": {} if args.cross_axis == "on" else {"cross_axis": [0.0, 0.0]}}
     emulator = {"accelerometer": spread} if args.sensor_paths else {}
+    drawn_tag = ("_drawnx" if args.cross_axis == "on" else "_drawn") if args.sensor_paths else ""
     known = {s.name: states[1] if s is states[0] else states[0] for s in states}
     calibrations = [(known[s.name], seed) for s, seed in truths] if args.calibrate else []
     with compute_client(workers=args.workers):
@@ -127,7 +134,7 @@ def main() -> None:
     t0 = time.perf_counter()
     paths = []
     for s, seed in truths:
-        paths.append(out / f"{slug(s.name)}_{seed}{'_drawn' if args.sensor_paths else ''}_{args.cycles}.mcap")
+        paths.append(out / f"{slug(s.name)}_{seed}{drawn_tag}_{args.cycles}.mcap")
         if paths[-1].exists():
             continue
         # one cycle more than analysed: cycles are cut at crank angle 0, so the partial ends are dropped
@@ -135,8 +142,7 @@ def main() -> None:
                      **emulator)
     cal_paths = []
     for s, seed in calibrations:
-        cal_paths.append(out / f"calibration_{slug(s.name)}_{seed}{'_drawn' if args.sensor_paths else ''}"
-                                 f"_{args.cycles}.mcap")
+        cal_paths.append(out / f"calibration_{slug(s.name)}_{seed}{drawn_tag}_{args.cycles}.mcap")
         if cal_paths[-1].exists():
             continue
         record_state(bench, s, seed, cal_paths[-1], backend="sim", cycles=args.cycles + 1, revolutions=revolutions,
@@ -185,6 +191,9 @@ def main() -> None:
 
         drawn = [emulator_config(bench, s, seed, accelerometer=spread).accelerometer for s, seed in truths]
         print("drawn sensor paths: modes " + ", ".join(f"{a.resonance:.0f}" for a in drawn) + " Hz")
+        if args.cross_axis == "on":
+            print("  cross-axis (%) / lateral mode (Hz): " + ", ".join(f"{100 * a.cross_axis:+.1f}/{a.lateral_mode:.0f}"
+                                                                       for a in drawn))
 
     print(f"\nnon-twin identification: {len(states)} states x {args.draws} draws, {args.cycles}-cycle sessions; "
           f"ensembles {args.realisations} x {args.ensemble_cycles} cycles; temperature {models.temperature:.2f}")

@@ -4,7 +4,7 @@
 with. Every value is validated; a mistake raises :class:`~wearbench.bench.schema.BenchError`
 naming the file, the key, the value and what was expected. Every imperfection can be switched off
 (0, "0 ppm", false, or leaving the key out: the defaults are a clean device). Fault times count
-from the first START_STREAM. Imports only the bench module.
+from the first START_STREAM. Imports only the bench module and the carriage's.
 
 Example::
 
@@ -24,10 +24,18 @@ Example::
     aa_order = 8
     aa_cutoff = 0.3             # -3 dB frequency as a fraction of the sample rate
     sensitivity = 1.0           # true sensitivity / the bench file's (a sensor off by a few %)
-    [emulator.accelerometer.spread]  # a sensor path drawn per truth seed (replaces resonance, damping, sensitivity)
+    cross_axis = 0.0            # the sensor's output per unit lateral acceleration / its sensitivity (signed;
+                                # 0 = off): the in-plane part of a datasheet's 1-5 % cross-axis sensitivity
+    lateral_mode = "1.2 kHz"    # the carriage's lateral mode on its guide (needed with cross_axis; 0 = rigid)
+    lateral_damping = 0.05
+    [emulator.accelerometer.spread]  # a sensor path drawn per truth seed (replaces the six keys above)
     mode = ["300 Hz", "3 kHz"]  # structural mode of the mount or carriage: log-uniform in this range
     damping = [0.02, 0.1]       # its damping ratio: uniform in this range
     sensitivity = 0.05          # sensitivity error: uniform within +/- this fraction
+    cross_axis = [0.01, 0.05]   # cross-axis sensitivity: magnitude uniform in this range, at an angle
+                                # uniform on the circle (cross_axis = its magnitude x cos(angle)); [0, 0] = off
+    lateral_mode = ["300 Hz", "3 kHz"]  # the carriage's lateral mode: log-uniform in this range
+    lateral_damping = [0.02, 0.1]       # its damping ratio: uniform in this range
     [emulator.motor]
     ripple = 0.01               # relative speed ripple, harmonic per motor revolution below
     ripple_harmonic = 1
@@ -65,6 +73,7 @@ from typing import Any
 import numpy as np
 from wearbench.bench.load import _Reader
 from wearbench.bench.schema import Bench, WearState
+from wearbench.hardware.emulators.carriage import carriage
 
 __all__ = [
     "AA_FILTERS",
@@ -82,6 +91,7 @@ __all__ = [
 SIGNALS = ("model", "harmonic", "white", "none")
 AA_FILTERS = ("none", "butterworth", "bessel")
 DEFAULT_REVOLUTIONS = 40  # non-twin run: 20-cycle sessions plus their start-up play without a wrap
+_CROSS_AXIS_LIMIT = 0.2  # |cross-axis sensitivity|: datasheets give 1-5 %, a damaged sensor more
 
 
 @dataclass(frozen=True)
@@ -98,7 +108,15 @@ class Accelerometer:
     aa_order: int = 8
     aa_cutoff: float = 0.3    # -3 dB frequency / sample rate
     sensitivity: float = 1.0  # true sensitivity / the bench file's (a gain on the signal)
+    cross_axis: float = 0.0   # output per unit lateral carriage acceleration / the main-axis sensitivity (signed)
+    lateral_mode: float = 0.0  # Hz, the carriage's lateral mode on its guide (0 = a rigid guide)
+    lateral_damping: float = 0.05  # its damping ratio
     spread: SensorSpread | None = None  # drawn sensor paths (applied by EmulatorConfig for a seeded truth)
+
+    @property
+    def lateral(self) -> bool:
+        """Whether the carriage's lateral motion reaches the output (a cross-axis sensitivity and a mode)."""
+        return self.cross_axis != 0.0 and self.lateral_mode > 0.0
 
 
 @dataclass(frozen=True)
@@ -106,20 +124,37 @@ class SensorSpread:
     """How the sensor path of a drawn truth differs from the bench file's: a structural mode of the
     mount or carriage (second order, like ``resonance``) with its frequency log-uniform in ``mode``
     (Hz) and its damping ratio uniform in ``damping``; the sensitivity uniform within +/-
-    ``sensitivity``. Drawn from the truth's seed, so every session of one drawn bench shares its path
-    (as sessions of one bench with one mount do)."""
+    ``sensitivity``; a cross-axis sensitivity of magnitude uniform in ``cross_axis`` at an angle uniform
+    on the circle (its in-plane part, magnitude x cos(angle), is what the lateral direction sees) and the
+    carriage's lateral mode log-uniform in ``lateral_mode`` (Hz) with damping uniform in
+    ``lateral_damping``. Drawn from the truth's seed, so every session of one drawn bench shares its path
+    (as sessions of one bench with one mount do); the cross-axis part from a stream of its own, so a
+    seed's axial path is the same with and without it."""
 
     mode: tuple[float, float] = (300.0, 3000.0)
     damping: tuple[float, float] = (0.02, 0.1)
     sensitivity: float = 0.05
+    cross_axis: tuple[float, float] = (0.01, 0.05)
+    lateral_mode: tuple[float, float] = (300.0, 3000.0)
+    lateral_damping: tuple[float, float] = (0.02, 0.1)
 
     def draw(self, acc: Accelerometer, seed: int) -> Accelerometer:
-        """``acc`` with the path of truth ``seed`` (resonance, damping, sensitivity replaced)."""
+        """``acc`` with the path of truth ``seed`` (resonance, damping, sensitivity, cross_axis,
+        lateral_mode and lateral_damping replaced)."""
         rng = np.random.default_rng([int(seed), 0x5E45])
-        lo, hi = self.mode
-        mode = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else lo
-        return replace(acc, resonance=mode, damping=float(rng.uniform(*self.damping)),
-                       sensitivity=float(1.0 + rng.uniform(-self.sensitivity, self.sensitivity)))
+        mode = _log_uniform(rng, self.mode)
+        axial = replace(acc, resonance=mode, damping=float(rng.uniform(*self.damping)),
+                        sensitivity=float(1.0 + rng.uniform(-self.sensitivity, self.sensitivity)))
+        rng = np.random.default_rng([int(seed), 0x5E46])
+        size, angle = rng.uniform(*self.cross_axis), rng.uniform(0.0, 2.0 * np.pi)
+        lateral = _log_uniform(rng, self.lateral_mode)
+        return replace(axial, cross_axis=float(size * np.cos(angle)), lateral_mode=lateral,
+                       lateral_damping=float(rng.uniform(*self.lateral_damping)))
+
+
+def _log_uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
+    lo, hi = bounds
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else lo
 
 
 @dataclass(frozen=True)
@@ -207,10 +242,15 @@ class EmulatorConfig:
                               "drift": f"{a.drift * 1e6!r} ppm", "resonance": f"{a.resonance!r} Hz",
                               "damping": a.damping, "white_level": f"{a.white_level!r} m/s^2",
                               "aa_filter": a.aa_filter, "aa_order": a.aa_order, "aa_cutoff": a.aa_cutoff,
-                              "sensitivity": a.sensitivity,
+                              "sensitivity": a.sensitivity, "cross_axis": a.cross_axis,
+                              "lateral_mode": f"{a.lateral_mode!r} Hz", "lateral_damping": a.lateral_damping,
                               **({"spread": {"mode": [f"{a.spread.mode[0]!r} Hz", f"{a.spread.mode[1]!r} Hz"],
                                              "damping": list(a.spread.damping),
-                                             "sensitivity": a.spread.sensitivity}} if a.spread else {})},
+                                             "sensitivity": a.spread.sensitivity,
+                                             "cross_axis": list(a.spread.cross_axis),
+                                             "lateral_mode": [f"{f!r} Hz" for f in a.spread.lateral_mode],
+                                             "lateral_damping": list(a.spread.lateral_damping)}}
+                                 if a.spread else {})},
             "motor": {"ripple": m.ripple, "ripple_harmonic": m.ripple_harmonic},
             "encoder": {"index": e.index, "index_angle": f"{e.index_angle!r} rad"},
             "truth": {"clearances": {j: f"{c!r} m" for j, c in t.clearances.items()},
@@ -241,6 +281,7 @@ class EmulatorConfig:
         accelerometer = _accelerometer(r, data.get("accelerometer", {}))
         if accelerometer.spread is not None and truth.seed is not None:
             accelerometer = accelerometer.spread.draw(accelerometer, truth.seed)
+        _check_carriage(r, data.get("accelerometer", {}), accelerometer, bench)
         if truth.seed is not None and motor.ripple:
             raise r.fail("emulator.motor.ripple", data["motor"]["ripple"],
                          "expected 0 (or no ripple key) with [emulator.truth] seed: a drawn truth takes its "
@@ -275,7 +316,8 @@ def _flag(r: _Reader, data: dict, key: str, name: str, default: bool) -> bool:
 def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
     k = "emulator.accelerometer"
     r.keys(d, k, set(), {"noise", "bias", "clipping", "adc_bits", "drift", "resonance", "damping", "white_level",
-                         "aa_filter", "aa_order", "aa_cutoff", "sensitivity", "spread"})
+                         "aa_filter", "aa_order", "aa_cutoff", "sensitivity", "cross_axis", "lateral_mode",
+                         "lateral_damping", "spread"})
     bits = d.get("adc_bits", 16)
     if bits is False:
         bits = 0
@@ -283,6 +325,11 @@ def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
     drift = r.quantity(d, k, "drift", "drift", default=0.0)
     if abs(drift) > 1e-3:
         raise r.fail(f"{k}.drift", d["drift"], "expected a sample-clock drift within +/-1000 ppm")
+    cross = r.number(d, k, "cross_axis", low=-_CROSS_AXIS_LIMIT, high=_CROSS_AXIS_LIMIT, default=0.0)
+    lateral_mode = r.quantity(d, k, "lateral_mode", "frequency", nonnegative=True, default=0.0)
+    if cross and not lateral_mode:
+        raise r.fail(f"{k}.cross_axis", d["cross_axis"], "expected 0 without a lateral_mode (Hz): on a rigid "
+                     "guide the carriage does not move sideways, so a cross-axis sensitivity sees nothing")
     return Accelerometer(
         noise=r.quantity(d, k, "noise", "acceleration", nonnegative=True, default=0.0),
         bias=r.quantity(d, k, "bias", "acceleration", default=0.0),
@@ -296,13 +343,17 @@ def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
         aa_order=int(r.number(d, k, "aa_order", low=1, high=12, default=8, integer=True)),
         aa_cutoff=r.number(d, k, "aa_cutoff", low=0.0, high=0.5, default=0.3, open_low=True),
         sensitivity=r.number(d, k, "sensitivity", low=0.5, high=2.0, default=1.0),
+        cross_axis=cross,
+        lateral_mode=lateral_mode,
+        lateral_damping=r.number(d, k, "lateral_damping", low=0.0, high=2.0, default=0.05, open_low=True),
         spread=_spread(r, d["spread"]) if "spread" in d else None,
     )
 
 
 def _spread(r: _Reader, d: Any) -> SensorSpread:
     k = "emulator.accelerometer.spread"
-    r.keys(r.table(d, k), k, set(), {"mode", "damping", "sensitivity"})
+    r.keys(r.table(d, k), k, set(), {"mode", "damping", "sensitivity", "cross_axis", "lateral_mode",
+                                     "lateral_damping"})
 
     def pair(name: str, default: tuple[float, float], read) -> tuple[float, float]:
         if name not in d:
@@ -318,7 +369,26 @@ def _spread(r: _Reader, d: Any) -> SensorSpread:
     base = SensorSpread()  # what an empty table draws
     mode = pair("mode", base.mode, lambda v: r.quantity(v, k, "mode", "frequency", positive=True))
     damping = pair("damping", base.damping, lambda v: r.number(v, k, "damping", low=0.0, high=2.0, open_low=True))
-    return SensorSpread(mode, damping, r.number(d, k, "sensitivity", low=0.0, high=0.5, default=base.sensitivity))
+    cross = pair("cross_axis", base.cross_axis,
+                 lambda v: r.number(v, k, "cross_axis", low=0.0, high=_CROSS_AXIS_LIMIT))
+    lateral = pair("lateral_mode", base.lateral_mode,
+                   lambda v: r.quantity(v, k, "lateral_mode", "frequency", positive=True))
+    lateral_damping = pair("lateral_damping", base.lateral_damping,
+                           lambda v: r.number(v, k, "lateral_damping", low=0.0, high=2.0, open_low=True))
+    return SensorSpread(mode, damping, r.number(d, k, "sensitivity", low=0.0, high=0.5, default=base.sensitivity),
+                        cross, lateral, lateral_damping)
+
+
+def _check_carriage(r: _Reader, d: dict, acc: Accelerometer, bench: Bench | None) -> None:
+    """A cross-axis signal needs the lateral force on the sensor's body (``signal.lateral_force``)."""
+    if not acc.lateral or bench is None:
+        return
+    if carriage(bench) is None:
+        key, raw = (("spread.cross_axis", d["spread"].get("cross_axis", list(SensorSpread().cross_axis)))
+                    if "spread" in d else ("cross_axis", d.get("cross_axis")))
+        raise r.fail(f"emulator.accelerometer.{key}", raw,
+                     "expected 0 ([0, 0] in a spread) on this bench: a cross-axis signal needs the accelerometer "
+                     "on a body sliding on a prismatic guide fixed to the frame and joined to the rest by ideal pins")
 
 
 def _motor(r: _Reader, d: dict) -> MotorImperfections:

@@ -16,7 +16,9 @@ with, so the encoder and the acceleration belong to one motion. The encoder and 
 report the true motion.
 Accelerometer: the model signal at the true motor angle of each instant (minus the truth delay) at
 the sensor chain's internal rate, then the chain of :mod:`wearbench.hardware.emulators.sensor`
-(mounting resonance, anti-alias filter, sampling, bias, noise, clipping, ADC). The sample clock runs
+(mounting resonance, cross-axis part, anti-alias filter, sampling, bias, noise, clipping, ADC); with
+cross-axis on, the model table's lateral force is played at the same instants (zero for the test
+signals). The sample clock runs
 at ``rate (1 + drift)`` while blocks are stamped at the nominal rate. Clipped samples are counted
 (:attr:`BenchDevice.clipped_samples`) and reported as INFO events, at most one a second.
 Taps (:meth:`BenchDevice.tap`, the tap test): a half-sine pulse added to the slider's acceleration
@@ -564,6 +566,7 @@ class BenchDevice:
         j = np.arange(first * m, (first + n) * m) - (m - 1)
         t_true = s.start + j / (s.true_rate * m) if m > 1 else s.start + j / s.true_rate
         t = t_true - self.config.truth.accel_delay
+        lateral = np.zeros_like(t) if self._chain.lateral else None
         if self.config.signal == "white":
             x = self._rng.normal(0.0, self.config.accelerometer.white_level, t_true.size)
         else:
@@ -575,10 +578,13 @@ class BenchDevice:
             for sp in np.unique(tspeed):
                 sel = (tspeed == sp) & (scale_speed != 0)  # at rest the signal is 0: no table needed
                 if np.any(sel):
-                    x[sel] = self.prepare(sp).at(theta[sel], scale_speed[sel])
+                    table = self.prepare(sp)
+                    x[sel] = table.at(theta[sel], scale_speed[sel])
+                    if lateral is not None and self.config.signal == "model":
+                        lateral[sel] = table.lateral_at(theta[sel], scale_speed[sel])
         for tap in self._taps:  # a tap reaches the sensor through the mechanism signal's own delay and chain
             x += tap.pulse(t)
-        return self._chain.process(x)
+        return self._chain.process(x, lateral)
 
     def _report_clipping(self, now: float) -> None:
         count, when = self._clipped_reported

@@ -14,6 +14,13 @@ device's TRUE state (clearances and worn surfaces of ``[emulator.truth]``):
   the wrap is a raised-cosine crossfade from the run's end into the samples that precede its start,
   so the played signal stays continuous and a cycle boundary keeps its crank angle.
 
+Every model table also holds ``lateral``: the force the rest of the mechanism puts on the sensor's
+body perpendicular to its guide (and to the sensor axis), divided by the body's mass (m/s^2)
+(:func:`~wearbench.hardware.emulators.carriage.lateral_force`): what drives the carriage's lateral mode, whose acceleration reaches the
+sensor through its cross-axis sensitivity (:mod:`wearbench.hardware.emulators.sensor`). On the
+model's ideal guide that force is exactly minus the guide's lateral reaction (the body does not
+move sideways), and it comes from the ideal pins' reactions the model writes to its table.
+
 Tables are resampled on a uniform grid of motor angle (the device only interpolates at 20 kHz) and
 cached on disk in ``$WEARBENCH_CACHE`` (default ``~/.cache/wearbench``)/``emulator``, keyed on the
 content of every model parameter (:func:`table_key`). ``harmonic`` is a kinematic test pattern,
@@ -33,6 +40,7 @@ from pathlib import Path
 import numpy as np
 from wearbench.bench.content import canonical
 from wearbench.bench.schema import Bench
+from wearbench.hardware.emulators.carriage import lateral_force
 from wearbench.hardware.emulators.config import Truth
 
 __all__ = ["FADE", "SignalTable", "cache_dir", "harmonic_table", "model_table", "run_table", "signal_table",
@@ -41,28 +49,40 @@ __all__ = ["FADE", "SignalTable", "cache_dir", "harmonic_table", "model_table", 
 TWO_PI = 2 * np.pi
 FADE = 0.25 * TWO_PI  # rad of motor angle: the crossfade before a long run wraps to its start
 _MODEL_TABLE_VERSION = "2"
-# fields that do not change the model's acceleration (the emulator's own table, the host side)
+_COLUMNS = ("acc", "lateral")  # what a model table holds (part of its key)
 
 @dataclass(frozen=True, eq=False)
 class SignalTable:
     """Slider acceleration (m/s^2) at motor progress ``period i / n`` (i < n) for steady commanded
     ``speed`` (rad/s). Progress is ``direction x motor angle`` modulo ``period`` (2 pi: one looped
-    revolution; a long run: its whole revolutions)."""
+    revolution; a long run: its whole revolutions). ``lateral``: the lateral force on the sensor's body
+    over its mass (m/s^2) on the same grid (module docstring; None: a table without it)."""
 
     speed: float
     acc: np.ndarray
     source: str
     period: float = TWO_PI
     direction: int = 1
+    lateral: np.ndarray | None = None
 
     def at(self, theta: np.ndarray, speed: np.ndarray | float | None = None) -> np.ndarray:
         """Acceleration at motor angles ``theta`` (rad), periodic linear interpolation; at another
         ``speed`` the table is scaled by (speed/self.speed)^2 (exact for the kinematic part)."""
-        n = self.acc.size
+        return self._interpolate(self.acc, theta, speed)
+
+    def lateral_at(self, theta: np.ndarray, speed: np.ndarray | float | None = None) -> np.ndarray:
+        """``lateral`` at motor angles ``theta`` as :meth:`at` interpolates the acceleration."""
+        if self.lateral is None:
+            raise ValueError(f"signal table ({self.source}) holds no lateral force: a cross-axis sensor needs "
+                             "the accelerometer on a body sliding on a prismatic guide fixed to the frame")
+        return self._interpolate(self.lateral, theta, speed)
+
+    def _interpolate(self, values: np.ndarray, theta: np.ndarray, speed: np.ndarray | float | None) -> np.ndarray:
+        n = values.size
         x = np.mod(self.direction * np.asarray(theta, dtype=np.float64), self.period) * (n / self.period)
         i0 = np.floor(x).astype(np.int64)
         w = x - i0
-        out = (1 - w) * self.acc[i0 % n] + w * self.acc[(i0 + 1) % n]
+        out = (1 - w) * values[i0 % n] + w * values[(i0 + 1) % n]
         if speed is not None and self.speed != 0:
             out = out * (np.asarray(speed) / self.speed) ** 2
         return out
@@ -88,8 +108,8 @@ def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolution
     """SHA-256 over everything a model table depends on: the bench as drawn for the truth's seed
     (every body, joint, contact law, material, point, driver, sensor axis; a bench changed in memory
     is keyed on what it holds), the drawn speed error, ripple and start spread, the true clearances
-    and the content of the worn-surface files, the seed, speed, revolutions, settling, rate and the
-    model's results digest."""
+    and the content of the worn-surface files, the seed, speed, revolutions, settling, rate, the
+    columns the table holds and the model's results digest."""
     from wearbench.model.digest import model_results_digest
     from wearbench.model.realisation import draw_realisation
 
@@ -98,15 +118,16 @@ def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolution
            "draw": canonical(real.describe()), "clearances": canonical(dict(truth.clearances)),
            "wear": canonical({j: Path(p) for j, p in truth.wear.items()}), "seed": truth.seed,
            "speed": canonical(float(speed)), "revolutions": revolutions, "settle": canonical(float(settle)),
-           "rate": canonical(float(rate))}
+           "rate": canonical(float(rate)), "columns": list(_COLUMNS)}
     return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
 
 
 def _cached(path: Path, cache: bool) -> SignalTable | None:
     if cache and path.exists():
         with np.load(path) as data:
+            lateral = data["lateral"] if "lateral" in data.files else None
             return SignalTable(float(data["speed"]), data["acc"], str(data["source"]), float(data["period"]),
-                               int(data["direction"]))
+                               int(data["direction"]), lateral if lateral is None or lateral.size else None)
     return None
 
 
@@ -115,7 +136,8 @@ def _store(path: Path, table: SignalTable, cache: bool) -> SignalTable:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
         np.savez(tmp, speed=np.array(table.speed), acc=table.acc, source=np.array(table.source),
-                 period=np.array(table.period), direction=np.array(table.direction))
+                 period=np.array(table.period), direction=np.array(table.direction),
+                 lateral=np.zeros(0) if table.lateral is None else table.lateral)
         os.replace(tmp, path)
     return table
 
@@ -144,9 +166,13 @@ def model_table(bench: Bench, truth: Truth, speed: float, *, settle: float = 2.0
     angle = np.mod(run.motor_angle[one], TWO_PI)
     order = np.argsort(angle)
     n = int(np.clip(rate * TWO_PI / abs(speed), 512, 200000))
-    values = np.interp(np.arange(n) * (TWO_PI / n), angle[order], run.acc[one][order], period=TWO_PI)
+    grid = np.arange(n) * (TWO_PI / n)
+    values = np.interp(grid, angle[order], run.acc[one][order], period=TWO_PI)
+    lateral = lateral_force(run.realisation.bench, run.table)
+    if lateral is not None:
+        lateral = np.interp(grid, angle[order], lateral[one][order], period=TWO_PI)
     source = f"model twin ({run.summary['description']}) at {speed:g} rad/s, one revolution looped"
-    return _store(path, SignalTable(float(speed), values, source), cache)
+    return _store(path, SignalTable(float(speed), values, source, lateral=lateral), cache)
 
 
 def run_table(bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40, settle: float = 2.0,
@@ -186,14 +212,20 @@ def run_table(bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40
                            f"the {n_rev} revolutions from {start:.3f} rad it must hold")
     n = int(np.clip(rate * TWO_PI / abs(speed), 512, 200000)) * n_rev
     p = np.arange(n) * (period / n)
-    values = np.interp(start + p, progress, run.acc)
     fade = p >= period - FADE
     w = 0.5 - 0.5 * np.cos(np.pi * (p[fade] - (period - FADE)) / FADE)
-    values[fade] = (1 - w) * values[fade] + w * np.interp(start + p[fade] - period, progress, run.acc)
+
+    def played(column: np.ndarray) -> np.ndarray:
+        values = np.interp(start + p, progress, column)
+        values[fade] = (1 - w) * values[fade] + w * np.interp(start + p[fade] - period, progress, column)
+        return values
+
+    lateral = lateral_force(run.realisation.bench, run.table)
     real = run.realisation
     source = (f"model run of {bench.name} drawn with seed {truth.seed} (speed x{real.speed_scale:.5f}, ripple "
               f"{real.ripple:.2e}) in state {truth.state().name!r}, {n_rev} revolutions at {speed:g} rad/s")
-    return _store(path, SignalTable(float(speed), values, source, period, direction), cache)
+    return _store(path, SignalTable(float(speed), played(run.acc), source, period, direction,
+                                    None if lateral is None else played(lateral)), cache)
 
 
 def signal_table(kind: str, bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40,
