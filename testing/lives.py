@@ -5,7 +5,9 @@ benches' move from new to worn on (``validation/track_move.py``).
 A truth is the bench drawn from the bench file's ``[tolerances]`` with its own seed (the estimator's
 design uses seeds 1..M), worn from a clearance, run from a random start, and seen through the
 emulator's sensor chain (the bench file's ``[emulator.accelerometer]``; ``spread``: a mount or
-carriage mode drawn per truth, ``SensorSpread``) applied in-process to the model's acceleration. A
+carriage mode drawn per truth, ``SensorSpread`` without its cross-axis part: the lives' cache
+holds axial paths, and cross-axis moves the features' band powers by at most 0.6 dB) applied
+in-process to the model's acceleration. A
 life is one such bench worn with a factor times the file's wear coefficient and recorded after 0 and
 every stage. The top layer: imports the model, the emulators and the validation layer.
 """
@@ -47,7 +49,7 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
                 depth = max(depth, sum(s.max_depth))
         acc = EmulatorConfig.from_bench(bench).accelerometer
         if spread:
-            acc = SensorSpread().draw(acc, seed)
+            acc = SensorSpread(cross_axis=(0.0, 0.0)).draw(acc, seed)
         sensor = bench.sensor("accelerometer")
         chain = SensorChain(acc, sensor.sample_rate, sensor.range, np.random.default_rng([seed, 7]))
         state = WearState("truth", dict.fromkeys(joints, clearance), files)
