@@ -116,7 +116,9 @@ def main() -> None:
     folder = Path(args.sessions or tempfile.mkdtemp(prefix="wearbench-stability-sessions-"))
     folder.mkdir(parents=True, exist_ok=True)
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
-    kinds = {"drawn": {"accelerometer": {"spread": {}}}, "default": {}}  # drawn: SensorSpread's defaults
+    # drawn: SensorSpread's mounts without cross-axis (the sessions its README table was measured on;
+    # benchmarks/identify.py --cross-axis off, whose "_drawn" file names these share)
+    kinds = {"drawn": {"accelerometer": {"spread": {"cross_axis": [0.0, 0.0]}}}, "default": {}}
     revolutions = truth_revolutions(args.cycles + 1)
     # (kind, truth state, its seed, file): benchmarks/identify.py's file names
     sessions = [(kind, s, seed, folder / f"{slug(s.name)}_{seed}{'_drawn' if kind == 'drawn' else ''}_{args.cycles}.mcap")
