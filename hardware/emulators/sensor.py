@@ -69,8 +69,8 @@ class SensorChain:
         fs = self.internal_rate
         mount = [mode_sos(acc.resonance, acc.damping, fs, "mounting resonance")] if acc.resonance else []
         aa = [anti_alias_sos(acc, self.sample_rate, fs)] if acc.aa_filter != "none" else []
-        self.sos = np.vstack(mount + aa) if mount or aa else None  # the axial path (one cascade)
-        self._zi: np.ndarray | None = None
+        self._axial = _Filter(mount + aa)  # the axial path as one cascade
+        self.sos = self._axial.sos
         self.lateral = acc.lateral
         if self.lateral:  # the cross-axis part joins between the mount and the DAQ filter: three filters
             self._stages = (_Filter(mount), _Filter([mode_sos(acc.lateral_mode, acc.lateral_damping, fs,
@@ -78,8 +78,7 @@ class SensorChain:
 
     def reset(self) -> None:
         """Forget the filter memory (a stream restarts or the device lost samples)."""
-        self._zi = None
-        for stage in self._stages if self.lateral else ():
+        for stage in (self._axial, *(self._stages if self.lateral else ())):
             stage.zi = None
 
     def process(self, x: np.ndarray, lateral: np.ndarray | None = None) -> np.ndarray:
@@ -92,10 +91,8 @@ class SensorChain:
                                  f"needed at every internal instant ({np.size(x)} values)")
             mount, carriage, aa = self._stages
             x = aa(mount(x) + acc.cross_axis * carriage(np.asarray(lateral, dtype=float)))
-        elif self.sos is not None:
-            if self._zi is None:
-                self._zi = sps.sosfilt_zi(self.sos) * x[0]
-            x, self._zi = sps.sosfilt(self.sos, x, zi=self._zi)
+        else:
+            x = self._axial(x)
         x = acc.sensitivity * x[self.oversample - 1::self.oversample] + acc.bias
         if acc.noise:
             x = x + self._rng.normal(0.0, acc.noise, x.size)

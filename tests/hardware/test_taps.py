@@ -71,7 +71,7 @@ def test_a_tap_while_the_mechanism_turns_adds_the_chains_response_at_the_truths_
     chain = SensorChain(dev.config.accelerometer, dev.sample_rate, dev.range, np.random.default_rng(0))
     m_ = chain.oversample
     ti = t[0] + (np.arange(t.size * m_) - (m_ - 1)) / (dev.sample_rate * m_)
-    chain._zi = np.zeros((chain.sos.shape[0], 2))  # the pulse alone, from rest
+    chain._axial.zi = np.zeros((chain.sos.shape[0], 2))  # the pulse alone, from rest
     alone = chain.process(tap.pulse(ti - 2e-4))
     np.testing.assert_allclose(with_tap - plain, alone, atol=2e-3 * 300)
     assert np.max(np.abs(alone)) > 10.0
