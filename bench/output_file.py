@@ -7,7 +7,8 @@
   complete, so a failure (an error, Ctrl-C, a full disk) leaves the old file as it was.
 
 :func:`check_output` refuses before the work starts (one line naming the option, the path and what
-to do); :func:`output_file` and :func:`output_folder` are the temporary-name writers. Imports the
+to do); :func:`output_file` and :func:`output_folder` are the temporary-name writers, and
+:func:`save_npz` the one for a program's own .npz files (numpy, imported when called). Imports the
 standard library only.
 """
 
@@ -20,7 +21,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["MCAP_MAGIC", "check_output", "holds_session", "output_file", "output_folder"]
+__all__ = ["MCAP_MAGIC", "check_output", "holds_session", "output_file", "output_folder", "save_npz"]
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -69,6 +70,23 @@ def _temporary(path: Path) -> Path:
 
 def _say_replaced(path: Path) -> None:
     print(f"wearbench: replaced the session {path} (--force)", file=sys.stderr)
+
+
+def save_npz(path: str | Path, **arrays) -> Path:
+    """Write ``arrays`` as a compressed .npz at ``path`` through a temporary name beside it, renamed
+    over ``path`` when complete: a failure half way leaves ``path`` as it was and nothing beside it.
+    Whether ``path`` may be replaced is the caller's decision (:func:`output_file`)."""
+    import numpy as np
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temporary(path)
+    try:
+        np.savez_compressed(tmp, **arrays)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
 
 
 @contextmanager

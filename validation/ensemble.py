@@ -15,7 +15,6 @@ tolerances, seed, settings and the model's source digest.
 from __future__ import annotations
 
 import json
-import os
 import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -23,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 from wearbench.bench.content import bench_key, file_digest
+from wearbench.bench.output_file import save_npz
 from wearbench.bench.schema import Bench, WearState
 from wearbench.validation.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.filters import parse_filter
@@ -204,12 +204,7 @@ def save_ensembles(ensembles: Mapping[str, Ensemble], path: str | Path, *, key: 
         arrays[f"peaks_{i}"] = e.peaks
         arrays[f"meta_{i}"] = np.array(json.dumps({"speed": e.speed, "failures": list(e.failures),
                                                    "settings": asdict(e.settings)}))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez_compressed(tmp, **arrays)
-    os.replace(tmp, path)
-    return path
+    return save_npz(path, **arrays)
 
 
 def _not_ensembles(path: Path, why: str) -> ValueError:

@@ -40,7 +40,6 @@ parameters; an MCMC or a neural estimator adds nothing there):
 from __future__ import annotations
 
 import json
-import os
 import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -48,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy import linalg, optimize, special, stats
+from wearbench.bench.output_file import save_npz
 from wearbench.bench.schema import Bench, WearState
 from wearbench.bench.units import parse_quantity
 from wearbench.validation.ensemble import Ensemble, EnsembleSettings, build_ensembles
@@ -218,17 +218,9 @@ def estimator_from_ensembles(bench: str, key: str, design: EstimatorDesign, ense
 
 
 def save_estimator(est: Estimator, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    try:
-        np.savez_compressed(tmp, key=np.array(est.key), features=est.features, depth=est.depth,
-                            meta=np.array(json.dumps({"bench": est.bench, "speed": est.speed,
-                                                      "design": est.design.as_dict()})))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)  # a failure half way leaves nothing beside the file
-    return path
+    return save_npz(path, key=np.array(est.key), features=est.features, depth=est.depth,
+                    meta=np.array(json.dumps({"bench": est.bench, "speed": est.speed,
+                                              "design": est.design.as_dict()})))
 
 
 def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | None:

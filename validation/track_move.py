@@ -18,13 +18,13 @@ with that estimator and refused with any other.
 from __future__ import annotations
 
 import json
-import os
 import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from wearbench.bench.output_file import save_npz
 from wearbench.validation.estimate import Estimator, EstimatorModel
 from wearbench.validation.statistics import shrunk_covariance
 
@@ -102,16 +102,8 @@ def move_path(estimator_path: str | Path) -> Path:
 
 
 def save_move(move: Move, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    try:
-        np.savez_compressed(tmp, format=np.array(FORMAT), estimator=np.array(move.estimator), mean=move.mean,
-                            covariance=move.covariance, rows=move.rows, about=np.array(json.dumps(dict(move.about))))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return save_npz(path, format=np.array(FORMAT), estimator=np.array(move.estimator), mean=move.mean,
+                    covariance=move.covariance, rows=move.rows, about=np.array(json.dumps(dict(move.about))))
 
 
 def load_move(path: str | Path, estimator: Estimator | str) -> Move:
