@@ -14,7 +14,7 @@ all-feature part alone (the test of earlier versions), true states failing it,
 the confusion matrix and a reliability table at the full session length, held-out candidates, and
 the earlier pointwise ISO ranking (one nominal simulation per state) on the same sessions.
 
-    .venv/bin/python benchmarks/identify.py [--draws 5] [--cycles 20] [--realisations 32]
+    .venv/bin/python benchmarks/identify.py [--draws 5] [--cycles 20] [--realisations 64]
     .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
     .venv/bin/python benchmarks/identify.py --sensor-paths --calibrate    # drawn mounts, with calibration
     .venv/bin/python benchmarks/identify.py --ensemble-paths none         # ensembles without drawn paths
@@ -54,7 +54,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=5, help="truth draws per state (5)")
     ap.add_argument("--cycles", type=int, default=20, help="cycles per session (20)")
-    ap.add_argument("--realisations", type=int, default=32, help="ensemble realisations per state (32)")
+    ap.add_argument("--realisations", type=int, default=64, help="ensemble realisations per state (64)")
     ap.add_argument("--ensemble-cycles", type=int, default=8, help="cycles per realisation (8)")
     ap.add_argument("--workers", type=int, default=None, help="compute workers (default: the machine's cores)")
     ap.add_argument("--cache", help="cache folder (default: a fresh one, so ensembles are built cold)")
@@ -271,7 +271,7 @@ def main() -> None:
     for label, pooled in (("pooled over the candidates", True), ("one per state (earlier versions)", False)):
         print(f"  {label:34s} {scores(fit_states(ensembles, replace(options, pooled=pooled)))}")
 
-    print("\nhow many realisations (full sessions; default 32):")
+    print("\nhow many realisations (full sessions; default 64):")
     for m in sorted({8, 16, 24, args.realisations}):
         if m <= args.realisations:
             subsets = {k: replace(e, features=e.features[:m]) for k, e in ensembles.items()}

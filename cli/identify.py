@@ -28,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="ensembles saved by 'wearbench ensemble' (no simulation); refused, with the reason, where "
                    "their bench, speed or candidates (--candidates, else the session's bench's) do not fit")
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
-    p.add_argument("--realisations", type=positive_int, default=32, help="ensemble realisations per state (32)")
+    p.add_argument("--realisations", type=positive_int, default=64, help="ensemble realisations per state (64)")
     p.add_argument("--ensemble-cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
     p.add_argument("--estimate", action="store_true",
                    help="also estimate each session's clearance and wear with credible intervals, as 'wearbench "

@@ -35,7 +35,7 @@ __all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "build_ensembles"
 class EnsembleSettings:
     """How many realisations, how long each, and what is kept of them."""
 
-    realisations: int = 32    # M, realisations per state
+    realisations: int = 64    # M, realisations per state
     cycles: int = 8           # C, settled crank cycles kept per realisation
     settle: float = 2.0       # motor revolutions simulated and dropped first
     seed: int = 1             # realisation i of a state uses seed + i
