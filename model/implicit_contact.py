@@ -57,9 +57,10 @@ def work(N, m, nc, kc):
 
 
 @njit(cache=True)
-def contact_jacobian(q, P, inc, v0i, cout, W, X):
+def contact_jacobian(q, P, inc, v0i, cout, W, X, implicit=True):
     """G, U, D and the joints' contact data of X at q, from the right-hand side just evaluated there (W holds
-    its constraints, the bodies' cos/sin and the Cholesky factor of S; cout its contact outputs)."""
+    its constraints, the bodies' cos/sin and the Cholesky factor of S; cout its contact outputs); not
+    ``implicit``: the contact data alone (U and D stay as they are: zero)."""
     n = q.shape[0]
     minv, clr_b, clr_p = P.minv, P.clr_b, P.clr_p
     nc = clr_b.shape[0]
@@ -94,6 +95,8 @@ def contact_jacobian(q, P, inc, v0i, cout, W, X):
         jd[c, 3] = math.sqrt(co[K.CO_EX] ** 2 + co[K.CO_EY] ** 2)
         jd[c, 4] = co[K.CO_PHIB] + thi
         jd[c, 5] = v0i[c] if inc[c] != 0 else impact_speed(co[K.CO_VN])
+    if not implicit:
+        return
     # U = A_m G^T, column by column: M^-1 G^T minus its constraint part (substitutions with S's factor)
     for c in range(nc):
         for a in range(2):
@@ -247,12 +250,13 @@ def _substep(P, X, h, fi, yi):
 
 
 @njit(cache=True)
-def liex_try(kc, t, y, h, k, lamk, speed, P, inc, v0i, ynew, cnew, W, X, atol, rtol):
+def liex_try(kc, implicit, t, y, h, k, lamk, speed, P, inc, v0i, ynew, cnew, W, X, atol, rtol):
     """One step of ``kc`` extrapolation columns from (t, y), f(t, y) in k[0]: ynew and, when the error test
     passes, k[2] = f(t + h, ynew), k[1] = (ynew - y) / h, lamk[2] and lamk[1] (the mean of the ends' multipliers:
     linear between them on the Hermite extension) and the Jacobian at ynew for the next step. A step that
     passes the error test but ends in a contact no evaluation of it saw (nor its Jacobian holds) is
-    rejected (error norm ONSET_ERROR). Returns (status, error norm, right-hand sides evaluated)."""
+    rejected (error norm ONSET_ERROR). Not ``implicit``: J = [[0, I], [0, 0]] (U and D stay zero; the contact
+    data are still kept for the onset check). Returns (status, error norm, right-hand sides evaluated)."""
     N = y.shape[0]
     n = N // 2
     nc = cnew.shape[0]
@@ -263,7 +267,7 @@ def liex_try(kc, t, y, h, k, lamk, speed, P, inc, v0i, ynew, cnew, W, X, atol, r
         nf += 1
         if st != 0:
             return st, 0.0, nf
-        contact_jacobian(y[:n], P, inc, v0i, X.cj, W, X)
+        contact_jacobian(y[:n], P, inc, v0i, X.cj, W, X, implicit)
         X.tj[0] = t
     st, err, nfs = _columns(kc, t, y, h, k, speed, P, inc, v0i, ynew, W, X, atol, rtol)
     nf += nfs
@@ -282,7 +286,7 @@ def liex_try(kc, t, y, h, k, lamk, speed, P, inc, v0i, ynew, cnew, W, X, atol, r
         k[1, i] = (ynew[i] - y[i]) / h
     for r in range(lamk.shape[1]):
         lamk[1, r] = 0.5 * (lamk[0, r] + lamk[2, r])
-    contact_jacobian(ynew[:n], P, inc, v0i, cnew, W, X)
+    contact_jacobian(ynew[:n], P, inc, v0i, cnew, W, X, implicit)
     X.tj[0] = t + h
     return 0, err, nf
 

@@ -1,9 +1,9 @@
 """Time integrators for scenes with freedoms: one compiled step for every tableau, one compiled loop.
 
 :func:`erk_try` steps any explicit Runge-Kutta tableau of ``methods.py`` (the methods are data
-there); :func:`run_loop` is shared by all of them: step control, projection, contact-mode
-updates, dense output, contact records, peaks, each accepted step's bookkeeping in a small
-compiled helper. ``k[0] = f(t, y)`` on entry to a step and ``k[scheme.end] = f`` at its end (the
+there; the opt-in "imex" steps with ``implicit_contact.liex_try``); :func:`run_loop` is shared by
+all of them: step control, projection, contact-mode updates, dense output, contact records, peaks,
+each accepted step's bookkeeping in a small compiled helper. ``k[0] = f(t, y)`` on entry to a step and ``k[scheme.end] = f`` at its end (the
 tableau owns its stage count). :func:`kinematics_loop` serves fully driven scenes with ideal joints.
 The loop runs compiled, returning to Python only when done, when a record buffer is full or on
 failure, so a step costs no interpreter time. Imports numpy, numba and the model's kernel only.
@@ -566,8 +566,8 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         hh = min(h, t_end - t)
         last = hh >= t_end - t
         if scheme.columns > 0:
-            status, err, nf = IC.liex_try(scheme.columns, t, y, hh, k, lamk, speed, P, inc, v0i, ynew, cnew, W, X,
-                                          control.atol, control.rtol)
+            status, err, nf = IC.liex_try(scheme.columns, scheme.implicit, t, y, hh, k, lamk, speed, P, inc, v0i, ynew,
+                                          cnew, W, X, control.atol, control.rtol)
             st.nfev += nf
         else:
             status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cnew, W,
