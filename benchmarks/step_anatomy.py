@@ -14,7 +14,7 @@ and splits the steps after the settle into
 - **rejected steps** per contact onset: the difference of two runs from the same start, one to the
   settle and one to the end (rejections are not recorded step by step).
 
-Run:  .venv/bin/python benchmarks/step_anatomy.py [--revolutions 2] [--settle 0.5]
+Run:  .venv/bin/python benchmarks/step_anatomy.py [--revolutions 2] [--settle 0.5] [--method imex] [--rtol 1e-6]
 """
 
 from __future__ import annotations
@@ -32,13 +32,16 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
-def anatomy(scene, speed_rev_s: float, settle: float, revolutions: float) -> dict:
-    """Step counts of one state after ``settle`` s, per revolution."""
+def anatomy(scene, speed_rev_s: float, settle: float, revolutions: float, method: str = "default",
+            rtol: float | None = None) -> dict:
+    """Step counts of one state after ``settle`` s, per revolution (``method`` at its own tolerance or rtol,
+    atol = rtol x 1e-3 m)."""
     from wearbench.model import simulate
 
     t_end = settle + revolutions / speed_rev_s
-    early = simulate(scene, t_end=settle).summary
-    run = simulate(scene, t_end=t_end, record_contacts=True)
+    tol = {} if rtol is None else {"rtol": rtol, "atol": rtol * 1e-3}
+    early = simulate(scene, t_end=settle, method=method, **tol).summary
+    run = simulate(scene, t_end=t_end, record_contacts=True, method=method, **tol)
     joints = list(run.contacts)
     t = run.contacts[joints[0]]["t"].to_numpy()
     keep = t[1:] > settle
@@ -66,6 +69,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--revolutions", type=float, default=2.0)
     ap.add_argument("--settle", type=float, default=0.5, help="seconds run before counting (s)")
+    ap.add_argument("--method", default="default", help="a method of wearbench.model.METHODS (e.g. imex)")
+    ap.add_argument("--rtol", type=float, help="the method at this rtol (atol = rtol x 1e-3 m) instead of its own")
     args = ap.parse_args()
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.model.realisation import state_scene
@@ -73,9 +78,10 @@ def main() -> None:
     bench = load_bench(shipped_bench("ninebar-testbed"))
     states = {s.name: s for s in bench.states}
     speed = abs(bench.speed) / (2 * np.pi)
-    rows = {name: anatomy(state_scene(bench, states[name]), speed, args.settle, args.revolutions)
-            for name in STATES}
-    print(f"test bed ninebar-testbed, nominal bench, default method; {args.revolutions:g} revolutions after "
+    rows = {name: anatomy(state_scene(bench, states[name]), speed, args.settle, args.revolutions, args.method,
+                          args.rtol) for name in STATES}
+    tol = "its own tolerance" if args.rtol is None else f"rtol {args.rtol:g}"
+    print(f"test bed ninebar-testbed, nominal bench, method {args.method} at {tol}; {args.revolutions:g} revolutions after "
           f"{args.settle:g} s; per revolution unless said")
     print(f"  {'':<44}" + "".join(f"{n:>20}" for n in STATES))
 
