@@ -83,6 +83,7 @@ from wearbench.validation.track_move import Move
 __all__ = ["Track", "joint_log_likelihood", "session_covariances", "track_features", "track_figure", "wear_drift"]
 
 K_RANGE = (0.2, 5.0)
+RATE_SPREAD = 0.2  # lognormal sd of the features' rate along a life (module docstring)
 
 
 @dataclass
@@ -191,10 +192,29 @@ def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Seque
     return out.reshape(r.shape[:-2])
 
 
+def _spread_rate(log_lik: np.ndarray, inside: np.ndarray, step: float, spread: float) -> np.ndarray:
+    """The log likelihood (c, k) marginalised over the features' rate ``eta`` (lognormal, sd ``spread``):
+    ``L(c, k) = E[L(c, k eta)]``, a Gaussian kernel along the log-factor grid (spacing ``step``), over
+    the factors inside the estimator's range only (renormalised there: beyond it the likelihood is not
+    known, not zero); -inf outside the range as before."""
+    if spread <= 0:
+        return log_lik
+    from scipy import ndimage
+
+    m = int(np.ceil(4.0 * spread / step))
+    kernel = np.exp(-0.5 * (np.arange(-m, m + 1) * step / spread) ** 2)
+    top = log_lik[:, inside].max()
+    lik = np.where(inside, np.exp(log_lik - top), 0.0)
+    num = ndimage.convolve1d(lik, kernel, axis=1, mode="constant", cval=0.0)
+    den = ndimage.convolve1d(inside.astype(float), kernel, mode="constant", cval=0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(inside, np.log(num / den) + top, -np.inf)
+
+
 def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float], model: EstimatorModel, *,
                    coefficient: float, limit: float | None = None, labels: Sequence[str] | None = None,
                    factors: int = 161, depth_spread: float = 0.05, drift: bool = True,
-                   move: Move | None = None) -> Track:
+                   move: Move | None = None, rate_spread: float = RATE_SPREAD) -> Track:
     """Wear over life from sessions' cycle ``features`` recorded after ``cycles_run`` cycles.
 
     coefficient: the bench file's wear coefficient K_n (1/Pa); limit: a clearance limit (m);
@@ -202,7 +222,10 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     worn sessions share the bench's move from new (:func:`wear_drift`; False: the offset is constant
     over the life, as before it was measured); move: the worn sessions' move beyond the estimator's mean
     change (``track_move.life_move``, measured on lives of known truth, or ``track_move.stored_move``):
-    the worn sessions' expected means move by its mean and its covariance joins the drift's."""
+    the worn sessions' expected means move by its mean and its covariance joins the drift's;
+    rate_spread: lognormal sd of the rate at which a bench's features change along the life about the
+    estimator's (its ``k`` for the features is ``k eta``, ``eta`` lognormal; 0: none; see the module
+    docstring)."""
     if len(features) != len(cycles_run) or len(features) < 2:
         raise ValueError(f"track: {len(features)} sessions and {len(cycles_run)} cycles-run values: expected one "
                          "value per session and at least two sessions")
@@ -214,6 +237,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
         raise ValueError("track: a measured move (move=...) is part of the drift: drift=False leaves it nowhere")
     if not 0 <= depth_spread < 1:
         raise ValueError(f"track: depth_spread = {depth_spread}: expected a lognormal sd in [0, 1)")
+    if not 0 <= rate_spread < 1:
+        raise ValueError(f"track: rate_spread = {rate_spread}: expected a lognormal sd in [0, 1)")
     labels = list(labels or [f"session {i + 1}" for i in range(len(features))])
     gc, gn = model.grid_c, model.grid_n
     ks = np.geomspace(*K_RANGE, factors)
@@ -236,6 +261,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
             cov = cov + move.covariance
         moved = (np.broadcast_to((runs > 0).astype(float), means.shape[:-1]), cov)
     log_post[:, inside] = joint_log_likelihood(model, xbars, n_cycles, means, *moved) / model.temperature
+    log_post = _spread_rate(log_post, inside, np.log(ks[1] / ks[0]), rate_spread)
     post = np.exp(log_post - special.logsumexp(log_post))
     c_int = _interval(gc, post.sum(axis=1))
     k_int = _interval(np.log(ks), post.sum(axis=0))
