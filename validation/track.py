@@ -114,6 +114,7 @@ class Track:
     prediction: list[tuple[float, Interval]] = field(default_factory=list)  # (cycles, wear depth m)
     notes: list[str] = field(default_factory=list)
     move: dict | None = None  # the measured move from new to worn used (Move.as_dict), None: none used
+    rate_spread: float = 0.0  # lognormal sd of the features' rate along the life marginalised (0: none)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -317,7 +318,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
                      f"{min(K_RANGE[1], float(ks[inside][-1])):.3g} x the file's (the last session's cycles run times "
                      "the factor must lie within the estimator's range)")
     return Track(labels, [float(n) for n in cycles_run], c_int, k_int, coef, depth, limit, to_limit, beyond,
-                 prediction, notes, move.as_dict() if move is not None else None)
+                 prediction, notes, move.as_dict() if move is not None else None, float(rate_spread))
 
 
 def track_figure(track: Track, path, *, title: str = "wear over the bench's life"):

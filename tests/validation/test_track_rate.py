@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from wearbench.validation.features import CycleFeatures
-from wearbench.validation.track import _spread_rate, track_features
+from wearbench.validation.track import RATE_SPREAD, _spread_rate, track_features
 
 from . import test_estimate
 from .test_estimate import SPEC, true_mean
@@ -54,12 +54,13 @@ def test_a_planted_rate_error_is_covered_with_the_rate_spread_and_missed_without
     with an interval no more than twice as wide."""
     runs = [0.0, 1e5, 2e5, 3e5]
     for eta in (0.7, 1.4):
-        plain = track_features(life(runs, eta), runs, model, coefficient=5.2e-14)
+        plain = track_features(life(runs, eta), runs, model, coefficient=5.2e-14, rate_spread=0.0)
         spread = track_features(life(runs, eta), runs, model, coefficient=5.2e-14, rate_spread=0.3)
         assert plain.factor.median == pytest.approx(eta, rel=0.1) and not plain.factor.contains(1.0)
-        assert spread.factor.contains(1.0)
-    plain = track_features(life(runs, 1.0), runs, model, coefficient=5.2e-14)
+        assert spread.factor.contains(1.0) and spread.rate_spread == 0.3 and plain.rate_spread == 0.0
+    plain = track_features(life(runs, 1.0), runs, model, coefficient=5.2e-14, rate_spread=0.0)
     spread = track_features(life(runs, 1.0), runs, model, coefficient=5.2e-14, rate_spread=0.3)
+    assert track_features(life(runs, 1.0), runs, model, coefficient=5.2e-14).rate_spread == RATE_SPREAD == 0.2
     assert plain.factor.contains(1.0, 50) and spread.factor.contains(1.0, 50)
     width = lambda t: np.log(t.factor.hi90 / t.factor.lo90)
     assert width(plain) < width(spread) < 2.0 * width(plain) + 2 * 1.645 * 0.3
