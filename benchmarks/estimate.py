@@ -382,7 +382,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     a move was stored), with the bench's move from new to worn beyond the estimator's measured on the
     other half of the lives (``track_move.life_move``; lives split by their order, first half and second
     half, each scored with the move of the other), so no life is scored with a term measured on it, and
-    with the ``stored`` move (track's default; said whether it was measured on these lives)."""
+    with the ``stored`` move (track's default; said whether it was measured on these lives), and with
+    it but without the features' rate spread (``track_features(rate_spread=0)``, track before it)."""
     from wearbench.compute import TaskFailure
     from wearbench.validation.features import CycleFeatures, FeatureSpec
     from wearbench.validation.track import _depth_curve, track_features
@@ -416,13 +417,16 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
         idx = [round(n / args.life_step) for n in subset]
         cycles_run = [every[k] for k in idx]
         names = (["no move"] + ["move, other half"] * bool(moves) + ["stored move"] * (stored is not None)
-                 + ["offset constant"] * (len(idx) == 5))
+                 + ["stored, rate 0"] * (stored is not None) + ["offset constant"] * (len(idx) == 5))
         for name in names:
             rows = []
             for j, ((c, seed), r) in enumerate(good):
                 limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)
                 feats = [CycleFeatures(FeatureSpec(), r["features"][k], np.zeros(len(r["features"][k]))) for k in idx]
-                kw = {"move": moves[int(j < half)]} if name.startswith("move") else {"move": stored} if name == "stored move" else {}
+                kw = ({"move": moves[int(j < half)]} if name.startswith("move") else {"move": stored}
+                      if name.startswith("stored") else {})
+                if name == "stored, rate 0":  # the features' rate about the estimator's not marginalised (before)
+                    kw["rate_spread"] = 0.0
                 t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit,
                                    drift=name != "offset constant", **kw)
                 m, truth, post_k = t.cycles_to_limit, 5 * args.life_step, t.factor

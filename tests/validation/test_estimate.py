@@ -255,7 +255,7 @@ def test_the_edge_note_fires_when_a_tenth_of_the_factor_lies_at_the_grids_edge(m
         mass = edge_mass(xbars)
         assert (0.05 < mass < 0.1) if not fires else mass > 0.1, (factor, mass)
         feats = [CycleFeatures(SPEC, np.repeat(x[None], n, axis=0), np.zeros(n)) for x in xbars]
-        t = track_features(feats, runs, model, coefficient=5.2e-14, drift=False)  # the dense form above
+        t = track_features(feats, runs, model, coefficient=5.2e-14, drift=False, rate_spread=0.0)  # the dense form
         assert any("reaches the edge" in note for note in t.notes) == fires, (factor, mass, t.notes)
 
 
