@@ -14,7 +14,7 @@ and splits the steps after the settle into
 - **rejected steps** per contact onset: the difference of two runs from the same start, one to the
   settle and one to the end (rejections are not recorded step by step).
 
-Run:  .venv/bin/python benchmarks/step_anatomy.py [--revolutions 2] [--settle 0.5] [--method imex] [--rtol 1e-6]
+Run:  .venv/bin/python benchmarks/step_anatomy.py [--revolutions 2] [--settle 0.5] [--method accurate] [--rtol 1e-6]
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--revolutions", type=float, default=2.0)
     ap.add_argument("--settle", type=float, default=0.5, help="seconds run before counting (s)")
-    ap.add_argument("--method", default="default", help="a method of wearbench.model.METHODS (e.g. imex)")
+    ap.add_argument("--method", default="default", help="a method of wearbench.model.METHODS (e.g. accurate)")
     ap.add_argument("--rtol", type=float, help="the method at this rtol (atol = rtol x 1e-3 m) instead of its own")
     args = ap.parse_args()
     from wearbench.bench.load import load_bench, shipped_bench

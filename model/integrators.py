@@ -1,9 +1,9 @@
 """Time integrators for scenes with freedoms: one compiled step for every tableau, one compiled loop.
 
 :func:`erk_try` steps any explicit Runge-Kutta tableau of ``methods.py`` (the methods are data
-there; the opt-in "imex" steps with ``implicit_contact.liex_try``); :func:`run_loop` is shared by
-all of them: step control, projection, contact-mode updates, dense output, contact records, peaks,
-each accepted step's bookkeeping in a small compiled helper. ``k[0] = f(t, y)`` on entry to a step and ``k[scheme.end] = f`` at its end (the
+there); :func:`run_loop` is shared by all of them: step control, projection, contact-mode
+updates, dense output, contact records, peaks, each accepted step's bookkeeping in a small
+compiled helper. ``k[0] = f(t, y)`` on entry to a step and ``k[scheme.end] = f`` at its end (the
 tableau owns its stage count). :func:`kinematics_loop` serves fully driven scenes with ideal joints.
 The loop runs compiled, returning to Python only when done, when a record buffer is full or on
 failure, so a step costs no interpreter time. Imports numpy, numba and the model's kernel only.
@@ -18,7 +18,6 @@ from collections import namedtuple
 
 import numpy as np
 from numba import njit
-from wearbench.model import implicit_contact as IC
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
 
@@ -552,7 +551,6 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
     enew = np.empty(inc.shape[0] + 1)
     vals = np.empty(inc.shape[0] + 1)
     dbs = np.empty(scheme.d.shape[0])
-    X = IC.work(N, lam.shape[0], inc.shape[0], scheme.columns)  # the extrapolation's (method imex)
     if pst[2] == 0:  # values at the start
         _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
         _raise_peaks(peaks, pe[1])
@@ -565,14 +563,9 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
             return _save(st, FULL, t, h, iout, irec, err_old)
         hh = min(h, t_end - t)
         last = hh >= t_end - t
-        if scheme.columns > 0:
-            status, err, nf = IC.liex_try(scheme.columns, scheme.implicit, t, y, hh, k, lamk, speed, P, inc, v0i, ynew,
-                                          cnew, W, X, control.atol, control.rtol)
-            st.nfev += nf
-        else:
-            status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cnew, W,
-                                  control.atol, control.rtol)
-            st.nfev += scheme.nfev
+        status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cnew, W,
+                              control.atol, control.rtol)
+        st.nfev += scheme.nfev
         if status != 0:
             return _fail(st, SINGULAR, t, -1, math.nan)
         if not math.isfinite(err):

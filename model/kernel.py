@@ -480,15 +480,6 @@ def _cholesky_solve(S, rhs, x, first):
             for p in range(max(fi, fj), j):
                 s -= S[i, p] * S[j, p]
             S[i, j] = s / d
-    substitute(S, rhs, x, first)
-    return OK
-
-
-@njit(cache=True, inline="always")
-def substitute(S, rhs, x, first):
-    """Solve L L^T x = rhs with the Cholesky factor L that :func:`_cholesky_solve` left in S's lower triangle
-    (envelope ``first``): the forward and back substitution alone, for more right-hand sides at that factor."""
-    m = S.shape[0]
     for i in range(m):
         s = rhs[i]
         for p in range(first[i], i):
@@ -500,6 +491,7 @@ def substitute(S, rhs, x, first):
             if first[p] <= i:
                 s -= S[p, i] * x[p]
         x[i] = s / S[i, i]
+    return OK
 
 
 @njit(cache=True, inline="always")

@@ -5,8 +5,7 @@ As scipy's ``integrate/_ivp/rk.py`` does, each explicit Runge-Kutta method is it
 ``integrators.erk_try``. A :class:`Method` pairs a tableau with its step control and constraint
 stabilisation; :data:`METHODS` is the registry ``simulate``, the command line's ``--method`` and
 ``benchmarks/work_precision.py`` read. Adding a method: its tableau here, an entry in
-:data:`METHODS`. The opt-in method "imex" is an :class:`Extrapolation` instead (linearly implicit, run
-by ``implicit_contact.liex_try`` in the same loop). Imports numpy only (the command line reads it without loading numba).
+:data:`METHODS`. Imports numpy only (the command line reads it without loading numba).
 """
 
 from __future__ import annotations
@@ -17,15 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DOPRI5", "LIEX4", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Extrapolation", "Imex", "Kinematics",
-           "Method", "RK4Paper", "Scheme", "Tableau", "get_method"]
+__all__ = ["DOPRI5", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Kinematics", "Method", "RK4Paper", "Scheme",
+           "Tableau", "get_method"]
 
 # a tableau as the compiled step reads it: ``end`` is the row of the stage array k (end + 1 rows) holding f
-# at the end of the step; expo and expo_pi the step controller's exponents (1 / (q + 1) with q the order of
+# at the end of the step; expo and expo_pi # the step controller's exponents (1 / (q + 1) with q the order of
 # the embedded estimate, and 1 / (q + 1) - 0.75 * 0.04 for the PI controller); d the continuous extension
-# (row per stage of k: coefficients of theta, theta^2, ...; no rows: none); columns: 0 for a tableau, else
-# the extrapolation columns of :class:`Extrapolation`; implicit: whether its Jacobian holds the contact forces
-Scheme = namedtuple("Scheme", "a c b b_den e fsal stages nfev end expo expo_pi d columns implicit")
+# (row per stage of k: coefficients of theta, theta^2, ...; no rows: none)
+Scheme = namedtuple("Scheme", "a c b b_den e fsal stages nfev end expo expo_pi d")
 
 
 @dataclass(frozen=True)
@@ -82,7 +80,7 @@ class Tableau:
         d = np.array(self.dense, dtype=float) if self.dense else np.zeros((0, 1))
         return Scheme(a, np.array(self.c, dtype=float), np.array(self.b, dtype=float), float(self.b_den),
                       np.array(self.e, dtype=float), self.fsal, stages, stages - 1 + (0 if self.fsal else 1), end,
-                      1.0 / q1, round(1.0 / q1 - 0.75 * 0.04, 12), d, 0, False)
+                      1.0 / q1, round(1.0 / q1 - 0.75 * 0.04, 12), d)
 
 
 DOPRI5 = Tableau(
@@ -112,42 +110,6 @@ TABLEAUS = {t.name: t for t in (DOPRI5, RK4)}
 
 
 @dataclass(frozen=True)
-class Extrapolation:
-    """Linearly implicit Euler extrapolation with the clearance contacts' stiff part implicit
-    (``implicit_contact.liex_try``): ``columns`` columns of 1, 2, ... substeps, order ``columns``, embedded
-    estimate of order ``columns`` - 1, cubic Hermite dense output (three rows of k: f at the start,
-    (y1 - y0) / h, f at the end). ``implicit`` False leaves the contacts out of the Jacobian (the same
-    extrapolation, explicit in the contact force: the control case of ``benchmarks/implicit_contact.py``)."""
-
-    name: str
-    columns: int
-    implicit: bool = True
-    reference: str = ""
-
-    def __post_init__(self) -> None:
-        if self.columns < 2:
-            raise ValueError(f"extrapolation {self.name}: {self.columns} columns; expected >= 2 (an error estimate)")
-
-    @property
-    def order(self) -> int:
-        return self.columns
-
-    def scheme(self) -> Scheme:
-        """The arrays the compiled loop reads (the Runge-Kutta fields unused)."""
-        nfev = self.columns * (self.columns - 1) // 2 + 1
-        q1 = self.columns
-        return Scheme(np.zeros((3, 3)), np.zeros(3), np.zeros(3), 1.0, np.zeros(1), False, 3, nfev, 2, 1.0 / q1,
-                      round(1.0 / q1 - 0.75 * 0.04, 12), np.array(HERMITE), self.columns, self.implicit)
-
-
-# the cubic Hermite interpolant on a step as a continuous extension of three rows of k: f at the start,
-# (y1 - y0) / h, f at the end (coefficients of theta, theta^2, theta^3)
-HERMITE = ((1.0, -2.0, 1.0), (0.0, 3.0, -2.0), (0.0, -1.0, 1.0))
-LIEX4 = Extrapolation("liex4", 4, reference="linearly implicit Euler extrapolation (Deuflhard's LIMEX; Hairer, "
-                                             "Wanner, Solving ODE II, sec. IV.9), contact Jacobian only")
-
-
-@dataclass(frozen=True)
 class Method:
     """An integration method: its step kernel, step control and constraint stabilisation.
 
@@ -158,7 +120,7 @@ class Method:
     """
 
     name: str
-    tableau: Tableau | Extrapolation | None
+    tableau: Tableau | None
     adaptive: bool
     project: bool
     baumgarte: tuple[float, float] = (0.0, 0.0)
@@ -190,14 +152,7 @@ Kinematics = Method(
     doc="No time integration: position, velocity and acceleration analysis plus inverse dynamics at each "
         "output time (a fully driven mechanism with ideal joints only; what 'default' does for such a scene).",
 )
-Imex = Method(
-    name="imex", tableau=LIEX4, adaptive=True, project=True, rtol=1e-6, atol=1e-9,
-    doc="Opt-in: linearly implicit Euler extrapolation of order 4 whose Jacobian holds the clearance contacts' "
-        "force law (through the constrained system, two unknowns per joint), projection as the default, cubic "
-        "Hermite dense output. Measured on the test bed, it needs more steps and CPU than the default at equal "
-        "error (benchmarks/implicit_contact.py; README 'An implicit contact force, measured'): a cross-check.",
-)
-METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper, Kinematics, Imex)}
+METHODS: dict[str, Method] = {m.name: m for m in (Dopri5, Accurate, RK4Paper, Kinematics)}
 METHODS["dopri5"] = Dopri5
 
 
