@@ -82,7 +82,8 @@ def save_npz(path: str | Path, **arrays) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _temporary(path)
     try:
-        np.savez_compressed(tmp, **arrays)
+        with open(tmp, "wb") as f:  # a file object: numpy appends ".npz" to a name that lacks it
+            np.savez_compressed(f, **arrays)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from wearbench.acquisition.session_file import read_session
 from wearbench.bench.load import shipped_bench
-from wearbench.bench.output_file import check_output, output_file, output_folder
+from wearbench.bench.output_file import check_output, output_file, output_folder, save_npz
 from wearbench.cli import main
 
 from .acquisition.conftest import FAST, HARMONIC
@@ -75,6 +75,28 @@ def test_the_policy(tmp_path, capsys):
         (tmp / "report.html").write_text("new report")
     assert (folder / "report.html").read_text() == "new report" and (folder / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json", "report", "s.mcap"]
+
+
+def test_save_npz_writes_any_name_whole_or_not_at_all(tmp_path):
+    """The program's own .npz files (ensembles, estimator, move) go through a temporary name renamed
+    when complete, whatever the name's suffix (``--out ens`` as well as ``ens.npz``, and the
+    ``output_file`` temporary name it is given); a failure half way leaves the old file and nothing
+    beside it."""
+    for name in ("ens.npz", "ens", "ens.bin"):
+        path = save_npz(tmp_path / name, a=np.arange(3))
+        assert path == tmp_path / name and np.load(path)["a"].tolist() == [0, 1, 2]
+    with output_file(tmp_path / "ens", force=True) as tmp:
+        save_npz(tmp, a=np.arange(4))
+    assert np.load(tmp_path / "ens")["a"].tolist() == [0, 1, 2, 3]
+    with pytest.raises(TypeError):
+        save_npz(tmp_path / "ens", a=np.arange(2), b=object.__new__(_Unpicklable))
+    assert np.load(tmp_path / "ens")["a"].tolist() == [0, 1, 2, 3]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ens", "ens.bin", "ens.npz"]
+
+
+class _Unpicklable:
+    def __reduce__(self):
+        raise TypeError("not an array")
 
 
 def test_recover_never_replaces_a_file_and_a_failure_leaves_it_whole(tmp_path, capsys):
