@@ -51,6 +51,7 @@ from wearbench.acquisition.drivers import (
     MotorState,
     StreamInfo,
 )
+from wearbench.hardware.protocol.taps import TAP_EVENT
 
 if TYPE_CHECKING:
     from wearbench.acquisition.session import SessionPlan, SessionResult
@@ -396,7 +397,7 @@ def decode_command(data: bytes) -> Command:
                    None if math.isnan(m.acceleration) else m.acceleration, m.host_time)
 
 
-_INFO = {"phase", "stop", "recovered", "event", "info", "tap"}
+_INFO = {"phase", "stop", "recovered", "event", "info", TAP_EVENT}
 _ERROR = {"error", "fault", "stall", "overspeed", "bus_off", "disconnect", "emcy"}
 
 

@@ -6,11 +6,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import pandas as pd
-from wearbench.hardware.protocol.taps import parse_tap_message
+from wearbench.hardware.protocol.taps import TAP_EVENT, parse_tap_message
 
 __all__ = ["TAP_EVENT", "RecordedTap", "recorded_taps"]
-
-TAP_EVENT = "tap"  # the event kind of a latched tap
 
 
 @dataclass(frozen=True)

@@ -51,11 +51,16 @@ import numpy as np
 
 
 def main() -> None:
+    from wearbench.validation.ensemble import EnsembleSettings
+
+    shipped = EnsembleSettings()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=5, help="truth draws per state (5)")
     ap.add_argument("--cycles", type=int, default=20, help="cycles per session (20)")
-    ap.add_argument("--realisations", type=int, default=64, help="ensemble realisations per state (64)")
-    ap.add_argument("--ensemble-cycles", type=int, default=8, help="cycles per realisation (8)")
+    ap.add_argument("--realisations", type=int, default=shipped.realisations,
+                    help=f"ensemble realisations per state ({shipped.realisations}, as shipped)")
+    ap.add_argument("--ensemble-cycles", type=int, default=shipped.cycles,
+                    help=f"cycles per realisation ({shipped.cycles})")
     ap.add_argument("--workers", type=int, default=None, help="compute workers (default: the machine's cores)")
     ap.add_argument("--cache", help="cache folder (default: a fresh one, so ensembles are built cold)")
     ap.add_argument("--seed", type=int, default=9000, help="first truth seed (9000)")
@@ -89,7 +94,7 @@ def main() -> None:
     from wearbench.validation.assess import assess_sessions, session_features
     from wearbench.validation.calibrated import RelativeStatistics, WeightedStatistics
     from wearbench.validation.calibration import fit_calibration
-    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.ensemble import build_ensembles
     from wearbench.validation.features import FeatureSpec
     from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
     from wearbench.validation.measure import calibrate_sessions
@@ -271,7 +276,7 @@ def main() -> None:
     for label, pooled in (("pooled over the candidates", True), ("one per state (earlier versions)", False)):
         print(f"  {label:34s} {scores(fit_states(ensembles, replace(options, pooled=pooled)))}")
 
-    print("\nhow many realisations (full sessions; default 64):")
+    print(f"\nhow many realisations (full sessions; this run {args.realisations}):")
     for m in sorted({8, 16, 24, args.realisations}):
         if m <= args.realisations:
             subsets = {k: replace(e, features=e.features[:m]) for k, e in ensembles.items()}

@@ -9,7 +9,12 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import add_force_argument, check_realisations, motor_speed, positive_int
+from wearbench.cli.options import (
+    add_ensemble_size_arguments,
+    add_force_argument,
+    check_realisations,
+    motor_speed,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,8 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("bench", metavar="BENCH.toml", help="bench file (or the name of a shipped bench)")
     p.add_argument("--candidates", metavar="STATES.toml", help="[[state]] tables (default: the bench's own)")
     p.add_argument("--speed", help="commanded motor speed, e.g. 2pi or 60rpm (default: the bench's)")
-    p.add_argument("--realisations", type=positive_int, default=64, help="realisations per state (64)")
-    p.add_argument("--cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
+    add_ensemble_size_arguments(p)
     p.add_argument("--sensor-paths", choices=("drawn", "none"), default="drawn",
                    help="each realisation seen through its own drawn sensor path: a mount/carriage mode 0.3-3 kHz, "
                    "damping 0.02-0.1, sensitivity +/-5 %% (drawn, the default) or the model's acceleration as it is "

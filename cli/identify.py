@@ -9,7 +9,11 @@ import argparse
 
 from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import add_force_argument, check_realisations, positive_int
+from wearbench.cli.options import (
+    add_ensemble_size_arguments,
+    add_force_argument,
+    check_realisations,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,8 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="ensembles saved by 'wearbench ensemble' (no simulation); refused, with the reason, where "
                    "their bench, speed or candidates (--candidates, else the session's bench's) do not fit")
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
-    p.add_argument("--realisations", type=positive_int, default=64, help="ensemble realisations per state (64)")
-    p.add_argument("--ensemble-cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
+    add_ensemble_size_arguments(p, "--ensemble-cycles")
     p.add_argument("--estimate", action="store_true",
                    help="also estimate each session's clearance and wear with credible intervals, as 'wearbench "
                    "estimate' does (the bench's shipped estimator when its key matches, else its default design "

@@ -81,6 +81,14 @@ def check_realisations(count: int, option: str = "--realisations") -> int:
     return count
 
 
+def add_ensemble_size_arguments(p: argparse.ArgumentParser, cycles_flag: str = "--cycles") -> None:
+    """``--realisations`` and ``cycles_flag``: the theory ensembles' size, defaulting to the shipped
+    ensembles' (``EnsembleSettings``; not imported here, it would slow every command's start:
+    tests/test_cli.py checks the two agree)."""
+    p.add_argument("--realisations", type=positive_int, default=64, help="realisations per state (64, as shipped)")
+    p.add_argument(cycles_flag, type=positive_int, default=8, help="settled cycles per realisation (8)")
+
+
 def cycle_count(text: str) -> float:
     """A number of crank cycles: finite and >= 1 (a fraction of a cycle holds no complete cycle)."""
     value = _number(text)

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 from wearbench.bench.load import shipped_bench
-from wearbench.cli import COMMANDS, main
+from wearbench.cli import COMMANDS, build_parser, main
 
 
 def test_help_lists_every_subcommand(capsys):
@@ -28,6 +28,16 @@ def test_each_subcommand_has_useful_help(name, capsys):
     assert f"wearbench {name}" in out
     assert "not built yet" not in out
     assert len(out.splitlines()) >= 6
+
+
+@pytest.mark.parametrize(("argv", "cycles"), [(["ensemble", "b.toml"], "cycles"),
+                                              (["identify", "s.mcap"], "ensemble_cycles")])
+def test_ensemble_size_defaults_are_the_shipped_ensembles(argv, cycles):
+    """The command line's ensemble size is EnsembleSettings' (the literal in cli/options keeps the start fast)."""
+    from wearbench.validation.ensemble import EnsembleSettings
+
+    args = build_parser().parse_args(argv)
+    assert (args.realisations, getattr(args, cycles)) == (EnsembleSettings().realisations, EnsembleSettings().cycles)
 
 
 def test_bench_check_reports_degrees_of_freedom(capsys):

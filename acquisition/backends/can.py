@@ -44,7 +44,7 @@ from wearbench.acquisition.drivers import (
 from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode
-from wearbench.hardware.protocol.taps import tap_message
+from wearbench.hardware.protocol.taps import TAP_EVENT, tap_message
 
 __all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "FrameLog", "frame_log", "open_bus", "open_rig",
            "replay"]
@@ -120,7 +120,7 @@ class BenchFrames(can.Listener):
             self.inbox.put(Event(kind, f"device: {kind} (detail {int(values['Detail'])})", now,
                                  values["TimeMs"] * 1e-3))
         elif name == "TapLatch":
-            self.inbox.put(Event("tap", "device: " + tap_message(int(values["Number"]), float(values["Width"]),
+            self.inbox.put(Event(TAP_EVENT, "device: " + tap_message(int(values["Number"]), float(values["Width"]),
                                                                  float(values["Peak"])), now, values["TimeNs"] * 1e-9))
         elif name in ("MotorStatus", "StreamStatus"):
             with self.cond:

@@ -41,7 +41,7 @@ from wearbench.acquisition.drivers import (
 )
 from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol.can_frames import EDS_PATH
-from wearbench.hardware.protocol.taps import tap_message
+from wearbench.hardware.protocol.taps import TAP_EVENT, tap_message
 
 __all__ = ["Cia402Drive", "open_rig"]
 
@@ -190,7 +190,7 @@ class Cia402Drive(MotorDrive):
         wrap = 2.0**32 * 1e-6
         ref = self.frames.encoder_time if self.frames.encoder_time is not None else stamp
         latch = stamp + wrap * round((ref - stamp) / wrap)
-        self.frames.inbox.put(Event("tap", "device: " + tap_message(self._taps, width, peak), time.time(), latch))
+        self.frames.inbox.put(Event(TAP_EVENT, "device: " + tap_message(self._taps, width, peak), time.time(), latch))
         self._taps += 1
 
     def state(self) -> MotorState:

@@ -12,7 +12,9 @@ from __future__ import annotations
 import re
 from typing import NamedTuple
 
-__all__ = ["LATCH_RESOLUTION", "MAX_TAP_WIDTH", "TapPulse", "parse_tap_message", "tap_message"]
+__all__ = ["LATCH_RESOLUTION", "MAX_TAP_WIDTH", "TAP_EVENT", "TapPulse", "parse_tap_message", "tap_message"]
+
+TAP_EVENT = "tap"  # the event kind a latched tap is recorded under (FaultCode.TAP's name, as serial reads it)
 
 LATCH_RESOLUTION = 1e-6  # s: the touch probe's time stamp step (1 us)
 MAX_TAP_WIDTH = 5e-3     # s: longest tap pulse a device accepts
