@@ -48,6 +48,7 @@ from wearbench.acquisition.layout import (
     surface_joint,
 )
 from wearbench.acquisition.sequence import SequenceCheck
+from wearbench.bench.content import cache_folder
 from wearbench.bench.load import parse_bench
 from wearbench.bench.output_file import MCAP_MAGIC
 from wearbench.bench.schema import Bench, BenchError
@@ -307,8 +308,7 @@ def _unpacked(text: str, files: dict[str, bytes]) -> str | None:
     digest = hashlib.sha256(text.encode())
     for name in sorted(files):
         digest.update(name.encode() + b"\0" + hashlib.sha256(files[name]).digest())
-    folder = Path(os.environ.get("WEARBENCH_CACHE", Path.home() / ".cache" / "wearbench"), "sessions",
-                  digest.hexdigest()[:32])
+    folder = cache_folder("sessions") / digest.hexdigest()[:32]
     try:
         for name, data in [(BENCH_ATTACHMENT, text.encode()), *files.items()]:
             target = folder / name

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,12 @@ from typing import Any
 import numpy as np
 from wearbench.bench.schema import Bench
 
-__all__ = ["NOT_PHYSICS", "bench_key", "canonical", "file_digest"]
+__all__ = ["NOT_PHYSICS", "bench_key", "cache_folder", "canonical", "file_digest"]
+
+
+def cache_folder(kind: str) -> Path:
+    """Where one kind of cached content lives: ``$WEARBENCH_CACHE/kind`` (default ``~/.cache/wearbench``)."""
+    return Path(os.environ.get("WEARBENCH_CACHE") or Path.home() / ".cache" / "wearbench") / kind
 
 # fields of the bench's dataclasses left out of its content (see the module docstring)
 NOT_PHYSICS = frozenset({"name", "path", "source", "sha256", "description", "emulator", "hardware", "states",

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from wearbench.bench.content import cache_folder
 from wearbench.model.digest import model_results_digest
 
 __all__ = ["LAYOUT_VERSION", "MISSING", "cache_dir", "cache_load", "cache_store", "task_key"]
@@ -77,7 +78,7 @@ def task_key(*parts: Any) -> str:
 
 def cache_dir() -> Path:
     """``$WEARBENCH_CACHE`` (default ``~/.cache/wearbench``)``/results``."""
-    return Path(os.environ.get("WEARBENCH_CACHE", Path.home() / ".cache" / "wearbench")) / "results"
+    return cache_folder("results")
 
 
 def _cache_path(key: str) -> Path:

@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import fcntl
 import json
-import os
 import shutil
 import subprocess
 from pathlib import Path
 
 from mcap.reader import NonSeekingReader, SeekingReader
+from wearbench.bench.content import cache_folder
 
 PACKAGES = ("@mcap/core@2.2.2", "@mcap/support@1.1.0", "@mcap/nodejs@1.0.2", "protobufjs@7.6.6")
 SCRIPT = Path(__file__).with_name("read_mcap.mjs")
@@ -36,8 +36,7 @@ class NodeSetupError(RuntimeError):
 
 
 def cache_dir() -> Path:
-    root = os.environ.get("WEARBENCH_CACHE") or Path.home() / ".cache" / "wearbench"
-    return Path(root) / "node"
+    return cache_folder("node")
 
 
 def install(folder: Path | None = None, packages: tuple[str, ...] = PACKAGES,

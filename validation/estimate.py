@@ -169,7 +169,8 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
                     shipped: bool = True, progress: str | None = "estimator") -> Estimator:
     """The estimator of ``bench``: a shipped one when its key matches, else the design's wear runs
     (one per clearance) and ensembles (one per design point) on the compute layer, cached by content."""
-    from wearbench.compute import Task, TaskFailure, cache_dir, run_tasks, task_key
+    from wearbench.bench.content import cache_folder
+    from wearbench.compute import Task, TaskFailure, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
@@ -190,7 +191,7 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
     failed = [r for r in runs if isinstance(r, TaskFailure)]
     if failed:
         raise RuntimeError(f"estimator {bench.name}: wear run failed: {failed[0]}")
-    folder = cache_dir().parent / "estimator-surfaces"
+    folder = cache_folder("estimator-surfaces")
     states, depth = [], np.zeros((len(design.clearances), len(design.cycles)))
     for i, (run, wk) in enumerate(zip(runs, wkeys, strict=True)):
         for j in range(len(design.cycles)):

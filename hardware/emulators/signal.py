@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from wearbench.bench.content import canonical
+from wearbench.bench.content import cache_folder, canonical
 from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.carriage import lateral_force
 from wearbench.hardware.emulators.config import Truth
@@ -93,7 +93,7 @@ class SignalTable:
 
 
 def cache_dir() -> Path:
-    return Path(os.environ.get("WEARBENCH_CACHE", Path.home() / ".cache" / "wearbench")) / "emulator"
+    return cache_folder("emulator")
 
 
 def harmonic_table(speed: float, points: int = 4096) -> SignalTable:
