@@ -31,6 +31,7 @@ Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolu
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import time
@@ -42,12 +43,15 @@ from scipy import stats
 STATES = ("0.3 mm new", "0.3 mm second wear")
 SECTORS = 4
 ALPHA = 0.01
+SETTLE = 2.0  # settling motor revolutions before the kept ones
+# what a state's simulations cost, summed over its realisations (the dump's "cost" rows)
+COST = ("CPU s", "right-hand sides", "steps", "rejected", "revolutions")
 BASELINE = Path(__file__).with_name("data") / "statistics_baseline.npz"
 
 
 def _realisation_table(bench, state, seed: int, revolutions: float, method: str, tolerances=None):
     """The full table of one realisation (as ``simulate_state`` runs it, with ``method`` at its own or the
-    given (rtol, atol)) and the kept mask."""
+    given (rtol, atol)), the kept mask, the run and the CPU seconds of its ``simulate`` call."""
     from wearbench.model import realisation as R
 
     kept = {}
@@ -57,19 +61,21 @@ def _realisation_table(bench, state, seed: int, revolutions: float, method: str,
         kw["method"] = method
         if tolerances is not None:
             kw["rtol"], kw["atol"] = tolerances
+        t0 = time.process_time()
         res = inner(*args, **kw)
+        kept["cpu"] = time.process_time() - t0
         kept["res"] = res
         return res
 
     R.simulate = capture
     try:
-        run = R.simulate_state(bench, state, seed, revolutions=revolutions, settle=2.0)
+        run = R.simulate_state(bench, state, seed, revolutions=revolutions, settle=SETTLE)
     finally:
         R.simulate = inner
     table = kept["res"].table
     t = table["t"].to_numpy()
     keep = t >= t[-1] - run.t[-1] - 1e-12
-    return table, keep, run
+    return table, keep, run, kept["cpu"]
 
 
 def _cycle_features(bench, table, keep, joints) -> dict[str, np.ndarray]:
@@ -103,9 +109,36 @@ def _cycle_features(bench, table, keep, joints) -> dict[str, np.ndarray]:
     return out
 
 
-def collect(seeds: int, revolutions: float, method: str, tolerances=None
-            ) -> tuple[dict[str, dict[str, np.ndarray]], dict]:
-    """Per-cycle features of every state (concatenated over seeds) and the time spent per state."""
+@contextlib.contextmanager
+def absolute_scales(position: float, velocity: float):
+    """Within the block, every simulation's error scales are absolute and set per kind of component:
+    ``position`` (m) on body positions, ``position`` / 0.1 m on angles, ``velocity`` (m/s) on velocities
+    and ``velocity`` / 0.1 m on angular velocities (run with rtol 0). A tolerance shape the model's
+    (rtol, atol) pair cannot express (it ties velocities to 1e3 /s x atol and adds rtol x |y|); measured
+    here by replacing ``simulation._tolerances`` before anyone adds it to the model."""
+    from wearbench.model import simulation as S
+
+    inner = S._tolerances
+
+    def shaped(scene, atol):
+        kind = np.tile([1.0, 1.0, 10.0], scene.n // 3)
+        return np.concatenate([position * kind, velocity * kind])
+
+    S._tolerances = shaped
+    try:
+        yield
+    finally:
+        S._tolerances = inner
+
+
+def collect(seeds: int, revolutions: float, method: str, tolerances=None, scales=None
+            ) -> tuple[dict[str, dict[str, np.ndarray]], dict, dict]:
+    """Per-cycle features of every state (concatenated over seeds), the time spent per state and the
+    cost of its simulations alone (:data:`COST` summed over the realisations); ``scales``: (position m,
+    velocity m/s) absolute error scales (:func:`absolute_scales`) instead of ``tolerances``."""
+    if scales is not None:
+        with absolute_scales(*scales):
+            return collect(seeds, revolutions, method, (0.0, scales[0]))
     from wearbench.bench.load import load_bench, shipped_bench
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
@@ -113,22 +146,27 @@ def collect(seeds: int, revolutions: float, method: str, tolerances=None
     joints = [j.name for j in bench.joints if j.clearance is not None]
     feats: dict[str, dict[str, list]] = {}
     spent = {}
+    costs = {}
     for name in STATES:
         t0 = time.process_time()
         acc: dict[str, list] = {}
+        cost = np.zeros(5)
         for seed in range(seeds):
-            table, keep, _ = _realisation_table(bench, by_name[name], seed, revolutions, method, tolerances)
+            table, keep, run, cpu = _realisation_table(bench, by_name[name], seed, revolutions, method, tolerances)
+            s = run.summary
+            cost += (cpu, s["function_evaluations"], s["steps"], s["rejected_steps"], revolutions + SETTLE)
             for k, v in _cycle_features(bench, table, keep, joints).items():
                 acc.setdefault(k, []).append(v)
         feats[name] = {k: np.concatenate(v) for k, v in acc.items()}
         spent[name] = time.process_time() - t0
-    return feats, spent
+        costs[name] = cost
+    return feats, spent, costs
 
 
 def _load_or_collect(path: str | None, seeds: int, revs: float, method: str | None):
     """Features and CPU seconds per state from a --dump file, or simulated here with ``method``."""
     if path is None:
-        return collect(seeds, revs, method)
+        return collect(seeds, revs, method)[:2]
     data = np.load(path)
     if float(data["revolutions"]) != revs or int(data["seeds"]) > seeds:
         raise SystemExit(f"{path}: {int(data['seeds'])} seeds x {float(data['revolutions']):g} revolutions; "
@@ -179,6 +217,87 @@ def _report(title: str, rows) -> bool:
     return ok
 
 
+def _setting(data) -> dict:
+    """The simulate options a --dump file was written with, read from its method label ("default",
+    "default rtol R atol A" or "default absolute scales P m, V m/s")."""
+    words = str(data["method"]).replace(",", "").split()
+    if "scales" in words:
+        i = words.index("scales")
+        return {"method": words[0], "scales": (float(words[i + 1]), float(words[i + 3]))}
+    if "rtol" in words:
+        return {"method": words[0], "rtol": float(words[words.index("rtol") + 1]),
+                "atol": float(words[words.index("atol") + 1])}
+    return {"method": words[0]}
+
+
+def _timed(bench, settings: list[dict], revolutions: float, repeat: int) -> np.ndarray:
+    """CPU ms per revolution of the nominal test bed per setting and state (best of ``repeat``, the
+    settings interleaved in one run so that load changes hit all alike)."""
+    from wearbench.model import simulate
+    from wearbench.model.realisation import state_scene
+
+    by_name = {s.name: s for s in bench.states}
+    best = np.full((len(settings), len(STATES)), np.inf)
+    for _ in range(repeat):
+        for j, name in enumerate(STATES):
+            scene = state_scene(bench, by_name[name])
+            for i, opt in enumerate(settings):
+                opt = dict(opt)
+                scales = opt.pop("scales", None)
+                with absolute_scales(*scales) if scales else contextlib.nullcontext():
+                    if scales:
+                        opt.update(rtol=0.0, atol=scales[0])
+                    t0 = time.process_time()
+                    simulate(scene, revolutions=revolutions, **opt)
+                    best[i, j] = min(best[i, j], (time.process_time() - t0) / revolutions * 1e3)
+    return best
+
+
+def sweep(paths: list[str], reference: str, baseline: str, timing: tuple[float, int] | None) -> None:
+    """The tolerance table: per --dump file (a setting), right-hand sides and CPU per revolution (new,
+    worn), the smallest Holm-adjusted p against the baseline and the tight reference, and the verdict;
+    then the cheapest passing setting against the default (the dump written without --tolerances)."""
+    ref = _unflat(np.load(reference))
+    base = _unflat(np.load(baseline))
+    rows = []
+    for path in paths:
+        data = np.load(path)
+        feats, cost = _unflat(data), data["cost"]
+        p_base = np.array([min(r[4] for r in compare(feats[s], base[s])) for s in STATES])
+        p_ref = np.array([min(r[4] for r in compare(feats[s], ref[s])) for s in STATES])
+        rows.append({"name": str(data["method"]), "setting": _setting(data), "rhs": cost[:, 1] / cost[:, 4],
+                     "cpu": cost[:, 0] / cost[:, 4] * 1e3, "p_base": p_base, "p_ref": p_ref,
+                     "ok": min(p_base.min(), p_ref.min()) >= ALPHA, "cycles": len(next(iter(feats[STATES[0]].values())))})
+    default = next((r for r in rows if r["setting"] == {"method": "default"}), None)
+    if timing is not None:
+        from wearbench.bench.load import load_bench, shipped_bench
+
+        ms = _timed(load_bench(shipped_bench("ninebar-testbed")), [r["setting"] for r in rows], *timing)
+        for r, m in zip(rows, ms, strict=True):
+            r["timed"] = m
+    print("per setting: cycles per state; right-hand sides and CPU ms per simulated revolution over the dump's "
+          "realisations (new / worn; the dump's CPU moves with the machine's load)" + (", and CPU ms per revolution "
+          "timed interleaved on the nominal bench" if timing else "") + "; smallest Holm-adjusted p against the "
+          "baseline and the tight reference (new / worn)")
+    print(f"{'setting':<46} {'cycles':>6} {'rhs/rev':>13} {'CPU dump':>9}" + (f" {'CPU timed':>9}" if timing else "")
+          + f" {'p baseline':>15} {'p reference':>15}  verdict")
+    for r in rows:
+        print(f"{r['name']:<46} {r['cycles']:6d} {r['rhs'][0]:6.0f} {r['rhs'][1]:6.0f} {r['cpu'][0]:4.0f} "
+              f"{r['cpu'][1]:4.0f}" + (" {:4.0f} {:4.0f}".format(*r["timed"]) if timing else "")
+              + " {:>7.2g} {:>7.2g} {:>7.2g} {:>7.2g}".format(*r["p_base"], *r["p_ref"])
+              + f"  {'pass' if r['ok'] else 'FAIL'}")
+    passing = [r for r in rows if r["ok"]]
+    if default is None or not passing:
+        print("\n(no default dump or no passing setting: no ratio)")
+        return
+    cheapest = min(passing, key=lambda r: r["rhs"].sum())
+    ratio = default["rhs"] / cheapest["rhs"]
+    print(f"\ncheapest passing setting: {cheapest['name']}: right-hand sides per revolution {ratio[0]:.2f}x (new), "
+          f"{ratio[1]:.2f}x (worn) fewer than the default's"
+          + (", CPU {:.2f}x / {:.2f}x (interleaved timing)".format(*(default["timed"] / cheapest["timed"]))
+             if timing else ""))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=16)
@@ -189,6 +308,13 @@ def main() -> None:
     ap.add_argument("--tolerances", type=float, nargs=2, metavar=("RTOL", "ATOL"),
                     help="with --dump: the method at these tolerances (atol in m) instead of its own (the "
                          "work-precision side of the check: which default tolerance keeps the statistics)")
+    ap.add_argument("--scales", type=float, nargs=2, metavar=("POSITION", "VELOCITY"),
+                    help="with --dump: absolute error scales instead (m on positions, m/s on velocities, rtol 0; "
+                         "a tolerance shape the (rtol, atol) pair cannot express)")
+    ap.add_argument("--sweep", nargs="+", metavar="DUMP",
+                    help="the tolerance table of these --dump files (settings) against --baseline and --reference")
+    ap.add_argument("--timing", type=float, nargs=2, metavar=("REVOLUTIONS", "REPEAT"),
+                    help="with --sweep: also time every setting on the nominal test bed, interleaved, best of REPEAT")
     ap.add_argument("--baseline", default=str(BASELINE), help="stored baseline features (.npz)")
     ap.add_argument("--this", help="this version's features from a --dump file instead of simulating them")
     ap.add_argument("--reference", help="the reference's features from a --dump --method accurate file")
@@ -196,11 +322,19 @@ def main() -> None:
     import wearbench.model
 
     source = os.path.dirname(wearbench.model.__file__)
+    if args.sweep:
+        if not args.reference:
+            raise SystemExit("--sweep needs --reference (a --dump --method accurate file)")
+        timing = (args.timing[0], int(args.timing[1])) if args.timing else None
+        sweep(args.sweep, args.reference, args.baseline, timing)
+        return
     if args.dump:
-        feats, spent = collect(args.seeds, args.revolutions, args.method, args.tolerances)
+        feats, spent, cost = collect(args.seeds, args.revolutions, args.method, args.tolerances, args.scales)
         method = args.method + (" rtol {:g} atol {:g}".format(*args.tolerances) if args.tolerances else "")
+        method += " absolute scales {:g} m, {:g} m/s".format(*args.scales) if args.scales else ""
         np.savez_compressed(args.dump, **_flat(feats), seeds=args.seeds, revolutions=args.revolutions,
-                            source=source, method=method, seconds=np.array([spent[s] for s in STATES]))
+                            source=source, method=method, seconds=np.array([spent[s] for s in STATES]),
+                            cost=np.array([cost[s] for s in STATES]))
         print(f"wrote {args.dump} from {source} ({method}): "
               f"{[(s, len(next(iter(feats[s].values())))) for s in STATES]} cycles")
         return
