@@ -121,8 +121,9 @@ def absolute_scales(position: float, velocity: float):
     inner = S._tolerances
 
     def shaped(scene, atol):
-        kind = np.tile([1.0, 1.0, 10.0], scene.n // 3)
-        return np.concatenate([position * kind, velocity * kind])
+        bodies = scene.n // 3
+        return np.concatenate([np.tile([position, position, position / 0.1], bodies),
+                               np.tile([velocity, velocity, velocity / 0.1], bodies)])
 
     S._tolerances = shaped
     try:
@@ -217,10 +218,16 @@ def _report(title: str, rows) -> bool:
     return ok
 
 
-def _setting(data) -> dict:
-    """The simulate options a --dump file was written with, read from its method label ("default",
-    "default rtol R atol A" or "default absolute scales P m, V m/s")."""
-    words = str(data["method"]).replace(",", "").split()
+def label(method: str, tolerances=None, scales=None) -> str:
+    """A --dump file's name for its setting: the method, then "rtol R atol A" or "absolute scales P m, V m/s"."""
+    if scales:
+        return method + " absolute scales {:g} m, {:g} m/s".format(*scales)
+    return method + (" rtol {:g} atol {:g}".format(*tolerances) if tolerances else "")
+
+
+def setting(name: str) -> dict:
+    """The ``simulate`` options of a setting named by :func:`label` (scales: :func:`absolute_scales`)."""
+    words = name.replace(",", "").split()
     if "scales" in words:
         i = words.index("scales")
         return {"method": words[0], "scales": (float(words[i + 1]), float(words[i + 3]))}
@@ -265,7 +272,7 @@ def sweep(paths: list[str], reference: str, baseline: str, timing: tuple[float, 
         feats, cost = _unflat(data), data["cost"]
         p_base = np.array([min(r[4] for r in compare(feats[s], base[s])) for s in STATES])
         p_ref = np.array([min(r[4] for r in compare(feats[s], ref[s])) for s in STATES])
-        rows.append({"name": str(data["method"]), "setting": _setting(data), "rhs": cost[:, 1] / cost[:, 4],
+        rows.append({"name": str(data["method"]), "setting": setting(str(data["method"])), "rhs": cost[:, 1] / cost[:, 4],
                      "cpu": cost[:, 0] / cost[:, 4] * 1e3, "p_base": p_base, "p_ref": p_ref,
                      "ok": min(p_base.min(), p_ref.min()) >= ALPHA, "cycles": len(next(iter(feats[STATES[0]].values())))})
     default = next((r for r in rows if r["setting"] == {"method": "default"}), None)
@@ -330,8 +337,7 @@ def main() -> None:
         return
     if args.dump:
         feats, spent, cost = collect(args.seeds, args.revolutions, args.method, args.tolerances, args.scales)
-        method = args.method + (" rtol {:g} atol {:g}".format(*args.tolerances) if args.tolerances else "")
-        method += " absolute scales {:g} m, {:g} m/s".format(*args.scales) if args.scales else ""
+        method = label(args.method, args.tolerances, args.scales)
         np.savez_compressed(args.dump, **_flat(feats), seeds=args.seeds, revolutions=args.revolutions,
                             source=source, method=method, seconds=np.array([spent[s] for s in STATES]),
                             cost=np.array([cost[s] for s in STATES]))
