@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import itertools
 import math
 import os
 import time
@@ -237,6 +238,18 @@ def setting(name: str) -> dict:
     return {"method": words[0]}
 
 
+@contextlib.contextmanager
+def applied(options: dict):
+    """The ``simulate`` keywords of a :func:`setting` (its absolute scales in force within the block)."""
+    options = dict(options)
+    scales = options.pop("scales", None)
+    if scales is None:
+        yield options
+        return
+    with absolute_scales(*scales):
+        yield {**options, "rtol": 0.0, "atol": scales[0]}
+
+
 def _timed(bench, settings: list[dict], revolutions: float, repeat: int) -> np.ndarray:
     """CPU ms per revolution of the nominal test bed per setting and state (best of ``repeat``, the
     settings interleaved in one run so that load changes hit all alike)."""
@@ -249,15 +262,62 @@ def _timed(bench, settings: list[dict], revolutions: float, repeat: int) -> np.n
         for j, name in enumerate(STATES):
             scene = state_scene(bench, by_name[name])
             for i, opt in enumerate(settings):
-                opt = dict(opt)
-                scales = opt.pop("scales", None)
-                with absolute_scales(*scales) if scales else contextlib.nullcontext():
-                    if scales:
-                        opt.update(rtol=0.0, atol=scales[0])
+                with applied(opt) as kw:
                     t0 = time.process_time()
-                    simulate(scene, revolutions=revolutions, **opt)
+                    simulate(scene, revolutions=revolutions, **kw)
                     best[i, j] = min(best[i, j], (time.process_time() - t0) / revolutions * 1e3)
     return best
+
+
+SPEED_CLASSES = (0.0, 1e-3, 3e-3, 1e-2, math.inf)  # m/s: classes of impact speed in impacts()
+
+
+def impacts(names: list[str], state: str, seeds: int, revolutions: float, rate: float = 1e5) -> None:
+    """Why a tolerance changes the impact counts: per setting (a :func:`label`) and clearance joint, the
+    impacts per revolution (onsets on a ``rate`` table, the same realisations for every setting) by
+    impact speed, each class's median effective restitution -vn(separation) / vn(onset) (with its
+    quartiles) and the share of impacts within 0.5 ms of the joint's previous separation."""
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.model import realisation as R
+
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    joints = [j.name for j in bench.joints if j.clearance is not None]
+    by_name = {s.name: s for s in bench.states}
+    print(f"{state}: impacts per revolution by impact speed (mm/s) and their effective restitution, median "
+          f"(quartiles); {seeds} realisations x {revolutions:g} revolutions after {SETTLE:g}, {rate:g} samples/s")
+    for name in names:
+        rows: dict[str, list] = {j: [] for j in joints}
+        nfev = 0
+        with applied(setting(name)) as kw:
+            for seed in range(seeds):
+                run = R.simulate_state(bench, by_name[state], seed, revolutions=revolutions, settle=SETTLE,
+                                       output_rate=rate, **kw)
+                nfev += run.summary["function_evaluations"]
+                for j in joints:
+                    pen, vn = (run.table[f"{j}_{c}"].to_numpy() for c in ("pen", "vn"))
+                    inside = pen > 0
+                    on = np.flatnonzero(~inside[:-1] & inside[1:]) + 1
+                    off = np.flatnonzero(inside[:-1] & ~inside[1:]) + 1
+                    for a in on:
+                        later, before = off[off > a], off[off < a]
+                        if not later.size:
+                            continue
+                        b = later[0]
+                        v0 = vn[a - 1] + pen[a - 1] / (pen[a - 1] - pen[a]) * (vn[a] - vn[a - 1])
+                        v1 = vn[b - 1] + pen[b - 1] / (pen[b - 1] - pen[b]) * (vn[b] - vn[b - 1])
+                        gap = (a - before[-1]) / rate if before.size else math.inf
+                        rows[j].append((abs(v0), -v1 / v0 if v0 else math.nan, gap))
+        per = seeds * revolutions
+        print(f"  {name}: {nfev / seeds / (revolutions + SETTLE):.0f} right-hand sides per revolution")
+        for j in joints:
+            v0, e, gap = np.array(rows[j]).T
+            parts = []
+            for lo, hi in itertools.pairwise(SPEED_CLASSES):
+                sel = (v0 >= lo) & (v0 < hi)
+                q = np.nanquantile(e[sel], [0.25, 0.5, 0.75]) if sel.any() else np.full(3, math.nan)
+                parts.append(f"{lo * 1e3:g}-{hi * 1e3:g}: {sel.sum() / per:5.1f} e {q[1]:.2f} ({q[0]:.2f}-{q[2]:.2f})")
+            print(f"    {j}: {v0.size / per:5.1f} per rev; " + "; ".join(parts)
+                  + f"; within 0.5 ms of a separation {np.mean(gap < 5e-4):.2f}")
 
 
 def sweep(paths: list[str], reference: str, baseline: str, timing: tuple[float, int] | None) -> None:
@@ -322,6 +382,10 @@ def main() -> None:
                     help="the tolerance table of these --dump files (settings) against --baseline and --reference")
     ap.add_argument("--timing", type=float, nargs=2, metavar=("REVOLUTIONS", "REPEAT"),
                     help="with --sweep: also time every setting on the nominal test bed, interleaved, best of REPEAT")
+    ap.add_argument("--impacts", nargs="+", metavar="SETTING",
+                    help="the impacts by speed and their restitution per setting (a dump's method label, e.g. "
+                         "'accurate', 'default rtol 1e-05 atol 1e-08', 'default absolute scales 1e-07 m, 1.3e-05 m/s') "
+                         "on new surfaces, --seeds realisations x --revolutions")
     ap.add_argument("--baseline", default=str(BASELINE), help="stored baseline features (.npz)")
     ap.add_argument("--this", help="this version's features from a --dump file instead of simulating them")
     ap.add_argument("--reference", help="the reference's features from a --dump --method accurate file")
@@ -329,6 +393,9 @@ def main() -> None:
     import wearbench.model
 
     source = os.path.dirname(wearbench.model.__file__)
+    if args.impacts:
+        impacts(args.impacts, STATES[0], args.seeds, args.revolutions)
+        return
     if args.sweep:
         if not args.reference:
             raise SystemExit("--sweep needs --reference (a --dump --method accurate file)")
