@@ -24,6 +24,10 @@ tolerance alone changes.
 Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolutions 14]
       (or its parts in parallel: --dump this.npz; --dump ref.npz --method accurate; then --this this.npz
       --reference ref.npz)
+      Which tolerance keeps the statistics at the fewest right-hand sides: one dump per setting
+      (--dump F --tolerances RTOL ATOL, or --scales POSITION VELOCITY for absolute error scales), then
+      --sweep F... --reference ref.npz [--timing 3 5] prints the table; --impacts SETTING... shows how a
+      setting changes the impacts (by impact speed, with their restitution).
       PYTHONPATH=/tmp/wb_base_f183162 .venv/bin/python benchmarks/statistics_equivalence.py \
           --dump benchmarks/data/statistics_baseline.npz        (the baseline, once, with the old code)
 """
@@ -258,6 +262,7 @@ def _timed(bench, settings: list[dict], revolutions: float, repeat: int) -> np.n
 
     by_name = {s.name: s for s in bench.states}
     best = np.full((len(settings), len(STATES)), np.inf)
+    simulate(state_scene(bench, by_name[STATES[0]]), revolutions=0.1)  # the compiled code loaded before timing
     for _ in range(repeat):
         for j, name in enumerate(STATES):
             scene = state_scene(bench, by_name[name])
