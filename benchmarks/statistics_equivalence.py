@@ -137,14 +137,15 @@ def absolute_scales(position: float, velocity: float):
         S._tolerances = inner
 
 
-def collect(seeds: int, revolutions: float, method: str, tolerances=None, scales=None
+def collect(seeds: int, revolutions: float, method: str, tolerances=None, scales=None, first_seed: int = 0
             ) -> tuple[dict[str, dict[str, np.ndarray]], dict, dict]:
     """Per-cycle features of every state (concatenated over seeds), the time spent per state and the
     cost of its simulations alone (:data:`COST` summed over the realisations); ``scales``: (position m,
-    velocity m/s) absolute error scales (:func:`absolute_scales`) instead of ``tolerances``."""
+    velocity m/s) absolute error scales (:func:`absolute_scales`) instead of ``tolerances``; the seeds
+    ``first_seed`` .. ``first_seed + seeds - 1``."""
     if scales is not None:
         with absolute_scales(*scales):
-            return collect(seeds, revolutions, method, (0.0, scales[0]))
+            return collect(seeds, revolutions, method, (0.0, scales[0]), first_seed=first_seed)
     from wearbench.bench.load import load_bench, shipped_bench
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
@@ -157,7 +158,7 @@ def collect(seeds: int, revolutions: float, method: str, tolerances=None, scales
         t0 = time.process_time()
         acc: dict[str, list] = {}
         cost = np.zeros(5)
-        for seed in range(seeds):
+        for seed in range(first_seed, first_seed + seeds):
             table, keep, run, cpu = _realisation_table(bench, by_name[name], seed, revolutions, method, tolerances)
             s = run.summary
             cost += (cpu, s["function_evaluations"], s["steps"], s["rejected_steps"], revolutions + SETTLE)
@@ -391,6 +392,8 @@ def main() -> None:
                     help="the impacts by speed and their restitution per setting (a dump's method label, e.g. "
                          "'accurate', 'default rtol 1e-05 atol 1e-08', 'default absolute scales 1e-07 m, 1.3e-05 m/s') "
                          "on new surfaces, --seeds realisations x --revolutions")
+    ap.add_argument("--first-seed", type=int, default=0, help="with --dump: the realisations' first seed (another "
+                    "sample of the same size; the stored baseline holds seeds 0..15)")
     ap.add_argument("--baseline", default=str(BASELINE), help="stored baseline features (.npz)")
     ap.add_argument("--this", help="this version's features from a --dump file instead of simulating them")
     ap.add_argument("--reference", help="the reference's features from a --dump --method accurate file")
@@ -408,7 +411,8 @@ def main() -> None:
         sweep(args.sweep, args.reference, args.baseline, timing)
         return
     if args.dump:
-        feats, spent, cost = collect(args.seeds, args.revolutions, args.method, args.tolerances, args.scales)
+        feats, spent, cost = collect(args.seeds, args.revolutions, args.method, args.tolerances, args.scales,
+                                     args.first_seed)
         method = label(args.method, args.tolerances, args.scales)
         np.savez_compressed(args.dump, **_flat(feats), seeds=args.seeds, revolutions=args.revolutions,
                             source=source, method=method, seconds=np.array([spent[s] for s in STATES]),
