@@ -60,7 +60,9 @@ def main() -> None:
     ap.add_argument("--cycles", type=int, default=20, help="cycles per truth session (20)")
     ap.add_argument("--design-clearances", default="0.25mm,0.35mm,0.45mm,0.55mm,0.65mm")
     ap.add_argument("--design-cycles", default="0,200000,400000,600000")
-    ap.add_argument("--realisations", type=int, default=16, help="realisations per design point (16)")
+    ap.add_argument("--realisations", type=lambda v: [int(m) for m in v.split(",")], default=[16],
+                    help="realisations per design point (16); a list (16,32) builds one estimator per size and "
+                    "reports each on the same truths (the lives and --store-move use the first)")
     ap.add_argument("--small", action="store_true", help="EstimatorDesign.small() (the demo's) instead of the "
                     "--design-* options")
     ap.add_argument("--ensemble-cycles", type=int, default=8)
@@ -102,19 +104,14 @@ def main() -> None:
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.compute.task_cache import MISSING, cache_load
-    from wearbench.validation.estimate import (
-        EstimatorDesign,
-        build_estimator,
-        estimate_features,
-        fit_estimator,
-    )
-    from wearbench.validation.features import CycleFeatures, FeatureSpec
+    from wearbench.validation.estimate import EstimatorDesign, build_estimator
     from wearbench.validation.track_move import load_move, stored_move
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
-    design = EstimatorDesign.small() if args.small else EstimatorDesign.parse(
-        args.design_clearances, args.design_cycles, realisations=args.realisations,
-        ensemble_cycles=args.ensemble_cycles)
+    designs = [EstimatorDesign.small()] if args.small else [EstimatorDesign.parse(
+        args.design_clearances, args.design_cycles, realisations=m, ensemble_cycles=args.ensemble_cycles)
+        for m in args.realisations]
+    design = designs[0]
     rng = np.random.default_rng(args.seed)
     lo, hi, n_max = design.clearances[0], design.clearances[-1], design.cycles[-1]
     truths = [(float(rng.uniform(lo, hi)), float(rng.uniform(0, n_max)), args.seed + k) for k in range(args.truths)]
@@ -138,9 +135,11 @@ def main() -> None:
         print(f"cached only: {len(truths)} of {asked[0]} truths from the prior, {len(at_truths)} of {asked[1]} at "
               f"--at, {len(lives)} of {asked[2]} lives")
     with compute_client(workers=args.workers):
-        t0 = time.perf_counter()
-        est = build_estimator(bench, design, progress="estimator", shipped=args.shipped)
-        t_build = time.perf_counter() - t0
+        built = []
+        for d in designs:  # a larger one reuses a shipped smaller one's realisations (build_estimator)
+            t0 = time.perf_counter()
+            built.append((build_estimator(bench, d, progress=f"estimator ({d.settings.realisations})",
+                                          shipped=args.shipped), time.perf_counter() - t0))
         t0 = time.perf_counter()
 
         def run(batch, name):
@@ -159,11 +158,27 @@ def main() -> None:
                                     life_key(c, s), f"life {s}")
                                for c, s in lives], progress="lives") if lives else []
         t_lives = time.perf_counter() - t0
+    ok = [(t, d) for t, d in zip(truths, done, strict=True) if not isinstance(d, TaskFailure)]
+    failed = [d for d in done if isinstance(d, TaskFailure)]
+    models = [report_truths(est, t_build, ok, failed, t_truth, args) for est, t_build in built]
+    est, model = built[0][0], models[0]
+    if args.store_move:
+        store_move(bench, model, lives_asked, life_key, args)
+    if lives:
+        stored = load_move(args.move, model.estimator) if args.move else stored_move(est)
+        report_lives(bench, model, lives, life_runs, args, t_lives, stored)
+
+
+def report_truths(est, t_build: float, ok, failed, t_truth: float, args):
+    """Fit ``est`` and print its calibration on the truths ``ok`` ((c, n, seed), result) at 5, 10 and
+    --cycles cycles: coverage, ranks, widths, clearance errors, the --at truths; returns the model."""
+    from wearbench.validation.estimate import estimate_features, fit_estimator
+    from wearbench.validation.features import CycleFeatures, FeatureSpec
+
+    design, n_max = est.design, est.design.cycles[-1]
     t0 = time.perf_counter()
     model = fit_estimator(est)
     t_fit = time.perf_counter() - t0
-    ok = [(t, d) for t, d in zip(truths, done, strict=True) if not isinstance(d, TaskFailure)]
-    failed = [d for d in done if isinstance(d, TaskFailure)]
     spec = FeatureSpec()
     rows = {}
     t0 = time.perf_counter()
@@ -175,7 +190,7 @@ def main() -> None:
           f"{len(design.cycles)} cycles-run values {[int(c) for c in design.cycles]}, {design.settings.realisations} "
           f"realisations x {design.settings.cycles} cycles; temperature {model.temperature:.2f}; emulator error (median sd) "
           f"{np.median(np.sqrt(model.discrepancy)):.3f}")
-    print(f"build {t_build:.0f} s (wear runs + ensembles, cold cache)   truths {t_truth:.0f} s   fit {t_fit:.1f} s   "
+    print(f"build {t_build:.0f} s (wear runs + ensembles: what the cache and a shipped file lack)   truths {t_truth:.0f} s   fit {t_fit:.1f} s   "
           f"one estimate {t_est * 1e3:.0f} ms   truths failed {len(failed)}"
           + (f" ({failed[0]})" if failed else "") + ("   sensor paths drawn: modes "
           + ", ".join(f"{d['mode']:.0f}" for _, d in ok[:12]) + " Hz ..." if args.sensor_paths else ""))
@@ -205,6 +220,12 @@ def main() -> None:
         err = np.median([abs(e.clearance.median - t[0]) for t, _, e in rs]) * 1e3
         none = np.mean([not e.explains for *_, e in rs])
         print(f"{n:6d}  {len(rs):6d}  {cw:20.3f}  {nw:16,.0f}  {dw:23.1f}  {err:29.3f}  {none:.2f}")
+    prior = [(t[0], e.clearance.median - t[0]) for t, _, e in rows[args.cycles] if t[2] < args.seed + 5000]
+    if prior:
+        mid = [d for c, d in prior if 0.45e-3 <= c <= 0.55e-3]
+        print(f"clearance error (posterior median - truth) at {args.cycles} cycles, median: "
+              f"{np.median([d for _, d in prior]) * 1e3:+.4f} mm ({len(prior)} truths); at 0.45-0.55 mm "
+              + (f"{np.median(mid) * 1e3:+.4f} mm ({len(mid)})" if mid else "none"))
     at = [r for r in rows[args.cycles] if r[0][2] >= args.seed + 5000]
     if at:
         excl = np.mean([e.explains and e.cycles_run.lo90 > 0 and e.cycles_run.hi90 < 2 * args.at for *_, e in at])
@@ -217,11 +238,7 @@ def main() -> None:
               f"{np.median([e.cycles_run.hi90 for *_, e in at]):,.0f}")
         information(model, [t[0] for t, _, _ in at], args.at)
         recording(model, [t[0] for t, _, _ in at], args.at)
-    if args.store_move:
-        store_move(bench, model, lives_asked, life_key, args)
-    if lives:
-        stored = load_move(args.move, model.estimator) if args.move else stored_move(est)
-        report_lives(bench, model, lives, life_runs, args, t_lives, stored)
+    return model
 
 
 def information(model, clearances, at: float) -> None:

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         check_output(out, force=force)  # refused before the design is simulated
     if args.lives:
         check_output(move_path(out), force=force, option="--lives")
-    est = kept or build_estimator(bench, design, shipped=False, **compute_options(args, bench))
+    est = kept or build_estimator(bench, design, **compute_options(args, bench))  # grows a shipped smaller one
     if kept is None:
         with output_file(out, force=force) as tmp:
             save_estimator(est, tmp)

@@ -42,7 +42,7 @@ from __future__ import annotations
 import json
 import zipfile
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -168,7 +168,9 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
                     scheduler: str | None = None, workers: int | None = None, cache: bool = True,
                     shipped: bool = True, progress: str | None = "estimator") -> Estimator:
     """The estimator of ``bench``: a shipped one when its key matches, else the design's wear runs
-    (one per clearance) and ensembles (one per design point) on the compute layer, cached by content."""
+    (one per clearance) and ensembles (one per design point) on the compute layer, cached by content.
+    A shipped estimator of the same design with fewer realisations holds the first of them
+    (realisation i is seed + i at every size): only the seeds it lacks are simulated."""
     from wearbench.bench.content import cache_folder
     from wearbench.compute import Task, TaskFailure, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
@@ -178,10 +180,12 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
     if not joints:
         raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
     key = estimator_key(bench, design, speed)
+    base = None
     if shipped and cache and shipped_estimator_path(bench).exists():
-        found = load_estimator(shipped_estimator_path(bench), key=key)
-        if found is not None:
+        found = load_estimator(shipped_estimator_path(bench))
+        if found.key == key:
             return found
+        base = found if _first_realisations(bench, design, speed, found) else None
     stages, stage = len(design.cycles) - 1, design.cycles[1]
     wkeys = [task_key("estimator-wear", estimator_key(bench, design, speed), c) for c in design.clearances]
     runs = run_tasks([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages, "stage_cycles": stage,
@@ -203,9 +207,29 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
                 files[jn] = path
                 depth[i, j] = max(depth[i, j], float(np.max(b)) + float(np.max(jr)))
             states.append(design.state(i, j, files, joints))
-    ens = build_ensembles(bench, states, speed=speed, settings=design.settings, scheduler=scheduler,
+    if base is not None and not np.array_equal(base.depth, depth):
+        base = None  # its wear runs are not these: its realisations saw other surfaces
+    m0 = _first_realisations(bench, design, speed, base) if base is not None else 0
+    settings = design.settings if not m0 else replace(design.settings, seed=design.settings.seed + m0,
+                                                      realisations=design.settings.realisations - m0)
+    ens = build_ensembles(bench, states, speed=speed, settings=settings, scheduler=scheduler,
                           workers=workers, cache=cache, shipped=False, progress=progress and f"{progress}: ensembles")
-    return estimator_from_ensembles(bench.name, key, design, ens, depth, speed)
+    est = estimator_from_ensembles(bench.name, key, design, ens, depth, speed)
+    if m0:
+        c = min(base.features.shape[3], est.features.shape[3])
+        est = replace(est, features=np.concatenate([base.features[:, :, :, :c], est.features[:, :, :, :c]], axis=2))
+    return est
+
+
+def _first_realisations(bench: Bench, design: EstimatorDesign, speed: float, est: Estimator) -> int:
+    """How many of ``design``'s first realisations ``est`` holds: all of its own when it is ``design``
+    with fewer realisations from the same first seed (by its key), all good, and at least 3 short of
+    ``design`` (an ensemble's least); else 0."""
+    m = est.features.shape[2]
+    if not 0 < m <= design.settings.realisations - 3:
+        return 0
+    smaller = replace(design, settings=replace(design.settings, realisations=m))
+    return m if est.key == estimator_key(bench, smaller, speed) else 0
 
 
 def estimator_from_ensembles(bench: str, key: str, design: EstimatorDesign, ensembles: Mapping[str, Ensemble],

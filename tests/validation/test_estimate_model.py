@@ -3,6 +3,8 @@ realisations of 4 cycles): wear runs and ensembles on the compute layer, truths 
 bench's tolerances with seeds the design never uses (non-twin), and a bench far outside the design.
 ``benchmarks/estimate.py`` runs the full-size calibration."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from wearbench.bench.load import load_bench, shipped_bench
@@ -29,9 +31,14 @@ def bench():
 
 
 @pytest.fixture(scope="module")
-def model(bench, tmp_path_factory):
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("estimator-cache")
+
+
+@pytest.fixture(scope="module")
+def model(bench, cache):
     mp = pytest.MonkeyPatch()
-    mp.setenv("WEARBENCH_CACHE", str(tmp_path_factory.mktemp("estimator-cache")))
+    mp.setenv("WEARBENCH_CACHE", str(cache))
     try:
         est = build_estimator(bench, DESIGN, workers=0, progress=None)
         return fit_estimator(est)
@@ -71,3 +78,30 @@ def test_non_twin_truths_estimated_and_a_far_bench_explained_by_nothing(bench, m
     assert found[0.38e-3].clearance.median < found[0.52e-3].clearance.median
     far = estimate_features(truth(bench, 1.2e-3, 9103), model, label="1.2 mm new")
     assert far.verdict == NO_VALUE, far
+
+
+def test_a_larger_design_simulates_only_the_realisations_a_shipped_smaller_one_lacks(bench, model, cache, tmp_path,
+                                                                                      monkeypatch):
+    """Realisation i is seed + i at every size: DESIGN grown from a shipped estimator of its first 3
+    realisations simulates seeds 4-6 only and equals DESIGN built whole, bit for bit; a shipped one
+    of another first seed gives nothing (all 6 simulated)."""
+    from wearbench.validation import estimate
+
+    monkeypatch.setenv("WEARBENCH_CACHE", str(cache))
+    small = replace(DESIGN, settings=replace(DESIGN.settings, realisations=3))
+    shipped = tmp_path / "ninebar-testbed.npz"
+    estimate.save_estimator(build_estimator(bench, small, workers=0, progress=None, shipped=False), shipped)
+    monkeypatch.setattr(estimate, "shipped_estimator_path", lambda b: shipped)
+    asked = []
+    real = estimate.build_ensembles
+    monkeypatch.setattr(estimate, "build_ensembles", lambda *a, **k: asked.append(k["settings"]) or real(*a, **k))
+    grown = build_estimator(bench, DESIGN, workers=0, progress=None)
+    assert [(s.seed, s.realisations) for s in asked] == [(4, 3)]
+    assert grown.key == model.estimator.key and np.array_equal(grown.features, model.estimator.features)
+    assert np.array_equal(grown.depth, model.estimator.depth)
+    other = replace(small, settings=replace(small.settings, seed=2))
+    shipped.unlink()
+    estimate.save_estimator(build_estimator(bench, other, workers=0, progress=None, shipped=False), shipped)
+    asked.clear()
+    assert np.array_equal(build_estimator(bench, DESIGN, workers=0, progress=None).features, model.estimator.features)
+    assert [(s.seed, s.realisations) for s in asked] == [(1, 6)]
