@@ -6,7 +6,8 @@ bench from that clearance through those cycles in its own wear run (one stage), 
 from the bench file's [tolerances] with its own seed (20000 + k; the design uses 1..M) and a random
 start, and is seen through the emulator's sensor chain (the bench file's [emulator.accelerometer]:
 mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with --sensor-paths a
-mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %), applied
+mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %; with
+--cross-axis also a cross-axis sensitivity of 1-5 % to the carriage's lateral mode, 0.3-3 kHz), applied
 in-process to the model's acceleration (no MCAP round trip: benchmarks/identify.py covers that).
 ``--at 200000 --at-truths 10`` adds truths at that many cycles run (clearance from the prior).
 ``--lives L`` adds simulated lives for ``wearbench track``: one bench per life (clearance from the
@@ -65,6 +66,8 @@ def main() -> None:
                     "--design-* options")
     ap.add_argument("--ensemble-cycles", type=int, default=8)
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
+    ap.add_argument("--cross-axis", action="store_true", help="with --sensor-paths: draw the cross-axis part too "
+                    "(SensorSpread's whole draw; the cached drawn lives and the shipped move are axial only)")
     ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
     ap.add_argument("--at-truths", type=int, default=0, help="extra truths at --at cycles run (0)")
     ap.add_argument("--lives", type=int, default=0, help="simulated lives for track (0)")
@@ -89,6 +92,9 @@ def main() -> None:
     ap.add_argument("--cache", help="cache folder (default: a fresh one: the estimator is built cold)")
     ap.add_argument("--seed", type=int, default=20000)
     args = ap.parse_args()
+    if args.cross_axis and not args.sensor_paths:
+        ap.error("--cross-axis: expected with --sensor-paths (it draws the cross-axis part of a drawn path)")
+    args.sensor_paths = "cross-axis" if args.cross_axis else args.sensor_paths  # truth_features' spread
     args.life_sessions = args.life_sessions or [[k * args.life_step for k in range(5)]]
     for subset in args.life_sessions:
         if any(abs(n / args.life_step - round(n / args.life_step)) > 1e-9 or not 0 <= n <= 4 * args.life_step
