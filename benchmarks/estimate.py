@@ -44,6 +44,7 @@ import argparse
 import os
 import tempfile
 import time
+from dataclasses import replace
 
 import numpy as np
 from wearbench.testing.lives import life_features, truth_features
@@ -319,7 +320,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
     from wearbench.compute import Task, TaskFailure, run_tasks
     from wearbench.compute.task_cache import MISSING, cache_load
     from wearbench.validation.statistics import shrunk_covariance
-    from wearbench.validation.track import session_covariances, wear_drift
+    from wearbench.validation.track import life_rate, session_covariances, wear_drift
     from wearbench.validation.track_move import life_move, save_move
 
     every = [k * args.life_step for k in range(5)]
@@ -365,6 +366,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
                                      "cycles": args.life_cycles,
                                      "measured_by": "benchmarks/estimate.py --store-move --move-from " + args.move_from},
                      benches=about["seeds"])
+    move = replace(move, rate=life_rate(model, pooled, move, cycles=args.life_cycles))  # on the same lives
     save_move(move, args.store_move)
     print(f"stored: {args.store_move}: move from new to worn {move.describe()}")
 
@@ -392,7 +394,7 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     it but without the features' rate spread (``track_features(rate_spread=0)``, track before it)."""
     from wearbench.compute import TaskFailure
     from wearbench.validation.features import CycleFeatures, FeatureSpec
-    from wearbench.validation.track import _depth_curve, track_features
+    from wearbench.validation.track import RATE_SPREAD, _depth_curve, track_features
     from wearbench.validation.track_move import life_move
 
     n_curve, d_curve = _depth_curve(model)
@@ -423,6 +425,7 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
         idx = [round(n / args.life_step) for n in subset]
         cycles_run = [every[k] for k in idx]
         names = (["no move"] + ["move, other half"] * bool(moves) + ["stored move"] * (stored is not None)
+                 + ["stored, sd 0.2"] * (stored is not None and stored.rate is not None)
                  + ["stored, rate 0"] * (stored is not None) + ["offset constant"] * (len(idx) == 5))
         for name in names:
             rows = []
@@ -433,6 +436,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
                       if name.startswith("stored") else {})
                 if name == "stored, rate 0":  # the features' rate about the estimator's not marginalised (before)
                     kw["rate_spread"] = 0.0
+                if name == "stored, sd 0.2":  # the rate's constant spread, not the move's rate against clearance
+                    kw["rate_spread"] = RATE_SPREAD
                 t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit,
                                    drift=name != "offset constant", **kw)
                 m, truth, post_k = t.cycles_to_limit, 5 * args.life_step, t.factor

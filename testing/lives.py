@@ -114,7 +114,8 @@ def life_plan(est: Estimator, lives: int, factor: float, seed: int) -> tuple[flo
 def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float = 1.3, spread: bool = False,
                  cycles: int = 20, seed: int = 100_000, scheduler: str | None = None, workers: int | None = None,
                  progress: str | None = "lives"):
-    """The benches' move from new to worn beyond ``est``'s mean change (``track_move.Move``), measured
+    """The benches' move from new to worn beyond ``est``'s mean change (``track_move.Move``), with the
+    features' rate along the lives against clearance (``track.life_rate``), measured
     on ``lives`` simulated lives of ``bench`` (:func:`life_plan`; ``spread``: each with a drawn sensor
     path) run on the compute layer and cached by content (the estimator's key, the bench, its
     emulated sensor chain, the life). A failed life raises (a move measured on fewer lives than asked
@@ -123,6 +124,7 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     from wearbench.compute import Task, TaskFailure, run_tasks, task_key
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.validation.estimate import fit_estimator
+    from wearbench.validation.track import life_rate
     from wearbench.validation.track_move import life_move
 
     step, plan = life_plan(est, lives, factor, seed)
@@ -140,5 +142,7 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     about = {"bench": bench.name, "sensor_paths": ["drawn mounts" if spread else "default path"],
              "seeds": [s for _, s in plan], "clearances": [c for c, _ in plan], "factor": factor,
              "sessions": sessions, "cycles": cycles}
-    return life_move(model, [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), sessions, c, factor)
-                             for r, (c, _) in zip(runs, plan, strict=True)], about)
+    rows = [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), sessions, c, factor)
+            for r, (c, _) in zip(runs, plan, strict=True)]
+    move = life_move(model, rows, about)
+    return replace(move, rate=life_rate(model, rows, move, cycles=cycles))
