@@ -80,6 +80,8 @@ def main() -> None:
     ap.add_argument("--life-sessions", action="append", type=lambda v: [parse_cycles(x) for x in v.split(",")],
                     help="a subset of each life's sessions to track, e.g. 0,200k (repeatable; default all five)")
     ap.add_argument("--verbose-lives", action="store_true", help="print every life's track")
+    ap.add_argument("--life-rows", help="only these of the lives' rows, separated by ';' (e.g. 'stored move;stored, sd "
+                    "0.2'; names as printed; default all)")
     ap.add_argument("--move", metavar="FILE.move.npz", help="score this stored move on the lives (default: the one "
                     "stored beside the shipped estimator, with --shipped)")
     ap.add_argument("--store-move", metavar="FILE.move.npz", help="measure the move on the lives of --move-from "
@@ -428,6 +430,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
                  + ["stored, sd 0.2"] * (stored is not None and stored.rate is not None)
                  + ["stored, rate 0"] * (stored is not None) + ["offset constant"] * (len(idx) == 5))
         for name in names:
+            if args.life_rows and name not in [n.strip() for n in args.life_rows.split(";")]:
+                continue
             rows = []
             for j, ((c, seed), r) in enumerate(good):
                 limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)

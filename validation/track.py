@@ -233,23 +233,29 @@ def _spread_rate(log_lik: np.ndarray, inside: np.ndarray, step: float, spread: f
 
 
 def _spread_rate_rows(log_lik: np.ndarray, inside: np.ndarray, step: float, spread: np.ndarray,
-                      centre: np.ndarray) -> np.ndarray:
+                      centre: np.ndarray, kernel: np.ndarray | None = None) -> np.ndarray:
     """:func:`_spread_rate` with the rate's sd and log-mean per clearance row: per row the kernel matrix
-    ``w[j, j'] = exp(-(log k_j' - log k_j - centre)^2 / (2 spread^2))`` over the factors inside."""
+    ``w[j, j'] = exp(-(log k_j' - log k_j - centre)^2 / (2 spread^2))`` over the factors inside
+    (``kernel``: these matrices (c, k, k), :func:`_rate_kernel`, when already made)."""
+    w = _rate_kernel(step, inside.size, spread, centre) if kernel is None else kernel
     top = log_lik[:, inside].max()
     lik = np.where(inside, np.exp(log_lik - top), 0.0)
-    d = (np.arange(inside.size)[None, :] - np.arange(inside.size)[:, None]) * step  # [j, j']: log(k_j' / k_j)
-    out = np.full(log_lik.shape, -np.inf)
-    for i, (s, m) in enumerate(zip(spread, centre, strict=True)):
-        if s <= 0 and m == 0:
-            out[i] = np.where(inside, log_lik[i], -np.inf)
-            continue
-        if s <= 0:
-            raise ValueError(f"track: a rate with log-mean {m} needs a spread > 0 (the factor grid is discrete)")
-        w = np.exp(-0.5 * ((d - m) / s) ** 2)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out[i] = np.where(inside, np.log(w @ lik[i] / (w @ inside.astype(float))) + top, -np.inf)
-    return out
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.log(np.einsum("ijk,ik->ij", w, lik) / (w @ inside.astype(float))) + top
+    return np.where(inside, out, -np.inf)
+
+
+def _rate_kernel(step: float, size: int, spread: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(c, k, k): each clearance row's Gaussian kernel in log factor (:func:`_spread_rate_rows`); the
+    identity where the rate neither spreads nor moves."""
+    spread, centre = np.asarray(spread, float), np.asarray(centre, float)
+    if np.any((spread <= 0) & (centre != 0)):
+        raise ValueError("track: a rate with a log-mean other than 0 needs a spread > 0 (the factor grid is discrete)")
+    d = (np.arange(size)[None, :] - np.arange(size)[:, None]) * step  # [j, j']: log(k_j' / k_j)
+    s = np.where(spread > 0, spread, 1.0)[:, None, None]
+    w = np.exp(-0.5 * ((d[None] - centre[:, None, None]) / s) ** 2)
+    w[spread <= 0] = np.eye(size)
+    return w
 
 
 def _life_log_likelihood(xbars: np.ndarray, n_cycles: Sequence[int], runs: np.ndarray, model: EstimatorModel,
@@ -392,9 +398,10 @@ def life_rate(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[
     best, best_score = family[0], -np.inf
     for rate in family:
         mean, sd = rate.at(gc)
+        kernel = _rate_kernel(step, ks.size, sd, mean)
         score = 0.0
         for log_lik, inside, truth in grids:
-            post = _spread_rate(log_lik, inside, step, sd, mean)
+            post = _spread_rate_rows(log_lik, inside, step, sd, mean, kernel)
             pk = np.exp(post - special.logsumexp(post)).sum(axis=0)
             score += np.log(max(np.interp(truth, np.log(ks), pk) / step, 1e-300))
         if score > best_score + 1e-9:
