@@ -21,7 +21,10 @@ subset is tracked without a move, with the bench's move from new to worn beyond 
 with the move stored beside the shipped estimator (``--shipped``; or ``--move FILE``), which ``track``
 uses by default (the table says whether it was measured on the lives scored).
 ``--store-move FILE --move-from default,drawn`` measures the move on the lives of those path kinds
-(this run's seeds) and stores it: how the shipped one was made (``--cached-only``: from the cache).
+(this run's seeds), with the features' rate along the lives against clearance (``track.life_rate``),
+and stores it: how the shipped one was made (``--cached-only``: from the cache). When the stored move
+carries a rate, a row "stored, sd 0.2" tracks with the constant spread instead (``--life-rows``: only
+the rows named).
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
 wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
