@@ -194,3 +194,4 @@ def test_the_shipped_move_belongs_to_the_shipped_estimator():
     move = stored_move(est)
     assert move is not None and move.estimator == est.key and move.mean.shape == (est.features.shape[-1],)
     assert move.about["factor"] == 1.3 and move.about["benches"] >= 20
+    assert move.rate is not None and move.rate.clearances[0] == min(move.about["clearances"])
