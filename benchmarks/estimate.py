@@ -6,7 +6,8 @@ bench from that clearance through those cycles in its own wear run (one stage), 
 from the bench file's [tolerances] with its own seed (20000 + k; the design uses 1..M) and a random
 start, and is seen through the emulator's sensor chain (the bench file's [emulator.accelerometer]:
 mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with --sensor-paths a
-mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %), applied
+mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %; with
+--cross-axis also a cross-axis sensitivity of 1-5 % to the carriage's lateral mode, 0.3-3 kHz), applied
 in-process to the model's acceleration (no MCAP round trip: benchmarks/identify.py covers that).
 ``--at 200000 --at-truths 10`` adds truths at that many cycles run (clearance from the prior).
 ``--lives L`` adds simulated lives for ``wearbench track``: one bench per life (clearance from the
@@ -20,7 +21,10 @@ subset is tracked without a move, with the bench's move from new to worn beyond 
 with the move stored beside the shipped estimator (``--shipped``; or ``--move FILE``), which ``track``
 uses by default (the table says whether it was measured on the lives scored).
 ``--store-move FILE --move-from default,drawn`` measures the move on the lives of those path kinds
-(this run's seeds) and stores it: how the shipped one was made (``--cached-only``: from the cache).
+(this run's seeds), with the features' rate along the lives against clearance (``track.life_rate``),
+and stores it: how the shipped one was made (``--cached-only``: from the cache). When the stored move
+carries a rate, a row "stored, sd 0.2" tracks with the constant spread instead (``--life-rows``: only
+the rows named).
 
 Prints: estimator build and fit times, time per estimate; per parameter (clearance, cycles run,
 wear depth) the coverage of the 50 % and 90 % intervals with its binomial standard error, the
@@ -43,6 +47,7 @@ import argparse
 import os
 import tempfile
 import time
+from dataclasses import replace
 
 import numpy as np
 from wearbench.testing.lives import life_features, truth_features
@@ -67,6 +72,8 @@ def main() -> None:
                     "--design-* options")
     ap.add_argument("--ensemble-cycles", type=int, default=8)
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
+    ap.add_argument("--cross-axis", action="store_true", help="with --sensor-paths: draw the cross-axis part too "
+                    "(SensorSpread's whole draw; the cached drawn lives and the shipped move are axial only)")
     ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
     ap.add_argument("--at-truths", type=int, default=0, help="extra truths at --at cycles run (0)")
     ap.add_argument("--lives", type=int, default=0, help="simulated lives for track (0)")
@@ -78,6 +85,8 @@ def main() -> None:
     ap.add_argument("--life-sessions", action="append", type=lambda v: [parse_cycles(x) for x in v.split(",")],
                     help="a subset of each life's sessions to track, e.g. 0,200k (repeatable; default all five)")
     ap.add_argument("--verbose-lives", action="store_true", help="print every life's track")
+    ap.add_argument("--life-rows", help="only these of the lives' rows, separated by ';' (e.g. 'stored move;stored, sd "
+                    "0.2'; names as printed; default all)")
     ap.add_argument("--move", metavar="FILE.move.npz", help="score this stored move on the lives (default: the one "
                     "stored beside the shipped estimator, with --shipped)")
     ap.add_argument("--store-move", metavar="FILE.move.npz", help="measure the move on the lives of --move-from "
@@ -91,6 +100,9 @@ def main() -> None:
     ap.add_argument("--cache", help="cache folder (default: a fresh one: the estimator is built cold)")
     ap.add_argument("--seed", type=int, default=20000)
     args = ap.parse_args()
+    if args.cross_axis and not args.sensor_paths:
+        ap.error("--cross-axis: expected with --sensor-paths (it draws the cross-axis part of a drawn path)")
+    args.sensor_paths = "cross-axis" if args.cross_axis else args.sensor_paths  # truth_features' spread
     args.life_sessions = args.life_sessions or [[k * args.life_step for k in range(5)]]
     for subset in args.life_sessions:
         if any(abs(n / args.life_step - round(n / args.life_step)) > 1e-9 or not 0 <= n <= 4 * args.life_step
@@ -330,7 +342,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
     from wearbench.compute import Task, TaskFailure, run_tasks
     from wearbench.compute.task_cache import MISSING, cache_load
     from wearbench.validation.statistics import shrunk_covariance
-    from wearbench.validation.track import session_covariances, wear_drift
+    from wearbench.validation.track import life_rate, session_covariances, wear_drift
     from wearbench.validation.track_move import life_move, save_move
 
     every = [k * args.life_step for k in range(5)]
@@ -376,6 +388,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
                                      "cycles": args.life_cycles,
                                      "measured_by": "benchmarks/estimate.py --store-move --move-from " + args.move_from},
                      benches=about["seeds"])
+    move = replace(move, rate=life_rate(model, pooled, move, cycles=args.life_cycles))  # on the same lives
     save_move(move, args.store_move)
     print(f"stored: {args.store_move}: move from new to worn {move.describe()}")
 
@@ -403,7 +416,7 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     it but without the features' rate spread (``track_features(rate_spread=0)``, track before it)."""
     from wearbench.compute import TaskFailure
     from wearbench.validation.features import CycleFeatures, FeatureSpec
-    from wearbench.validation.track import _depth_curve, track_features
+    from wearbench.validation.track import RATE_SPREAD, _depth_curve, track_features
     from wearbench.validation.track_move import life_move
 
     n_curve, d_curve = _depth_curve(model)
@@ -434,8 +447,11 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
         idx = [round(n / args.life_step) for n in subset]
         cycles_run = [every[k] for k in idx]
         names = (["no move"] + ["move, other half"] * bool(moves) + ["stored move"] * (stored is not None)
+                 + ["stored, sd 0.2"] * (stored is not None and stored.rate is not None)
                  + ["stored, rate 0"] * (stored is not None) + ["offset constant"] * (len(idx) == 5))
         for name in names:
+            if args.life_rows and name not in [n.strip() for n in args.life_rows.split(";")]:
+                continue
             rows = []
             for j, ((c, seed), r) in enumerate(good):
                 limit = c + r["depth"][5]  # the truth reaches it after 5 steps (its last stage)
@@ -444,6 +460,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
                       if name.startswith("stored") else {})
                 if name == "stored, rate 0":  # the features' rate about the estimator's not marginalised (before)
                     kw["rate_spread"] = 0.0
+                if name == "stored, sd 0.2":  # the rate's constant spread, not the move's rate against clearance
+                    kw["rate_spread"] = RATE_SPREAD
                 t = track_features(feats, cycles_run, model, coefficient=bench.wear.coefficient, limit=limit,
                                    drift=name != "offset constant", **kw)
                 m, truth, post_k = t.cycles_to_limit, 5 * args.life_step, t.factor

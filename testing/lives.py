@@ -4,10 +4,11 @@ benches' move from new to worn on (``validation/track_move.py``).
 
 A truth is the bench drawn from the bench file's ``[tolerances]`` with its own seed (the estimator's
 design uses seeds 1..M), worn from a clearance, run from a random start, and seen through the
-emulator's sensor chain (the bench file's ``[emulator.accelerometer]``; ``spread``: a mount or
-carriage mode drawn per truth, ``SensorSpread`` without its cross-axis part: the lives' cache
-holds axial paths, and cross-axis moves the features' band powers by at most 0.6 dB) applied
-in-process to the model's acceleration. A
+emulator's sensor chain (the bench file's ``[emulator.accelerometer]``; ``spread``: True, a mount or
+carriage mode drawn per truth, ``SensorSpread`` without its cross-axis part (what the cached lives
+and the shipped move hold); ``"cross-axis"``, the whole of ``SensorSpread``'s draw, the cross-axis
+sensitivity to the carriage's lateral mode driven by the lateral force of the same run included)
+applied in-process to the model's acceleration. A
 life is one such bench worn with a factor times the file's wear coefficient and recorded after 0 and
 every stage. The top layer: imports the model, the emulators and the validation layer.
 """
@@ -24,14 +25,16 @@ from wearbench.validation.estimate import Estimator
 __all__ = ["life_features", "life_plan", "measure_move", "truth_features"]
 
 
-def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int, cycles: int, spread: bool,
-                   files: dict | None = None) -> dict:
-    """One truth's cycle features through the sensor chain (a compute-layer task); ``files``: worn
-    surfaces to use instead of a wear run of ``cycles_run``."""
+def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int, cycles: int,
+                   spread: bool | str, files: dict | None = None) -> dict:
+    """One truth's cycle features through the sensor chain (a compute-layer task); ``spread``: False
+    (the file's path), True (a drawn axial path) or "cross-axis" (a drawn path with cross-axis);
+    ``files``: worn surfaces to use instead of a wear run of ``cycles_run``."""
     from pathlib import Path
 
     from wearbench.acquisition.layout import clip_level
     from wearbench.bench.schema import WearState
+    from wearbench.hardware.emulators.carriage import lateral_force
     from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
     from wearbench.hardware.emulators.sensor import SensorChain
     from wearbench.model.realisation import simulate_state
@@ -47,23 +50,29 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
             for j, s in run.final.items():
                 files[j] = s.save(Path(tmp) / f"{j}.npz")
                 depth = max(depth, sum(s.max_depth))
+        if spread not in (False, True, "cross-axis"):
+            raise ValueError(f"truth_features: spread = {spread!r}: expected False, True or 'cross-axis'")
         acc = EmulatorConfig.from_bench(bench).accelerometer
         if spread:
-            acc = SensorSpread(cross_axis=(0.0, 0.0)).draw(acc, seed)
+            acc = (SensorSpread() if spread == "cross-axis" else SensorSpread(cross_axis=(0.0, 0.0))).draw(acc, seed)
         sensor = bench.sensor("accelerometer")
         chain = SensorChain(acc, sensor.sample_rate, sensor.range, np.random.default_rng([seed, 7]))
         state = WearState("truth", dict.fromkeys(joints, clearance), files)
         run = simulate_state(bench, state, seed, revolutions=cycles + 1.0, settle=2.0,
                              output_rate=chain.internal_rate)
     m = chain.oversample
-    samples = chain.process(run.acc)
+    lateral = lateral_force(run.realisation.bench, run.table) if chain.lateral else None
+    if chain.lateral and lateral is None:
+        raise ValueError(f"truth_features: {bench.name}: cross-axis needs the accelerometer's carriage on a guide "
+                         "held by ideal pins (hardware/emulators/carriage.py); this bench has none")
+    samples = chain.process(run.acc, lateral)
     t, crank = run.t[m - 1::m], run.crank[m - 1::m]
     f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), clip_level=clip_level(sensor.range))
-    return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance}
+    return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance, "cross_axis": acc.cross_axis}
 
 
 def life_features(bench: Bench, clearance: float, factor: float, step: float, stages: int, seed: int, cycles: int,
-                  spread: bool) -> dict:
+                  spread: bool | str) -> dict:
     """One simulated life (a compute-layer task): the bench worn from ``clearance`` with ``factor`` x
     the file's wear coefficient through ``stages`` stages of ``step`` cycles; a session of ``cycles``
     through the sensor chain at 0 and after every stage but the last; the truth's depth after each."""
@@ -105,7 +114,8 @@ def life_plan(est: Estimator, lives: int, factor: float, seed: int) -> tuple[flo
 def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float = 1.3, spread: bool = False,
                  cycles: int = 20, seed: int = 100_000, scheduler: str | None = None, workers: int | None = None,
                  progress: str | None = "lives"):
-    """The benches' move from new to worn beyond ``est``'s mean change (``track_move.Move``), measured
+    """The benches' move from new to worn beyond ``est``'s mean change (``track_move.Move``), with the
+    features' rate along the lives against clearance (``track.life_rate``), measured
     on ``lives`` simulated lives of ``bench`` (:func:`life_plan`; ``spread``: each with a drawn sensor
     path) run on the compute layer and cached by content (the estimator's key, the bench, its
     emulated sensor chain, the life). A failed life raises (a move measured on fewer lives than asked
@@ -114,6 +124,7 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     from wearbench.compute import Task, TaskFailure, run_tasks, task_key
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.validation.estimate import fit_estimator
+    from wearbench.validation.track import life_rate
     from wearbench.validation.track_move import life_move
 
     step, plan = life_plan(est, lives, factor, seed)
@@ -131,5 +142,7 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     about = {"bench": bench.name, "sensor_paths": ["drawn mounts" if spread else "default path"],
              "seeds": [s for _, s in plan], "clearances": [c for c, _ in plan], "factor": factor,
              "sessions": sessions, "cycles": cycles}
-    return life_move(model, [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), sessions, c, factor)
-                             for r, (c, _) in zip(runs, plan, strict=True)], about)
+    rows = [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), sessions, c, factor)
+            for r, (c, _) in zip(runs, plan, strict=True)]
+    move = life_move(model, rows, about)
+    return replace(move, rate=life_rate(model, rows, move, cycles=cycles))

@@ -5,7 +5,9 @@ lives of known truth, and stored beside the estimator it was measured against.
 from new alone, and there the estimator's error *of that change* decides it: the design's mean change
 is a mean over its M benches, so its error is shared by every bench the estimator judges
 (``track.py``). :func:`life_move` measures it on lives whose truth is known; ``track_features(move=)``
-moves the worn sessions' expected means by it and adds its standard error to the drift.
+moves the worn sessions' expected means by it and adds its standard error to the drift. The same lives
+measure the rate at which the features change along a life against clearance (:class:`Rate`,
+``track.life_rate``), stored with the move and marginalised by ``track``.
 
 Stored as a sidecar ``NAME.move.npz`` beside the estimator ``NAME.npz`` (:func:`move_path`), not inside
 it: the estimator file stays byte for byte what was built and checked (its key and the shipped
@@ -28,9 +30,38 @@ from wearbench.bench.output_file import save_npz
 from wearbench.validation.estimate import Estimator, EstimatorModel
 from wearbench.validation.statistics import shrunk_covariance
 
-__all__ = ["Move", "life_move", "load_move", "move_path", "save_move", "stored_move"]
+__all__ = ["Move", "Rate", "life_move", "load_move", "move_path", "save_move", "stored_move"]
 
-FORMAT = "wearbench estimator move 1"
+FORMAT = "wearbench estimator move 1"  # its optional field 'rate' (a Rate) added later: older moves lack it
+
+
+@dataclass(frozen=True)
+class Rate:
+    """The rate at which benches' features change along their lives about the estimator's, against the
+    initial clearance: lognormal with log-mean ``mean`` and sd ``spread`` at the clearance knots
+    ``clearances`` (m), linear between them and held beyond (where no life measured it). Measured on
+    the move's lives (``track.life_rate``); ``track`` marginalises it."""
+
+    clearances: tuple[float, ...]
+    mean: tuple[float, ...]
+    spread: tuple[float, ...]
+
+    def __post_init__(self):
+        c, m, s = (np.asarray(v, float) for v in (self.clearances, self.mean, self.spread))
+        if c.ndim != 1 or c.size < 1 or m.shape != c.shape or s.shape != c.shape or np.any(np.diff(c) <= 0) \
+                or np.any(s < 0) or np.any(s >= 1) or not np.all(np.isfinite(m)):
+            raise ValueError(f"rate: clearances {c.tolist()}, mean {m.tolist()}, spread {s.tolist()}: expected "
+                             "increasing clearance knots with a finite log-mean and a lognormal sd in [0, 1) at each")
+
+    def at(self, clearance: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """(log-mean, sd) of the rate at ``clearance`` (m)."""
+        c = np.asarray(clearance, float)
+        return np.interp(c, self.clearances, self.mean), np.interp(c, self.clearances, self.spread)
+
+    def describe(self) -> str:
+        return "features' rate along a life " + ", ".join(
+            f"{np.exp(m):.2f}x (log sd {s:.2f}) at {c * 1e3:.3f} mm" for c, m, s in
+            zip(self.clearances, self.mean, self.spread, strict=True)) + ", linear between, held beyond"
 
 
 @dataclass(frozen=True)
@@ -45,6 +76,7 @@ class Move:
     rows: np.ndarray  # (lives, p): each life's move, the measurement itself
     about: Mapping = field(default_factory=dict)
     path: str = ""  # the file it was read from ("" when measured in this process)
+    rate: Rate | None = None  # the features' rate along the lives against clearance (None: not measured)
 
     def describe(self) -> str:
         """One line: what the move was measured on."""
@@ -59,12 +91,15 @@ class Move:
                                                             else "")
         return (f"measured on {lives} ({paths}; {seed_text}; wear factor "
                 f"{factor if factor is not None else '?'} x the file's; sessions at {sessions or '?'} cycles run, "
-                f"{a.get('cycles', '?')} cycles each)" + (f", {self.path}" if self.path else ""))
+                f"{a.get('cycles', '?')} cycles each)" + (f"; {self.rate.describe()}" if self.rate else "")
+                + (f", {self.path}" if self.path else ""))
 
     def as_dict(self) -> dict:
         """What a result records of the move used (not its numbers)."""
         return {"file": self.path, "estimator": self.estimator, "lives": int(self.rows.shape[0]), **dict(self.about),
-                "described": self.describe()}
+                "described": self.describe(), "rate": None if self.rate is None else {
+                    "clearances": list(self.rate.clearances), "mean": list(self.rate.mean),
+                    "spread": list(self.rate.spread), "described": self.rate.describe()}}
 
 
 def life_move(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[float], float, float]],
@@ -102,8 +137,9 @@ def move_path(estimator_path: str | Path) -> Path:
 
 
 def save_move(move: Move, path: str | Path) -> Path:
+    rate = {} if move.rate is None else {"rate": np.array([move.rate.clearances, move.rate.mean, move.rate.spread])}
     return save_npz(path, format=np.array(FORMAT), estimator=np.array(move.estimator), mean=move.mean,
-                    covariance=move.covariance, rows=move.rows, about=np.array(json.dumps(dict(move.about))))
+                    covariance=move.covariance, rows=move.rows, about=np.array(json.dumps(dict(move.about))), **rate)
 
 
 def load_move(path: str | Path, estimator: Estimator | str) -> Move:
@@ -125,6 +161,7 @@ def load_move(path: str | Path, estimator: Estimator | str) -> Move:
             fmt, found = str(data["format"]), str(data["estimator"])
             mean, cov, rows = data["mean"], data["covariance"], data["rows"]
             about = json.loads(str(data["about"]))
+            rate = data["rate"] if "rate" in data.files else None
     except KeyError as exc:
         raise ValueError(f"{path}: not {what} (no field {exc.args[0]!r})") from None
     except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
@@ -139,7 +176,14 @@ def load_move(path: str | Path, estimator: Estimator | str) -> Move:
     if mean.shape != (p,) or cov.shape != (p, p) or rows.ndim != 2 or rows.shape[1] != p:
         raise ValueError(f"{path}: field 'covariance' shape {cov.shape}, 'mean' {mean.shape}, 'rows' {rows.shape}: "
                          "expected (p, p), (p,) and (lives, p)")
-    return Move(mean, cov, found, rows, about, str(path))
+    if rate is not None:
+        if rate.ndim != 2 or rate.shape[0] != 3:
+            raise ValueError(f"{path}: field 'rate' shape {rate.shape}: expected (3, knots): clearances, log-mean, sd")
+        try:
+            rate = Rate(*(tuple(float(v) for v in row) for row in rate))
+        except ValueError as exc:
+            raise ValueError(f"{path}: field 'rate': {exc}") from None
+    return Move(mean, cov, found, rows, about, str(path), rate)
 
 
 def stored_move(estimator: Estimator) -> Move | None:

@@ -176,6 +176,8 @@ def test_the_estimator_command_measures_and_stores_the_move_on_simulated_lives(t
     assert move.about["sessions"] == pytest.approx([0.0, 2e5 / 6, 4e5 / 6, 6e5 / 6, 8e5 / 6])
     assert all(0.3e-3 + 0.2e-3 / 8 <= c <= 0.5e-3 - 0.2e-3 / 4 for c in move.about["clearances"])
     assert np.all(np.isfinite(move.mean)) and np.all(np.linalg.eigvalsh(move.covariance) > -1e-12)
+    knots = move.rate.clearances  # the features' rate against clearance, measured on the same lives
+    assert (knots[0], knots[-1]) == (min(move.about["clearances"]), max(move.about["clearances"]))
     assert f"saved: {move_path(out)}" in text
     before = out.stat().st_mtime_ns
     assert main(args) == 2  # the move exists: refused, the estimator kept as it was
@@ -192,3 +194,4 @@ def test_the_shipped_move_belongs_to_the_shipped_estimator():
     move = stored_move(est)
     assert move is not None and move.estimator == est.key and move.mean.shape == (est.features.shape[-1],)
     assert move.about["factor"] == 1.3 and move.about["benches"] >= 20
+    assert move.rate is not None and move.rate.clearances[0] == min(move.about["clearances"])

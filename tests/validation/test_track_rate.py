@@ -2,17 +2,21 @@
 marginalises it (``rate_spread``), a lognormal on the factor the features see. Checked against the
 analytic convolution of two Gaussians in log factor, at the estimator's range edge (renormalised
 there, not pulled down), and on lives with a planted rate error (covered with the spread, missed
-without it)."""
+without it); a rate that falls with clearance, planted on lives, is measured by ``life_rate``, stored
+with the move, and covers a bench the constant spread misses."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from wearbench.validation.features import CycleFeatures
-from wearbench.validation.track import RATE_SPREAD, _spread_rate, track_features
+from wearbench.validation.track import RATE_SPREAD, _spread_rate, life_rate, track_features
+from wearbench.validation.track_move import Rate, life_move, load_move, save_move
 
 from . import test_estimate
-from .test_estimate import SPEC, true_mean
+from .test_estimate import SB, SPEC, SW, P, true_mean
 
 model = test_estimate.model  # the synthetic estimator (a fixture)
 
@@ -66,3 +70,68 @@ def test_a_planted_rate_error_is_covered_with_the_rate_spread_and_missed_without
     assert width(plain) < width(spread) < 2.0 * width(plain) + 2 * 1.645 * 0.3
     with pytest.raises(ValueError, match="rate_spread"):
         track_features(life(runs, 1.0), runs, model, coefficient=5.2e-14, rate_spread=1.5)
+
+
+def rate_lives(rng, lives: int = 16):
+    """Lives of benches worn 1.3x the file's (sessions at 0-400k cycles, 20 cycles each, as session
+    means with their bench offset and noise) whose features change at a rate that falls with the
+    initial clearance: the estimator's at 0.30 mm, half of it at 0.55 mm (log-linear between)."""
+    runs, out = np.arange(5) * 1e5, []
+    for c in rng.uniform(0.30e-3, 0.55e-3, lives):
+        offset = rng.normal(0.0, np.sqrt(SB), P)
+        xbars = np.stack([true_mean(c, 1.3 * planted_rate(c) * n) + offset + rng.normal(0.0, np.sqrt(SW / 20), P)
+                          for n in runs])
+        out.append((xbars, runs, float(c), 1.3))
+    return out
+
+
+def planted_rate(c: float) -> float:
+    return float(np.exp(np.log(0.5) * (c - 0.30e-3) / 0.25e-3))
+
+
+def test_a_planted_clearance_dependent_rate_is_measured_and_covers_the_factor_where_a_constant_spread_misses(model):
+    """life_rate on 16 lives whose features' rate falls from 1x at 0.30 mm to 0.5x at 0.55 mm finds a
+    rate near 1x at the low end and well below it at the high end; with it stored on the move, a new
+    bench at 0.53 mm (rate 0.53x) gets the true factor 1.3 inside its 90 % interval, which the constant
+    spread misses, and a bench at 0.32 mm (rate 0.97x) keeps it inside its 50 % interval."""
+    rng = np.random.default_rng(5)
+    lives = rate_lives(rng)
+    move = life_move(model, lives)
+    rate = life_rate(model, lives, move, cycles=20)
+    low, high = (float(np.exp(rate.at(c)[0])) for c in (0.30e-3, 0.55e-3))
+    assert 0.9 <= low <= 1.1 and high < 0.75, rate
+    measured = replace(move, rate=rate)
+    runs = list(np.arange(5) * 1e5)
+
+    def sessions(c):
+        return [CycleFeatures(SPEC, np.repeat(true_mean(c, 1.3 * planted_rate(c) * n)[None], 20, axis=0),
+                              np.zeros(20)) for n in runs]
+
+    constant = track_features(sessions(0.53e-3), runs, model, coefficient=5.2e-14, move=move)
+    curve = track_features(sessions(0.53e-3), runs, model, coefficient=5.2e-14, move=measured)
+    assert constant.rate_spread == RATE_SPREAD and not constant.factor.contains(1.3)
+    assert curve.rate_spread is None and curve.move["rate"]["mean"] == list(rate.mean)
+    assert curve.factor.contains(1.3)
+    assert track_features(sessions(0.32e-3), runs, model, coefficient=5.2e-14, move=measured).factor.contains(1.3, 50)
+    forced = track_features(sessions(0.53e-3), runs, model, coefficient=5.2e-14, move=measured, rate_spread=0.2)
+    assert forced.rate_spread == 0.2 and forced.factor.median == pytest.approx(constant.factor.median)
+
+
+def test_a_measured_rate_is_stored_with_the_move_and_a_bad_one_is_refused(model, tmp_path):
+    """The rate survives save and load with the move; a move saved without one loads with none; a rate
+    field of the wrong shape or with a negative sd is refused naming the file and the field."""
+    lives = rate_lives(np.random.default_rng(6), lives=4)
+    move = life_move(model, lives)
+    rate = Rate((0.3e-3, 0.55e-3), (0.0, -0.4), (0.1, 0.3))
+    back = load_move(save_move(replace(move, rate=rate), tmp_path / "a.move.npz"), move.estimator)
+    assert back.rate == rate and "0.67x (log sd 0.30) at 0.550 mm" in back.describe()
+    assert load_move(save_move(move, tmp_path / "b.move.npz"), move.estimator).rate is None
+    assert rate.at(0.2e-3) == (0.0, 0.1) and rate.at(0.7e-3) == (-0.4, 0.3)  # held beyond the knots
+    with pytest.raises(ValueError, match="lognormal sd"):
+        Rate((0.3e-3, 0.55e-3), (0.0, -0.4), (0.1, -0.3))
+    data = dict(np.load(tmp_path / "a.move.npz"))
+    for bad, match in ((data["rate"][:2], r"field 'rate' shape \(2, 2\)"), (data["rate"] * [[1], [1], [-1]],
+                                                                             "field 'rate': rate: clearances")):
+        np.savez(tmp_path / "bad.move.npz", **{**data, "rate": bad})
+        with pytest.raises(ValueError, match=match):
+            load_move(tmp_path / "bad.move.npz", move.estimator)
