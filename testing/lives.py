@@ -25,6 +25,26 @@ from wearbench.validation.estimate import Estimator
 __all__ = ["life_features", "life_plan", "measure_move", "truth_features"]
 
 
+def _sensor_chain(bench: Bench, spread: bool | str, seed: int):
+    """A truth's emulated sensor chain (``spread``: see :func:`truth_features`), made and checked before
+    anything is simulated."""
+    from wearbench.hardware.emulators.carriage import carriage
+    from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
+    from wearbench.hardware.emulators.sensor import SensorChain
+
+    if spread not in (False, True, "cross-axis"):
+        raise ValueError(f"truth_features: spread = {spread!r}: expected False, True or 'cross-axis'")
+    acc = EmulatorConfig.from_bench(bench).accelerometer
+    if spread:
+        acc = (SensorSpread() if spread == "cross-axis" else SensorSpread(cross_axis=(0.0, 0.0))).draw(acc, seed)
+    sensor = bench.sensor("accelerometer")
+    chain = SensorChain(acc, sensor.sample_rate, sensor.range, np.random.default_rng([seed, 7]))
+    if chain.lateral and carriage(bench) is None:
+        raise ValueError(f"truth_features: {bench.name}: cross-axis needs the accelerometer's carriage on a guide "
+                         "held by ideal pins (hardware/emulators/carriage.py); this bench has none")
+    return chain
+
+
 def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int, cycles: int,
                    spread: bool | str, files: dict | None = None) -> dict:
     """One truth's cycle features through the sensor chain (a compute-layer task); ``spread``: False
@@ -35,12 +55,11 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     from wearbench.acquisition.layout import clip_level
     from wearbench.bench.schema import WearState
     from wearbench.hardware.emulators.carriage import lateral_force
-    from wearbench.hardware.emulators.config import EmulatorConfig, SensorSpread
-    from wearbench.hardware.emulators.sensor import SensorChain
     from wearbench.model.realisation import simulate_state
     from wearbench.model.wear_stages import StagePlan, run_stages
     from wearbench.validation.features import FeatureSpec, cycle_features
 
+    chain = _sensor_chain(bench, spread, seed)
     joints = [j.name for j in bench.clearance_joints]
     files, depth = dict(files or {}), 0.0
     with tempfile.TemporaryDirectory() as tmp:
@@ -50,25 +69,16 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
             for j, s in run.final.items():
                 files[j] = s.save(Path(tmp) / f"{j}.npz")
                 depth = max(depth, sum(s.max_depth))
-        if spread not in (False, True, "cross-axis"):
-            raise ValueError(f"truth_features: spread = {spread!r}: expected False, True or 'cross-axis'")
-        acc = EmulatorConfig.from_bench(bench).accelerometer
-        if spread:
-            acc = (SensorSpread() if spread == "cross-axis" else SensorSpread(cross_axis=(0.0, 0.0))).draw(acc, seed)
-        sensor = bench.sensor("accelerometer")
-        chain = SensorChain(acc, sensor.sample_rate, sensor.range, np.random.default_rng([seed, 7]))
         state = WearState("truth", dict.fromkeys(joints, clearance), files)
         run = simulate_state(bench, state, seed, revolutions=cycles + 1.0, settle=2.0,
                              output_rate=chain.internal_rate)
     m = chain.oversample
-    lateral = lateral_force(run.realisation.bench, run.table) if chain.lateral else None
-    if chain.lateral and lateral is None:
-        raise ValueError(f"truth_features: {bench.name}: cross-axis needs the accelerometer's carriage on a guide "
-                         "held by ideal pins (hardware/emulators/carriage.py); this bench has none")
-    samples = chain.process(run.acc, lateral)
+    samples = chain.process(run.acc, lateral_force(run.realisation.bench, run.table) if chain.lateral else None)
     t, crank = run.t[m - 1::m], run.crank[m - 1::m]
+    sensor = bench.sensor("accelerometer")
     f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), clip_level=clip_level(sensor.range))
-    return {"features": f.values[:cycles], "depth": depth, "mode": acc.resonance, "cross_axis": acc.cross_axis}
+    return {"features": f.values[:cycles], "depth": depth, "mode": chain.acc.resonance,
+            "cross_axis": chain.acc.cross_axis}
 
 
 def life_features(bench: Bench, clearance: float, factor: float, step: float, stages: int, seed: int, cycles: int,
@@ -80,6 +90,7 @@ def life_features(bench: Bench, clearance: float, factor: float, step: float, st
 
     from wearbench.model.wear_stages import StagePlan, run_stages
 
+    _sensor_chain(bench, spread, seed)  # a bad spread or sensor path fails before the wear stages
     joints = [j.name for j in bench.clearance_joints]
     plan = StagePlan.from_bench(bench, stages=stages, stage_cycles=step)
     run = run_stages(bench, replace(plan, coefficient=bench.wear.coefficient * factor),
