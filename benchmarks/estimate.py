@@ -47,10 +47,9 @@ import argparse
 import os
 import tempfile
 import time
-from dataclasses import replace
 
 import numpy as np
-from wearbench.testing.lives import life_features, truth_features
+from wearbench.testing.lives import life_features, life_means, move_with_rate, truth_features
 
 
 def parse_cycles(text: str) -> float:
@@ -342,7 +341,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
     from wearbench.compute import Task, TaskFailure, run_tasks
     from wearbench.compute.task_cache import MISSING, cache_load
     from wearbench.validation.statistics import shrunk_covariance
-    from wearbench.validation.track import life_rate, session_covariances, wear_drift
+    from wearbench.validation.track import session_covariances, wear_drift
     from wearbench.validation.track_move import life_move, save_move
 
     every = [k * args.life_step for k in range(5)]
@@ -359,8 +358,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
                                                "cycles": args.life_cycles, "spread": kinds[kind]},
                                life_key(c, s, kinds[kind]), f"life {s}") for c, s in chosen], progress=f"lives, {kind}")
         done = [((c, s), r) for (c, s), r in zip(chosen, runs, strict=True) if not isinstance(r, TaskFailure)]
-        rows = [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), every, c, args.life_factor)
-                for (c, _), r in done]
+        rows = [(life_means(r), every, c, args.life_factor) for (c, _), r in done]
         per_kind[kind] = life_move(model, rows)
         along = []
         for xbars, _, c, f in rows:
@@ -384,11 +382,10 @@ def store_move(bench, model, lives, life_key, args) -> None:
               f"correlate {np.median(same):.2f} (median over features)")
     # a seed is one drawn bench (its tolerances, clearance and wear run): its lives through the two path kinds
     # are one bench seen twice, averaged before the move's error is taken (life_move's benches)
-    move = life_move(model, pooled, {"bench": bench.name, **about, "factor": args.life_factor, "sessions": every,
-                                     "cycles": args.life_cycles,
-                                     "measured_by": "benchmarks/estimate.py --store-move --move-from " + args.move_from},
-                     benches=about["seeds"])
-    move = replace(move, rate=life_rate(model, pooled, move, cycles=args.life_cycles))  # on the same lives
+    move = move_with_rate(model, pooled, {"bench": bench.name, **about, "factor": args.life_factor, "sessions": every,
+                                          "cycles": args.life_cycles, "measured_by": "benchmarks/estimate.py "
+                                          "--store-move --move-from " + args.move_from},
+                          cycles=args.life_cycles, benches=about["seeds"])
     save_move(move, args.store_move)
     print(f"stored: {args.store_move}: move from new to worn {move.describe()}")
 
@@ -427,7 +424,7 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     if not good:
         return
     every = [k * args.life_step for k in range(5)]
-    means = [np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]) for _, r in good]
+    means = [life_means(r) for _, r in good]
     half = len(good) // 2
     halves = [range(half, len(good)), range(half)]  # life i is scored with the move of the other half
     moves = [life_move(model, [(means[i], every, good[i][0][0], args.life_factor) for i in part]) for part in halves

@@ -22,7 +22,7 @@ import numpy as np
 from wearbench.bench.schema import Bench
 from wearbench.validation.estimate import Estimator
 
-__all__ = ["life_features", "life_plan", "measure_move", "truth_features"]
+__all__ = ["life_features", "life_means", "life_plan", "measure_move", "move_with_rate", "truth_features"]
 
 
 def _sensor_chain(bench: Bench, spread: bool | str, seed: int):
@@ -122,6 +122,22 @@ def life_plan(est: Estimator, lives: int, factor: float, seed: int) -> tuple[flo
     return step, [(float(rng.uniform(lo + span / 8, hi - span / 4)), seed + k) for k in range(lives)]
 
 
+def life_means(result: dict) -> np.ndarray:
+    """(S, p): the mean cycle features of each session of one :func:`life_features` result."""
+    return np.stack([np.asarray(f).mean(axis=0) for f in result["features"]])
+
+
+def move_with_rate(model, lives, about: dict, *, cycles: int, benches=None):
+    """The move from new to worn measured on ``lives`` (``track_move.life_move``: (session means,
+    cycles run, clearance, factor) each) with the features' rate along the same lives against
+    clearance (``track.life_rate``; sessions of ``cycles`` cycles)."""
+    from wearbench.validation.track import life_rate
+    from wearbench.validation.track_move import life_move
+
+    move = life_move(model, lives, about, benches=benches)
+    return replace(move, rate=life_rate(model, lives, move, cycles=cycles))
+
+
 def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float = 1.3, spread: bool = False,
                  cycles: int = 20, seed: int = 100_000, scheduler: str | None = None, workers: int | None = None,
                  progress: str | None = "lives"):
@@ -135,8 +151,6 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     from wearbench.compute import Task, TaskFailure, run_tasks, task_key
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.validation.estimate import fit_estimator
-    from wearbench.validation.track import life_rate
-    from wearbench.validation.track_move import life_move
 
     step, plan = life_plan(est, lives, factor, seed)
     chain = canonical(EmulatorConfig.from_bench(bench).accelerometer)
@@ -153,7 +167,5 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     about = {"bench": bench.name, "sensor_paths": ["drawn mounts" if spread else "default path"],
              "seeds": [s for _, s in plan], "clearances": [c for c, _ in plan], "factor": factor,
              "sessions": sessions, "cycles": cycles}
-    rows = [(np.stack([np.asarray(f).mean(axis=0) for f in r["features"]]), sessions, c, factor)
-            for r, (c, _) in zip(runs, plan, strict=True)]
-    move = life_move(model, rows, about)
-    return replace(move, rate=life_rate(model, rows, move, cycles=cycles))
+    return move_with_rate(model, [(life_means(r), sessions, c, factor) for r, (c, _) in zip(runs, plan, strict=True)],
+                          about, cycles=cycles)
