@@ -180,14 +180,14 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
     if not joints:
         raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
     key = estimator_key(bench, design, speed)
-    base = None
+    base, m0 = None, 0  # a shipped smaller estimator of this design and how many realisations it gives
     if shipped and cache and shipped_estimator_path(bench).exists():
         found = load_estimator(shipped_estimator_path(bench))
         if found.key == key:
             return found
-        base = found if _first_realisations(bench, design, speed, found) else None
+        base, m0 = found, _first_realisations(bench, design, speed, found)
     stages, stage = len(design.cycles) - 1, design.cycles[1]
-    wkeys = [task_key("estimator-wear", estimator_key(bench, design, speed), c) for c in design.clearances]
+    wkeys = [task_key("estimator-wear", key, c) for c in design.clearances]
     runs = run_tasks([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages, "stage_cycles": stage,
                                              "speed": speed}, k, f"wear {c * 1e3:.3g} mm")
                       for c, k in zip(design.clearances, wkeys, strict=True)],
@@ -207,9 +207,8 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
                 files[jn] = path
                 depth[i, j] = max(depth[i, j], float(np.max(b)) + float(np.max(jr)))
             states.append(design.state(i, j, files, joints))
-    if base is not None and not np.array_equal(base.depth, depth):
-        base = None  # its wear runs are not these: its realisations saw other surfaces
-    m0 = _first_realisations(bench, design, speed, base) if base is not None else 0
+    if m0 and not np.array_equal(base.depth, depth):
+        m0 = 0  # its wear runs are not these: its realisations saw other surfaces
     settings = design.settings if not m0 else replace(design.settings, seed=design.settings.seed + m0,
                                                       realisations=design.settings.realisations - m0)
     ens = build_ensembles(bench, states, speed=speed, settings=settings, scheduler=scheduler,
