@@ -15,6 +15,7 @@ from wearbench.model import kernel as K
 from wearbench.model.realisation import state_scene
 
 PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "partitioned_coordinates.py"
+sys.path.insert(0, str(PATH.parent))  # as when the script runs: it takes its clock from profile_revolution.py
 spec = importlib.util.spec_from_file_location("partitioned_coordinates", PATH)
 pc = importlib.util.module_from_spec(spec)
 sys.modules[spec.name] = pc  # numba's cache finds the module's functions by its name
