@@ -64,8 +64,8 @@ def main() -> None:
     ap.add_argument("--cycles", type=int, default=20, help="cycles per truth session (20)")
     ap.add_argument("--design-clearances", default="0.25mm,0.35mm,0.45mm,0.55mm,0.65mm")
     ap.add_argument("--design-cycles", default="0,200000,400000,600000")
-    ap.add_argument("--realisations", type=lambda v: [int(m) for m in v.split(",")], default=[16],
-                    help="realisations per design point (16); a list (16,32) builds one estimator per size and "
+    ap.add_argument("--realisations", type=lambda v: [int(m) for m in v.split(",")], default=[48],
+                    help="realisations per design point (48, as shipped); a list (16,48) builds one estimator per size and "
                     "reports each on the same truths (the lives and --store-move use the first)")
     ap.add_argument("--small", action="store_true", help="EstimatorDesign.small() (the demo's) instead of the "
                     "--design-* options")
@@ -176,7 +176,8 @@ def main() -> None:
     if args.store_move:
         store_move(bench, model, lives_asked, life_key, args)
     if lives:
-        stored = load_move(args.move, model.estimator) if args.move else stored_move(est)
+        scored = args.move or args.store_move  # a rebuilt estimator's shipped move is another key's
+        stored = load_move(scored, model.estimator) if scored else stored_move(est)
         report_lives(bench, model, lives, life_runs, args, t_lives, stored)
 
 

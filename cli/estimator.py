@@ -21,7 +21,7 @@ def add_design_arguments(p: argparse.ArgumentParser) -> None:
                    help="design clearances, shared by the clearance joints (0.25mm,0.35mm,0.45mm,0.55mm,0.65mm)")
     p.add_argument("--design-cycles", default="0,200000,400000,600000", metavar="0,N1,...",
                    help="design cycles run, equally spaced from 0 (0,200000,400000,600000)")
-    p.add_argument("--realisations", type=positive_int, default=16, help="realisations per design point (16)")
+    p.add_argument("--realisations", type=positive_int, default=48, help="realisations per design point (48)")
     p.add_argument("--ensemble-cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
 
 

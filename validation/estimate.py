@@ -70,7 +70,7 @@ class EstimatorDesign:
 
     clearances: tuple[float, ...] = (0.25e-3, 0.35e-3, 0.45e-3, 0.55e-3, 0.65e-3)
     cycles: tuple[float, ...] = (0.0, 200_000.0, 400_000.0, 600_000.0)
-    settings: EnsembleSettings = field(default_factory=lambda: EnsembleSettings(realisations=16))
+    settings: EnsembleSettings = field(default_factory=lambda: EnsembleSettings(realisations=48))
 
     def __post_init__(self) -> None:
         c, n = np.asarray(self.clearances, float), np.asarray(self.cycles, float)
@@ -92,7 +92,7 @@ class EstimatorDesign:
         return cls((0.25e-3, 0.45e-3, 0.65e-3), (0.0, 200_000.0, 400_000.0), EnsembleSettings(realisations=3, cycles=4))
 
     @classmethod
-    def parse(cls, clearances: str, cycles: str, *, realisations: int = 16,
+    def parse(cls, clearances: str, cycles: str, *, realisations: int = 48,
               ensemble_cycles: int = 8) -> EstimatorDesign:
         """A design from text as a user types it: ``"0.25mm,0.45mm,0.65mm"``, ``"0,200000,400000"``."""
         try:
