@@ -40,6 +40,26 @@ def test_ensemble_size_defaults_are_the_shipped_ensembles(argv, cycles):
     assert (args.realisations, getattr(args, cycles)) == (EnsembleSettings().realisations, EnsembleSettings().cycles)
 
 
+def test_estimator_defaults_are_the_shipped_estimator():
+    """`wearbench estimator`'s design defaults are EstimatorDesign()'s, and the test bed's shipped
+    estimator has that design's key: `estimate`, `identify --estimate` and the demo use it instead of
+    building one (regenerate it when this fails: `wearbench estimator
+    hardware/benches/ninebar-testbed.toml --ship`, then its move, README "How large ...")."""
+    from wearbench.bench.load import load_bench
+    from wearbench.cli.estimator import design_from_args
+    from wearbench.validation.estimate import (
+        EstimatorDesign,
+        estimator_key,
+        load_estimator,
+        shipped_estimator_path,
+    )
+
+    assert design_from_args(build_parser().parse_args(["estimator", "b.toml"])) == EstimatorDesign()
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    key = estimator_key(bench, EstimatorDesign(), bench.speed)
+    assert load_estimator(shipped_estimator_path(bench), key=key) is not None, "stale: the model, bench or design changed"
+
+
 def test_bench_check_reports_degrees_of_freedom(capsys):
     assert main(["bench", "check", str(shipped_bench("ninebar"))]) == 0
     out = capsys.readouterr().out
