@@ -41,7 +41,7 @@ from collections import namedtuple
 
 import numpy as np
 from numba import njit
-from profile_revolution import _clock  # benchmarks/ is on sys.path when a script here runs
+from profile_revolution import _clock, contact_modes, watched_loop  # benchmarks/ on sys.path
 from wearbench.model import integrators as I
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
@@ -521,30 +521,15 @@ def _sample_states(scene, speed, revolutions: float = 1.0):
     onto the position and velocity constraints (tol 1e-13), with contact modes as the table shows them."""
     from wearbench.model import simulate
 
-    inner = I.run_loop
-    kept = {}
-
-    def keep(*args):
-        status = inner(*args)
-        kept["t"], kept["y"] = args[7].t, args[7].y
-        return status
-
-    I.run_loop = keep
-    try:
+    with watched_loop() as kept:
         res = simulate(scene, revolutions=revolutions)
-    finally:
-        I.run_loop = inner
     n, P, W = scene.n, scene.params, scene.work()
     ts = np.ascontiguousarray(kept["t"])
     qs = np.ascontiguousarray(kept["y"][:, :n])
     vs = np.ascontiguousarray(kept["y"][:, n:])
     for i in range(ts.size):
         K.project(ts[i], qs[i], vs[i], speed, P, W, 1e-13, 20)
-    pen = np.stack([res.table[f"{j}_pen"].to_numpy() for j in scene.clearance_joints], axis=1)
-    vn = np.stack([res.table[f"{j}_vn"].to_numpy() for j in scene.clearance_joints], axis=1)
-    inc = np.ascontiguousarray((pen > 0).astype(np.int64))
-    v0i = np.ascontiguousarray(np.maximum(np.abs(vn), 1e-3))
-    return res, ts, qs, vs, inc, v0i
+    return res, ts, qs, vs, *contact_modes(scene, res)
 
 
 def check_and_time(label: str, scene, repeat: int) -> dict:
@@ -854,27 +839,13 @@ def compare_revolution(label: str, scene, repeat: int, revolutions: float) -> No
     t_rev = revolutions * 2 * math.pi / abs(speed)
     simulate(scene, t_end=1e-3)  # compiled
     best_def, best_red = None, None
-    inner = I.run_loop
-    loop = [0.0]
-
-    def timed(*args):
-        t0 = time.process_time()
-        status = inner(*args)
-        loop[0] += time.process_time() - t0
-        return status
-
     for _ in range(repeat):
-        loop[0] = 0.0
-
-        I.run_loop = timed
-        try:
+        with watched_loop() as loop:
             t0 = time.process_time()
             res = simulate(scene, revolutions=revolutions)
             cpu = time.process_time() - t0
-        finally:
-            I.run_loop = inner
         if best_def is None or cpu < best_def[0]:
-            best_def = (cpu, loop[0], res)
+            best_def = (cpu, loop["cpu"], res)
         red = run_reduced(scene, t_rev, np.zeros(0))
         if best_red is None or red["cpu"] < best_red["cpu"]:
             best_red = red

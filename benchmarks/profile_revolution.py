@@ -39,6 +39,7 @@ import os
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -158,6 +159,37 @@ def _clock(fn, *args, budget: float = 0.3, best_of: int = 3) -> float:
     return best / reps
 
 
+@contextmanager
+def watched_loop():
+    """Patch the compiled integration loop for the runs inside: yields a dict with the CPU seconds
+    spent in it (``cpu``), its calls (``calls``) and the last call's output samples (``t``, ``y``)."""
+    from wearbench.model import integrators as I
+
+    inner, spent = I.run_loop, {"cpu": 0.0, "calls": 0}
+
+    def timed(*args):
+        t0 = time.process_time()
+        status = inner(*args)
+        spent["cpu"] += time.process_time() - t0
+        spent["calls"] += 1
+        spent["t"], spent["y"] = args[7].t, args[7].y
+        return status
+
+    I.run_loop = timed
+    try:
+        yield spent
+    finally:
+        I.run_loop = inner
+
+
+def contact_modes(scene, res, every: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(in contact, impact-speed memory) per output sample of ``res`` and clearance joint, as the
+    run's table shows them (every ``every``-th sample): the contact arguments of the kernel's parts."""
+    pen = np.stack([res.table[f"{j}_pen"].to_numpy()[::every] for j in scene.clearance_joints], axis=1)
+    vn = np.stack([res.table[f"{j}_vn"].to_numpy()[::every] for j in scene.clearance_joints], axis=1)
+    return np.ascontiguousarray((pen > 0).astype(np.int64)), np.ascontiguousarray(np.maximum(np.abs(vn), 1e-3))
+
+
 def _profile(name: str, scene, revolutions: float) -> dict:
     """Run ``scene`` once with the compiled loop timed and its states kept, then time the parts."""
     from wearbench.model import integrators as I
@@ -165,35 +197,17 @@ def _profile(name: str, scene, revolutions: float) -> dict:
     from wearbench.model import simulate
 
     simulate(scene, t_end=1e-3)  # compile
-    inner = I.run_loop
-    spent = [0.0, 0]
-    kept = {}
-
-    def timed_loop(*args):
-        t0 = time.process_time()
-        status = inner(*args)
-        spent[0] += time.process_time() - t0
-        spent[1] += 1
-        kept["times"], kept["out_y"] = args[7].t, args[7].y
-        return status
-
-    I.run_loop = timed_loop
-    try:
+    with watched_loop() as spent:
         t0 = time.process_time()
         res = simulate(scene, revolutions=revolutions)
         wall = time.process_time() - t0
-    finally:
-        I.run_loop = inner
     s = res.summary
-    every = max(1, kept["times"].size // 400)
-    ts = np.ascontiguousarray(kept["times"][::every])
-    ys = np.ascontiguousarray(kept["out_y"][::every])
+    every = max(1, spent["t"].size // 400)
+    ts = np.ascontiguousarray(spent["t"][::every])
+    ys = np.ascontiguousarray(spent["y"][::every])
     P, W, speed = scene.params, scene.work(), scene.bench.speed
     n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
-    pen = np.stack([res.table[f"{j}_pen"].to_numpy()[::every] for j in scene.clearance_joints], axis=1)
-    vn = np.stack([res.table[f"{j}_vn"].to_numpy()[::every] for j in scene.clearance_joints], axis=1)
-    inc = np.ascontiguousarray((pen > 0).astype(np.int64))
-    v0i = np.ascontiguousarray(np.maximum(np.abs(vn), 1e-3))
+    inc, v0i = contact_modes(scene, res, every)
     cout = np.zeros((nc, K.NCO))
     Jvs = np.zeros((ts.size, m, 2, 3))
     Ss = np.zeros((ts.size, m, m))
@@ -225,14 +239,14 @@ def _profile(name: str, scene, revolutions: float) -> dict:
         "rejected steps": stages * rej,
         "re-evaluation (projection, mode change, start)": max(0, nfev - stages * (steps + rej)),
     }
-    loop = spent[0]
+    loop = spent["cpu"]
     # table samples and the peak search's points (golden section on the same continuous extension): the
     # contact force law each, no right-hand side
     law = _clock(contacts, ts, ys, speed, P, W, inc, v0i, cout) / per  # with the bodies' cos/sin computed
     table = res.table.shape[0] * law
     peaks = s["peak_searches"] * (2 * I._GOLDEN_ITERATIONS + 4) * law
     evals = sum(counts.values()) * one + table + peaks
-    return {"state": name, "wall": wall, "loop": loop, "calls": spent[1], "python": wall - loop,
+    return {"state": name, "wall": wall, "loop": loop, "calls": spent["calls"], "python": wall - loop,
             "one": one, "cost": cost, "counts": counts, "table": table, "samples": res.table.shape[0],
             "peaks": peaks, "searches": s["peak_searches"],
             "control": loop - evals, "steps": steps, "rejected": rej,
