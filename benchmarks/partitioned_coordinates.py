@@ -838,6 +838,7 @@ def compare_revolution(label: str, scene, repeat: int, revolutions: float) -> No
     speed = scene.bench.speed
     t_rev = revolutions * 2 * math.pi / abs(speed)
     simulate(scene, t_end=1e-3)  # compiled
+    run_reduced(scene, 1e-3, np.zeros(0))  # compiled too: --repeat 1 would time its compilation
     best_def, best_red = None, None
     for _ in range(repeat):
         with watched_loop() as loop:
