@@ -36,7 +36,7 @@ def shifts(spec: np.ndarray, f: np.ndarray, fmax: float, search: float = 3e-3) -
 
 def main() -> None:
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.validation.ensemble import build_ensembles
+    from wearbench.validation.inference.ensemble import build_ensembles
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     ens = build_ensembles(bench, bench.states, progress=None)

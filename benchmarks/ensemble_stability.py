@@ -83,10 +83,9 @@ def main() -> None:
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.compute import Task, compute_client, run_tasks, task_key
     from wearbench.compute.task_cache import MISSING, cache_load
-    from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
+    from wearbench.synthetic.truths import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.validation import load_session
-    from wearbench.validation.assess import session_features
-    from wearbench.validation.ensemble import (
+    from wearbench.validation.inference.ensemble import (
         EnsembleSettings,
         build_ensembles,
         ensembles_key,
@@ -95,7 +94,11 @@ def main() -> None:
         save_ensembles,
         shipped_ensembles_path,
     )
-    from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
+    from wearbench.validation.inference.identify import (
+        IdentifyOptions,
+        fit_states,
+        identify_features,
+    )
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     states, names = bench.states, [s.name for s in bench.states]
@@ -139,7 +142,7 @@ def main() -> None:
                 record_state(bench, s, seed, path, backend="sim", cycles=args.cycles + 1, revolutions=revolutions,
                              **kinds[kind])
         spec = EnsembleSettings().features
-        feats = [session_features(load_session(p), spec) for _, _, _, p in sessions]
+        feats = [load_session(p).features(spec) for _, _, _, p in sessions]
 
         def judge(ensembles) -> dict:
             t0 = time.process_time()

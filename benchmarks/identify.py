@@ -51,7 +51,7 @@ import numpy as np
 
 
 def main() -> None:
-    from wearbench.validation.ensemble import EnsembleSettings
+    from wearbench.validation.inference.ensemble import EnsembleSettings
 
     shipped = EnsembleSettings()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -89,17 +89,24 @@ def main() -> None:
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.compute import Task, compute_client, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
-    from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
+    from wearbench.synthetic.truths import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.validation import CompareOptions, load_session, rank_theories
-    from wearbench.validation.assess import assess_sessions, session_features
-    from wearbench.validation.calibrated import RelativeStatistics, WeightedStatistics
-    from wearbench.validation.calibration import fit_calibration
-    from wearbench.validation.ensemble import build_ensembles
-    from wearbench.validation.features import FeatureSpec
-    from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
-    from wearbench.validation.measure import calibrate_sessions
-    from wearbench.validation.sensor_path import PathSpread
-    from wearbench.validation.theory import simulate_theory
+    from wearbench.validation.comparison.theory import simulate_theory
+    from wearbench.validation.inference.calibration import fit_calibration
+    from wearbench.validation.inference.ensemble import build_ensembles
+    from wearbench.validation.inference.identify import (
+        IdentifyOptions,
+        fit_states,
+        identify_features,
+    )
+    from wearbench.validation.inference.relative_states import (
+        RelativeStatistics,
+        WeightedStatistics,
+    )
+    from wearbench.validation.inference.sensor_path import PathSpread
+    from wearbench.validation.measurement.features import FeatureSpec
+    from wearbench.validation.workflows.assess import assess_sessions
+    from wearbench.validation.workflows.measure import calibrate_sessions
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     states = bench.states
@@ -160,7 +167,7 @@ def main() -> None:
     options = IdentifyOptions()
     models = fit_states(ensembles, options)
     sessions = [load_session(p) for p in paths]
-    feats = [session_features(s, settings.features) for s in sessions]
+    feats = [s.features(settings.features) for s in sessions]
     truth_names = [s.name for s, _ in truths]
     variants = {"band-gain prior of the sensor path (default)": [models] * len(feats),
                 "no band-gain prior (only the ensembles' own spread)": [fit_states(ensembles, replace(options,
@@ -170,7 +177,7 @@ def main() -> None:
         first = calibrate_sessions([cal_paths[0]], calibrations[0][0].name, ensembles=ensembles)
         t_cal = time.perf_counter() - t0  # what `wearbench calibrate` costs; the others share its exact fit
         exact = fit_states(ensembles, replace(options, sensor_path="none"))
-        cals = [first] + [fit_calibration([session_features(load_session(p), settings.features)], exact, s.name,
+        cals = [first] + [fit_calibration([load_session(p).features(settings.features)], exact, s.name,
                                           key=first.key, bench=bench.name, labels=[p.name])
                           for p, (s, _) in zip(cal_paths[1:], calibrations[1:], strict=True)]
         variants["calibrated on one session of a known state: its sensor path only"] = [
@@ -314,7 +321,7 @@ def main() -> None:
 def held_out(ensembles, feats, truth_names, names, options, calibrations=None, method=None) -> None:
     """Each state removed from the candidates in turn: how its sessions are judged (full sessions;
     ``calibrations``: each session's bench calibration, used as ``method`` (a ``calibrated.py`` class) does)."""
-    from wearbench.validation.identify import fit_states, identify_features
+    from wearbench.validation.inference.identify import fit_states, identify_features
 
     print("\nheld-out candidate (the true state removed from the candidates), full sessions:")
     for s in names:
@@ -346,8 +353,8 @@ def rate_interval(k: int, n: int) -> str:
 
 def accuracy_table(variant, session_models, feats, truth_names, names, full, options):
     """Print the accuracy against cycles used of one likelihood variant; (reliability rows, full-length results)."""
-    from wearbench.validation.features import CycleFeatures
-    from wearbench.validation.identify import identify_features
+    from wearbench.validation.inference.identify import identify_features
+    from wearbench.validation.measurement.features import CycleFeatures
 
     print(f"\n[{variant}]")
     print("cycles  sessions  top-1   named right  named wrong  undecided  none   Brier   wrong state explains"

@@ -28,9 +28,13 @@ def main() -> None:
 
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.compute import Task, run_tasks, task_key
-    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles, realisation_summary
-    from wearbench.validation.features import CycleFeatures
-    from wearbench.validation.identify import fit_states, identify_features
+    from wearbench.validation.inference.ensemble import (
+        EnsembleSettings,
+        build_ensembles,
+        realisation_summary,
+    )
+    from wearbench.validation.inference.identify import fit_states, identify_features
+    from wearbench.validation.measurement.features import CycleFeatures
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     states = [s for s in bench.states if s.clearances and max(s.clearances.values()) < 0.5e-3]

@@ -14,10 +14,10 @@ import argparse
 import time
 
 import numpy as np
-from wearbench.validation.alignment import estimate_lag, shift_signal
-from wearbench.validation.dtw import dtw_banded
-from wearbench.validation.filters import FilterSpec, apply_filter
-from wearbench.validation.metrics import iso18571, score_window, sprague_geers
+from wearbench.validation.comparison.alignment import estimate_lag, shift_signal
+from wearbench.validation.comparison.dtw import dtw_banded
+from wearbench.validation.comparison.metrics import iso18571, score_window, sprague_geers
+from wearbench.validation.measurement.filters import FilterSpec, apply_filter
 
 
 def signals(n: int, fs: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -55,10 +55,14 @@ def main() -> None:
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.compute import Task, run_tasks, task_key
     from wearbench.hardware.emulators.config import Accelerometer, SensorSpread
-    from wearbench.validation.ensemble import Ensemble, EnsembleSettings
-    from wearbench.validation.features import CycleFeatures, FeatureSpec, cycle_features
-    from wearbench.validation.identify import IdentifyOptions, fit_states, identify_features
-    from wearbench.validation.sensor_path import PathSpread, mount_response
+    from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
+    from wearbench.validation.inference.identify import (
+        IdentifyOptions,
+        fit_states,
+        identify_features,
+    )
+    from wearbench.validation.inference.sensor_path import PathSpread, mount_response
+    from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec, cycle_features
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     names = [s.name for s in bench.states]

@@ -46,9 +46,9 @@ def main() -> None:
     os.environ.setdefault("WEARBENCH_CACHE", tempfile.mkdtemp(prefix="wearbench-tap-delay-"))
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.validation.chain_delay import stated_delay
-    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
-    from wearbench.validation.windows import WindowOptions
+    from wearbench.validation.comparison.windows import WindowOptions
+    from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.measurement.chain_delay import stated_delay
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     folder = Path(args.sessions or tempfile.mkdtemp(prefix="wearbench-tap-delay-sessions-"))

@@ -1,7 +1,7 @@
 """Five-cycle window validation on non-twin truths: does a window's verdict separate the right
 theory from a wrong one, is it calibrated, is the sensor delay found, and what does it cost.
 
-Truths are made as in ``benchmarks/identify.py`` (its helpers, ``wearbench.testing.truths``'s ``prepare_truth`` and
+Truths are made as in ``benchmarks/identify.py`` (its helpers, ``wearbench.synthetic.truths``'s ``prepare_truth`` and
 ``record_state``): each session's emulator plays a bench drawn from the bench file's [tolerances]
 with its own seed (never an ensemble draw: those use seeds 1..M), through the test bed's sensor chain
 (stud-mounted resonance, 8th-order anti-alias filter, noise, 16-bit ADC), recorded through the sim
@@ -79,7 +79,7 @@ def tap_latencies(bench, specs, folder: Path, taps: int) -> dict[Path, tuple[flo
     from wearbench.acquisition.backends import open_rig
     from wearbench.acquisition.recorder import record_session
     from wearbench.acquisition.session import SessionPlan
-    from wearbench.validation.tap_test import tap_test
+    from wearbench.validation.measurement.tap_test import tap_test
 
     out = {}
     for spec in specs:
@@ -96,7 +96,7 @@ def tap_latencies(bench, specs, folder: Path, taps: int) -> dict[Path, tuple[flo
 
 def truth_specs(bench, states, args, folder: Path) -> list[tuple]:
     """(state, seed, emulator table, accel_delay, session path) of every truth."""
-    from wearbench.testing.truths import slug
+    from wearbench.synthetic.truths import slug
 
     truths = []
     for k, s in enumerate(states):
@@ -113,7 +113,7 @@ def truth_specs(bench, states, args, folder: Path) -> list[tuple]:
 def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, float]]:
     """(true state, session path, true sensor delay) of every truth, recorded once into ``folder``."""
     from wearbench.compute import Task, compute_client, run_tasks, task_key
-    from wearbench.testing.truths import prepare_truth, record_state, truth_revolutions
+    from wearbench.synthetic.truths import prepare_truth, record_state, truth_revolutions
 
     folder.mkdir(parents=True, exist_ok=True)
     truths = truth_specs(bench, states, args, folder)
@@ -208,8 +208,8 @@ def delay_rates(bench, truths, tapped, ensembles, options, ways=None) -> None:
     accel_delay; None: no statement), default the module docstring's four."""
     from dataclasses import replace
 
-    from wearbench.validation.assess import assess_sessions, stream_start
-    from wearbench.validation.measured import load_session
+    from wearbench.validation.measurement.session import load_session
+    from wearbench.validation.workflows.assess import assess_sessions
 
     chain = bench.sensor("accelerometer").chain
     ways = ways or {
@@ -229,7 +229,7 @@ def delay_rates(bench, truths, tapped, ensembles, options, ways=None) -> None:
         for (truth, path, _), s, a in zip(truths, sessions, assessed, strict=True):
             sw = a.windows[truth]
             constant, drift = chain_delay(tapped[path][1], bench)
-            start = stream_start(s.acceleration, s.fs)
+            start = s.stream_start
             for w in sw.windows:
                 true = constant + drift / (1 + drift) * (0.5 * (w.t_start + w.t_end) - start)
                 err.append(w.delay_s - true)
@@ -248,13 +248,13 @@ def separation_table(ensembles, names, options, alpha: float) -> None:
     judged state by ``features_direction`` and by ``features_lr``; the mean over the pairs is what the
     wrong-wear mark averages."""
     from scipy import stats
-    from wearbench.validation.identify import (
+    from wearbench.validation.comparison.windows import separation
+    from wearbench.validation.inference.identify import (
         IdentifyOptions,
         candidate_ratio,
         direction_distance2,
         fit_states,
     )
-    from wearbench.validation.windows import separation
 
     models = fit_states(ensembles, IdentifyOptions(), window_cycles=options.cycles)
     pairs = [(a, b) for a in names for b in names if a != b and _clearance(a) == _clearance(b)]
@@ -295,10 +295,10 @@ def separation_table(ensembles, names, options, alpha: float) -> None:
 def report(bench, states, truths, args, folder: Path) -> None:
     """Score every window of every session against every state; print the tables."""
     from scipy import stats
-    from wearbench.validation.assess import assess_sessions
-    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
-    from wearbench.validation.measured import load_session
-    from wearbench.validation.windows import STATISTICS, WindowOptions
+    from wearbench.validation.comparison.windows import STATISTICS, WindowOptions
+    from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.measurement.session import load_session
+    from wearbench.validation.workflows.assess import assess_sessions
 
     names = [s.name for s in states]
     ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), progress=None)

@@ -101,7 +101,7 @@ def _show(args: argparse.Namespace) -> int:
     for s in bench.sensors:
         console.print(f"sensor {s.name}: {s.kind} at {s.sample_rate:g} Hz")
         if s.chain is not None:
-            from wearbench.validation.chain_delay import stated_delay
+            from wearbench.validation.measurement.chain_delay import stated_delay
 
             console.print(f"  its chain, as stated: {escape(stated_delay(s.chain).describe())}")
     return 0

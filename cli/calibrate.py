@@ -1,7 +1,7 @@
 """`wearbench calibrate`: fit a bench's sensor path from sessions of a state the lab knows.
 
-Thin front of ``wearbench.validation.measure.calibrate_sessions``; stores the calibration where
-``identify`` and ``estimate`` find it (``wearbench.validation.calibration``).
+Thin front of ``wearbench.validation.workflows.measure.calibrate_sessions``; stores the calibration where
+``identify`` and ``estimate`` find it (``wearbench.validation.inference.calibration``).
 """
 
 from __future__ import annotations
@@ -48,9 +48,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.validation.calibration import check_calibration_output, save_calibration
-    from wearbench.validation.ensemble import load_ensembles
-    from wearbench.validation.measure import calibrate_sessions
+    from wearbench.validation.inference.calibration import (
+        check_calibration_output,
+        save_calibration,
+    )
+    from wearbench.validation.inference.ensemble import load_ensembles
+    from wearbench.validation.workflows.measure import calibrate_sessions
 
     ensembles = load_ensembles(args.ensembles) if args.ensembles else None
     cal = calibrate_sessions(args.sessions, args.state, candidates=args.candidates, ensembles=ensembles,

@@ -68,7 +68,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _with_states(paths) -> list | None:
     """The sessions, loaded, when every one's recorded bench declares candidate states (then plain
     ``compare`` judges each against its identified state: one verdict per session); else None."""
-    from wearbench.validation.measured import load_session
+    from wearbench.validation.measurement.session import load_session
 
     try:
         sessions = [load_session(p) for p in paths]
@@ -78,8 +78,9 @@ def _with_states(paths) -> list | None:
 
 
 def _assess(args: argparse.Namespace, options, sessions) -> int:
-    from wearbench.validation.assess import assess_sessions, write_assessment_report
-    from wearbench.validation.windows import WindowOptions
+    from wearbench.reports.assessment import write_assessment_report
+    from wearbench.validation.comparison.windows import WindowOptions
+    from wearbench.validation.workflows.assess import assess_sessions
 
     windows = WindowOptions(cycles=args.cycles, alpha=args.alpha, max_delay=options.max_delay)
     assessed = assess_sessions(sessions, candidates=None if args.candidates in (None, "bench") else args.candidates,
@@ -106,11 +107,11 @@ def run(args: argparse.Namespace) -> int:
     from rich.table import Table
     from wearbench.bench.units import parse_quantity
     from wearbench.cli.progress import note_compiling, progress
-    from wearbench.validation.compare import CompareOptions, compare_session
-    from wearbench.validation.cycles import parse_windows
-    from wearbench.validation.filters import parse_filter
-    from wearbench.validation.metrics import grade
-    from wearbench.validation.report import write_report
+    from wearbench.reports.comparison import write_report
+    from wearbench.validation.comparison.compare import CompareOptions, compare_session
+    from wearbench.validation.comparison.metrics import grade
+    from wearbench.validation.measurement.cycles import parse_windows
+    from wearbench.validation.measurement.filters import parse_filter
 
     if args.cycles < 1:
         raise ValueError(f"--cycles {args.cycles}: expected at least 1")

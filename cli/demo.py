@@ -33,7 +33,7 @@ from pathlib import Path
 from wearbench.bench.output_file import check_output, output_folder
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.options import add_force_argument
-from wearbench.testing.truths import prepare_truth, record_state, slug, truth_revolutions
+from wearbench.synthetic.truths import prepare_truth, record_state, slug, truth_revolutions
 
 BENCH = "ninebar-testbed"
 FIFTH = ("0.45 mm new", 0.45e-3)  # a bench between the named states, not a candidate: estimated, not named
@@ -71,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def demo_estimator(bench, progress: str | None = "estimator"):
     """The test bed's shipped estimator when its key matches, else ``EstimatorDesign.small()`` (cached)."""
-    from wearbench.validation.estimate import (
+    from wearbench.validation.inference.estimate import (
         EstimatorDesign,
         build_estimator,
         estimator_key,
@@ -92,11 +92,12 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.bench.schema import WearState
     from wearbench.cli.progress import progress
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
+    from wearbench.reports.assessment import write_assessment_report
     from wearbench.validation import load_session
-    from wearbench.validation.assess import assess_sessions, write_assessment_report
-    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
-    from wearbench.validation.estimate import save_estimator
-    from wearbench.validation.measure import estimate_assessed
+    from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.inference.estimate import save_estimator
+    from wearbench.validation.workflows.assess import assess_sessions
+    from wearbench.validation.workflows.measure import estimate_assessed
 
     backend = args.backend or ("sim" if args.quick else "serial")
     if args.cycles < 6:
@@ -202,7 +203,7 @@ def summary_text(truths, assessed) -> str:
 def estimate_text(truths, assessed) -> str:
     """Per session: its true state, the estimate's medians and 90 % intervals of clearance, cycles run
     and wear depth, and whether a parameter value explains it, beside the identification's verdict."""
-    from wearbench.validation.measure import named_outside
+    from wearbench.validation.workflows.measure import named_outside
 
     rows = [("true bench", "identified", "clearance mm [90 %]", "cycles run [90 %]", "wear depth um [90 %]",
              "a value explains it")]

@@ -44,14 +44,14 @@ def run(args: argparse.Namespace) -> int:
 
     from wearbench.bench.load import load_bench, load_states, resolve_bench
     from wearbench.bench.output_file import check_output, output_file
-    from wearbench.validation.ensemble import (
+    from wearbench.validation.inference.ensemble import (
         EnsembleSettings,
         build_ensembles,
         ensembles_key,
         save_ensembles,
         shipped_ensembles_path,
     )
-    from wearbench.validation.sensor_path import PathSpread
+    from wearbench.validation.inference.sensor_path import PathSpread
 
     bench = load_bench(resolve_bench(args.bench))
     states = load_states(args.candidates, bench) if args.candidates else bench.states

@@ -1,6 +1,6 @@
 """`wearbench estimate`: clearance and wear of each session, with credible intervals.
 
-Thin front of ``wearbench.validation.measure.estimate_sessions``; prints one line per session and
+Thin front of ``wearbench.validation.workflows.measure.estimate_sessions``; prints one line per session and
 writes the joint posterior figure and JSON when asked.
 """
 
@@ -40,8 +40,8 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wearbench.bench.output_file import check_output, output_file, output_folder
-    from wearbench.validation.estimate import load_estimator
-    from wearbench.validation.measure import estimate_sessions
+    from wearbench.validation.inference.estimate import load_estimator
+    from wearbench.validation.workflows.measure import estimate_sessions
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the estimator is built
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
             json.dump([e.as_dict() for e in results], f, indent=1)
         print(f"results: {args.json}")
     if args.out:
-        from wearbench.validation.estimate_figure import posterior_figure, predictive_figure
+        from wearbench.reports.estimate import posterior_figure, predictive_figure
 
         names = [f"{kind}_{k + 1}.png" for k in range(len(results)) for kind in ("posterior", "predictive")]
         with output_folder(args.out, force=args.force) as tmp:

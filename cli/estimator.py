@@ -26,7 +26,7 @@ def add_design_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def design_from_args(args: argparse.Namespace):
-    from wearbench.validation.estimate import EstimatorDesign
+    from wearbench.validation.inference.estimate import EstimatorDesign
 
     try:
         return EstimatorDesign.parse(args.design_clearances, args.design_cycles, realisations=args.realisations,
@@ -70,14 +70,14 @@ def run(args: argparse.Namespace) -> int:
 
     from wearbench.bench.load import load_bench, resolve_bench
     from wearbench.bench.output_file import check_output, output_file
-    from wearbench.validation.estimate import (
+    from wearbench.validation.inference.estimate import (
         build_estimator,
         estimator_key,
         load_estimator,
         save_estimator,
         shipped_estimator_path,
     )
-    from wearbench.validation.track_move import move_path, save_move
+    from wearbench.validation.inference.move import move_path, save_move
 
     bench = load_bench(resolve_bench(args.bench))
     design = design_from_args(args)
@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
           f"{est.depth.max() * 1e6:.1f} um")
     print(f"{'kept (this design, key matches)' if kept is not None else 'saved'}: {out}")
     if args.lives:
-        from wearbench.testing.lives import measure_move
+        from wearbench.synthetic.lives import measure_move
 
         move = measure_move(bench, est, lives=args.lives, factor=args.life_factor, spread=args.life_sensor_paths,
                             cycles=args.life_cycles, seed=args.life_seed, **compute_options(args, bench))

@@ -1,6 +1,6 @@
 """`wearbench identify`: which candidate wear state explains each recorded session, with probabilities.
 
-Thin front of ``wearbench.validation.identify.identify_sessions``; prints one line per session.
+Thin front of ``wearbench.validation.inference.identify.identify_sessions``; prints one line per session.
 """
 
 from __future__ import annotations
@@ -54,11 +54,12 @@ def run(args: argparse.Namespace) -> int:
     from rich.table import Table
     from wearbench.bench.output_file import check_output, output_file, output_folder
     from wearbench.cli.progress import console as progress_console
-    from wearbench.validation.assess import assess_sessions, write_assessment_report
-    from wearbench.validation.ensemble import EnsembleSettings
-    from wearbench.validation.estimate import EstimatorDesign, load_estimator
-    from wearbench.validation.identify import IdentifyOptions
-    from wearbench.validation.measure import estimate_assessed
+    from wearbench.reports.assessment import write_assessment_report
+    from wearbench.validation.inference.ensemble import EnsembleSettings
+    from wearbench.validation.inference.estimate import EstimatorDesign, load_estimator
+    from wearbench.validation.inference.identify import IdentifyOptions
+    from wearbench.validation.workflows.assess import assess_sessions
+    from wearbench.validation.workflows.measure import estimate_assessed
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the ensembles are built

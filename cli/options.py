@@ -73,7 +73,7 @@ def nonnegative_number(text: str) -> float:
 
 def check_realisations(count: int, option: str = "--realisations") -> int:
     """Realisations per state that identification can use (``validation.ensemble.MIN_REALISATIONS``)."""
-    from wearbench.validation.ensemble import MIN_REALISATIONS
+    from wearbench.validation.inference.ensemble import MIN_REALISATIONS
 
     if count < MIN_REALISATIONS:
         raise ValueError(f"{option} {count}: expected at least {MIN_REALISATIONS} realisations per state "

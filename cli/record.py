@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     wear = joint_values(args.wear, "--wear", [j.name for j in bench.clearance_joints])
     for joint, state in wear.items():  # what the analysis reads back: 'new' or a file (it travels in the session)
         from wearbench.model.surfaces import JointSurfaces
-        from wearbench.validation.theory import UNWORN
+        from wearbench.validation.comparison.theory import UNWORN
 
         expected = "expected 'new' or a worn-surface .npz file (written by 'wearbench wear')"
         if state.lower() in UNWORN:

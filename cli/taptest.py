@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from wearbench.bench.load import BENCH_DIR, load_bench, resolve_bench
     from wearbench.bench.output_file import check_output
-    from wearbench.validation.tap_test import tap_test
+    from wearbench.validation.measurement.tap_test import tap_test
 
     path = resolve_bench(args.bench)
     bench = load_bench(path)

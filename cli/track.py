@@ -1,6 +1,6 @@
 """`wearbench track`: a bench's wear over its life from sessions at several cycles run.
 
-Thin front of ``wearbench.validation.measure.track_sessions``: the wear coefficient fitted to all
+Thin front of ``wearbench.validation.workflows.measure.track_sessions``: the wear coefficient fitted to all
 sessions jointly, the wear at each session, the cycles until a clearance limit, and the figure.
 """
 
@@ -46,9 +46,9 @@ def run(args: argparse.Namespace) -> int:
 
     from wearbench.bench.output_file import check_output, output_file
     from wearbench.bench.units import parse_quantity
-    from wearbench.validation.estimate import load_estimator
-    from wearbench.validation.measure import track_sessions
-    from wearbench.validation.track import track_figure
+    from wearbench.reports.track import track_figure
+    from wearbench.validation.inference.estimate import load_estimator
+    from wearbench.validation.workflows.measure import track_sessions
 
     runs = None
     if args.cycles_run is not None:

@@ -102,9 +102,9 @@ def assert_identifies(recorded: RecordedSession | Session | str | Path, state: s
 
     ``candidates``: a ``[[state]]`` TOML file or ``WearState``s (default: the states of the bench
     recorded in the session); ``ensembles`` ({state: Ensemble}) skips building them; other keywords
-    go to :func:`wearbench.validation.assess.assess_sessions`. Returns the ``Identification``.
+    go to :func:`wearbench.validation.workflows.assess.assess_sessions`. Returns the ``Identification``.
     """
-    from wearbench.validation.assess import assess_sessions
+    from wearbench.validation.workflows.assess import assess_sessions
 
     path = _path(recorded)
     (assessed,) = assess_sessions([path], candidates=candidates, ensembles=ensembles, progress=None, **assess)

@@ -16,9 +16,10 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("bench", "model", "compute", "studies", "hardware", "acquisition", "validation", "testing", "cli")
+PACKAGES = ("bench", "model", "compute", "studies", "hardware", "acquisition", "validation", "reports", "synthetic",
+            "testing", "cli", "wearbench")
 LIBRARY = ("bench", "model", "compute", "studies", "hardware", "hardware.protocol", "hardware.emulators", "acquisition",
-           "validation")
+           "validation", "reports", "synthetic")
 
 # layer -> the layers it may import (itself always allowed)
 ALLOWED: dict[str, set[str]] = {
@@ -31,11 +32,18 @@ ALLOWED: dict[str, set[str]] = {
     "hardware": {"bench"},  # hardware/__init__.py
     "acquisition": {"bench", "hardware.protocol"},
     "validation": {"bench", "model", "compute", "acquisition"},
-    # the pytest plugin and emulated sessions: emulators, recorder and identification together
+    "reports": {"bench", "model", "compute", "acquisition", "validation"},  # figures and HTML of validation's results
+    # truths and lives of known truth: emulators, recorder and validation together
+    "synthetic": {"bench", "model", "compute", "hardware", "hardware.protocol", "hardware.emulators", "acquisition",
+                  "validation"},
+    # the pytest plugin: emulated benches, recorder and identification together
     "testing": set(LIBRARY),
-    "cli": set(LIBRARY) | {"testing"},
-    "benchmarks": set(LIBRARY) | {"testing"},  # scripts beside the program: not the program itself
+    "api": set(LIBRARY),  # the public face, ``import wearbench``
+    "cli": set(LIBRARY) | {"testing", "api"},
+    "benchmarks": set(LIBRARY) | {"testing", "api"},  # scripts beside the program: not the program itself
 }
+# inside validation, the job groups point down too: measurement < inference < comparison < workflows
+VALIDATION_FLOORS = ("measurement", "inference", "comparison", "workflows")
 # the one sanctioned exception: the simulated device of the sim backend runs in-process
 EXCEPTIONS: dict[str, set[str]] = {"wearbench.acquisition.backends.sim": {"hardware.emulators"}}
 
@@ -46,6 +54,8 @@ def layer(module: str) -> str:
     parts = module.split(".")
     if parts[0] == "benchmarks":
         return "benchmarks"
+    if module == "wearbench":
+        return "api"
     if parts[1] == "hardware" and len(parts) > 2 and parts[2] in ("protocol", "emulators"):
         return f"hardware.{parts[2]}"
     return parts[1]
@@ -60,7 +70,7 @@ def library_modules() -> dict[str, Path]:
             parts = list(rel.parts)
             if parts[-1] == "__init__":
                 parts.pop()
-            modules["wearbench." + ".".join(parts)] = path
+            modules[".".join(["wearbench", *parts[parts[0] == "wearbench":]])] = path
     return modules
 
 
@@ -147,12 +157,22 @@ def _resolve(name: str, modules: dict[str, Path]) -> str:
     return name
 
 
+def validation_floor(module: str) -> int | None:
+    """The floor of a module of validation's job groups (``VALIDATION_FLOORS``); None elsewhere."""
+    parts = module.split(".")
+    if parts[:2] == ["wearbench", "validation"] and len(parts) > 2 and parts[2] in VALIDATION_FLOORS:
+        return VALIDATION_FLOORS.index(parts[2])
+    return None
+
+
 def upward_edges(edges: dict[str, set[str]]) -> list[str]:
     bad = []
     for module, targets in edges.items():
         own = layer(module)
         allowed = ALLOWED[own] | {own} | EXCEPTIONS.get(module, set())
-        bad += [f"{module} -> {t}" for t in sorted(targets) if layer(t) not in allowed]
+        floor = validation_floor(module)
+        bad += [f"{module} -> {t}" for t in sorted(targets) if layer(t) not in allowed
+                or floor is not None and (validation_floor(t) or 0) > floor]
     return bad
 
 
@@ -250,20 +270,26 @@ def test_the_check_catches_a_program_launch(source, launches):
 
 
 @pytest.mark.parametrize("module, source, expected", [
-    ("wearbench.model.scene", "def f():\n    from wearbench.validation import report\n",
-     ["wearbench.model.scene -> wearbench.validation.report"]),
+    ("wearbench.model.scene", "def f():\n    from wearbench.reports import comparison\n",
+     ["wearbench.model.scene -> wearbench.reports.comparison"]),
+    ("wearbench.validation.measurement.tap_test", "from wearbench.validation.workflows.assess import stream_start\n",
+     ["wearbench.validation.measurement.tap_test -> wearbench.validation.workflows.assess"]),
+    ("wearbench.validation.workflows.assess", "from wearbench.validation.measurement.session import load_session\n",
+     []),
+    ("wearbench.validation.inference.track", "def f():\n    from wearbench.reports.track import track_figure\n",
+     ["wearbench.validation.inference.track -> wearbench.reports.track"]),
     ("wearbench.bench.load", "import wearbench.model.kernel\n", ["wearbench.bench.load -> wearbench.model.kernel"]),
     ("wearbench.acquisition.recorder", "from wearbench.hardware.emulators import device\n",
      ["wearbench.acquisition.recorder -> wearbench.hardware.emulators.device"]),
     ("wearbench.acquisition.backends.sim", "from wearbench.hardware.emulators import device\n", []),
-    ("wearbench.validation.compare", "from wearbench.model.simulation import simulate\n", []),
-    ("wearbench.model.scene", "importlib.import_module('wearbench.validation.report')\n",
-     ["wearbench.model.scene -> wearbench.validation.report"]),
+    ("wearbench.validation.comparison.compare", "from wearbench.model.simulation import simulate\n", []),
+    ("wearbench.model.scene", "importlib.import_module('wearbench.reports.comparison')\n",
+     ["wearbench.model.scene -> wearbench.reports.comparison"]),
     ("wearbench.bench.load", "def f(n):\n    return importlib.import_module(f'wearbench.acquisition.{n}')\n",
      ["wearbench.bench.load -> wearbench.acquisition"]),
     ("benchmarks.identify", "from wearbench.cli.demo import record_state\n",
      ["benchmarks.identify -> wearbench.cli.demo"]),
-    ("benchmarks.identify", "from wearbench.validation.identify import fit_states\n", []),
+    ("benchmarks.identify", "from wearbench.validation.inference.identify import fit_states\n", []),
 ])
 def test_the_check_catches_an_upward_import(module, source, expected):
     """The checker itself: an upward import written into a module is reported, an allowed one not."""
@@ -278,13 +304,13 @@ def test_the_check_catches_a_circle():
 
 
 @pytest.mark.parametrize("init_source, circle", [
-    ("from wearbench.validation.compare import compare_session\n", True),   # eager: compare needs it back
+    ("from wearbench.validation.comparison.compare import compare_session\n", True),   # eager: compare needs it back
     ("def __getattr__(name):\n    from wearbench.validation import compare\n", False),  # a lazy face
 ])
 def test_the_check_catches_a_circle_through_a_package_init(init_source, circle):
     """A submodule importing a name its package's ``__init__`` defines, while that ``__init__``
     imports the submodule at import time, crashes on import: that circle is found; a lazy face is not one."""
     edges = graph({"wearbench.validation": init_source,
-                   "wearbench.validation.compare": "from wearbench.validation import CompareOptions\n"})
+                   "wearbench.validation.comparison.compare": "from wearbench.validation import CompareOptions\n"})
     found = [c for c in cycles(edges) if "wearbench.validation" in c]
     assert bool(found) is circle

@@ -34,7 +34,7 @@ def test_each_subcommand_has_useful_help(name, capsys):
                                               (["identify", "s.mcap"], "ensemble_cycles")])
 def test_ensemble_size_defaults_are_the_shipped_ensembles(argv, cycles):
     """The command line's ensemble size is EnsembleSettings' (the literal in cli/options keeps the start fast)."""
-    from wearbench.validation.ensemble import EnsembleSettings
+    from wearbench.validation.inference.ensemble import EnsembleSettings
 
     args = build_parser().parse_args(argv)
     assert (args.realisations, getattr(args, cycles)) == (EnsembleSettings().realisations, EnsembleSettings().cycles)
@@ -47,7 +47,7 @@ def test_estimator_defaults_are_the_shipped_estimator():
     hardware/benches/ninebar-testbed.toml --ship`, then its move, README "How large ...")."""
     from wearbench.bench.load import load_bench
     from wearbench.cli.estimator import design_from_args
-    from wearbench.validation.estimate import (
+    from wearbench.validation.inference.estimate import (
         EstimatorDesign,
         estimator_key,
         load_estimator,

@@ -193,8 +193,8 @@ def recorded(tmp_path_factory):
 def synthetic():
     """A small fitted estimator on synthetic design features (``validation/test_estimate.py``), an
     estimate of one session and a track of two: real results to write, in a second."""
-    from wearbench.validation.estimate import Estimator, estimate_features, fit_estimator
-    from wearbench.validation.track import track_features
+    from wearbench.validation.inference.estimate import Estimator, estimate_features, fit_estimator
+    from wearbench.validation.inference.track import track_features
 
     from .validation.test_estimate import DESIGN, OPTIONS, draw, session, true_mean
 
@@ -221,9 +221,9 @@ class _Interrupted(dict):
 
 
 def _calibration_key(session) -> str:
-    from wearbench.validation.calibration import calibration_key
-    from wearbench.validation.ensemble import EnsembleSettings
-    from wearbench.validation.measured import load_session
+    from wearbench.validation.inference.calibration import calibration_key
+    from wearbench.validation.inference.ensemble import EnsembleSettings
+    from wearbench.validation.measurement.session import load_session
 
     s = load_session(session)
     return calibration_key(s.bench, s.metadata, EnsembleSettings().features)
@@ -284,8 +284,9 @@ def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(r
                                                                                  monkeypatch, capsys):
     """A Ctrl-C half way through writing --json or the figures leaves the old files as they were;
     with --force and no failure they are replaced (other files in an --out folder stay)."""
-    import wearbench.validation.track as track_module
-    from wearbench.validation import estimate_figure, measure
+    import wearbench.reports.track as track_module
+    from wearbench.reports import estimate as estimate_figure
+    from wearbench.validation.workflows import measure
 
     _est, estimates, track = synthetic
     s = str(recorded)
@@ -330,7 +331,7 @@ def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(r
 
 def test_estimator_replaces_its_file_only_with_force_and_only_complete(synthetic, tmp_path, monkeypatch, capsys):
     """`estimator` had its own --replace: now the one --force, and a failure while saving keeps the old file."""
-    from wearbench.validation import estimate
+    from wearbench.validation.inference import estimate
 
     est = synthetic[0]
     out = tmp_path / "bed-estimator.npz"
@@ -358,8 +359,9 @@ def test_estimator_replaces_its_file_only_with_force_and_only_complete(synthetic
 def test_compare_writes_its_report_folder_under_the_policy(recorded, tmp_path, monkeypatch, capsys):
     """`compare --out DIR` (default report/): a folder with files in it is refused without --force; a
     report cut half way keeps the old one; with --force its files are replaced and others stay."""
-    from wearbench.validation import assess
-    from wearbench.validation.report import ComparisonReport
+    from wearbench.reports import assessment
+    from wearbench.reports.comparison import ComparisonReport
+    from wearbench.validation.workflows import assess
 
     out = tmp_path / "report"
     out.mkdir()
@@ -377,12 +379,12 @@ def test_compare_writes_its_report_folder_under_the_policy(recorded, tmp_path, m
         return write
 
     args = ["compare", str(recorded), "--out", str(out)]
-    monkeypatch.setattr(assess, "write_assessment_report", report(half=True))
+    monkeypatch.setattr(assessment, "write_assessment_report", report(half=True))
     assert main(args) == 2 and "--force" in _one_line(capsys)
     assert main([*args, "--force"]) == 130
     assert (out / "report.html").read_bytes() == OLD and sorted(p.name for p in out.iterdir()) == [
         "notes.txt", "report.html"]
-    monkeypatch.setattr(assess, "write_assessment_report", report(half=False))
+    monkeypatch.setattr(assessment, "write_assessment_report", report(half=False))
     capsys.readouterr()
     assert main([*args, "--force"]) == 0
     assert f"report: {out / 'report.html'}  scores: {out / 'scores.json'}" in capsys.readouterr().out
@@ -421,7 +423,7 @@ def test_a_stored_calibration_is_a_user_file(tmp_path):
     failure while writing keeps the stored calibration."""
     from types import SimpleNamespace
 
-    from wearbench.validation.calibration import save_calibration
+    from wearbench.validation.inference.calibration import save_calibration
 
     stored = tmp_path / f"{'k' * 64}.json"
     stored.write_bytes(OLD)

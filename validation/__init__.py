@@ -1,29 +1,33 @@
-"""wearbench.validation: align, filter and score measured sessions against theory; reports.
+"""wearbench.validation: measured sessions against theory: scores, identification, estimates.
 
-Public API: :func:`compare_session`, :func:`compare_sessions` (writes the report),
-:func:`rank_theories` (which candidate theory explains a session best), :class:`CompareOptions`,
-:func:`load_session`, :func:`score_window`, :func:`iso18571`, :func:`parse_filter`,
-:func:`parse_windows`. Module map: filters (CFC/Butterworth), dtw (banded DTW), alignment (lag
-search), metrics (scores), cycles (crank cycles, windows), measured (session data), theory
-(simulated or loaded theory by crank angle), compare (pipeline), report (HTML/JSON/PNG), windows
-(five-cycle windows against an ensemble's own windows, with a verdict), window_report (their
-figures and tables).
+Cut by job, each group a subpackage on its own floor: ``measurement`` (a session and its cycle
+features), ``inference`` (ensembles, identification, calibration, the estimator, tracking),
+``comparison`` (window scores and verdicts against theory), ``workflows`` (sessions in, answers
+out). Figures and HTML live above it, in :mod:`wearbench.reports`. The names below load with their
+module on first use; a lab's code uses :mod:`wearbench` itself.
 """
 
-from wearbench.validation.compare import (
-                                          CompareOptions,
-                                          SessionComparison,
-                                          TheoryRanking,
-                                          WindowResult,
-                                          compare_session,
-                                          rank_theories,
-)
-from wearbench.validation.cycles import WindowSpec, parse_windows
-from wearbench.validation.filters import FilterSpec, parse_filter
-from wearbench.validation.measured import MeasuredSession, load_session
-from wearbench.validation.metrics import WindowScores, iso18571, score_window
-from wearbench.validation.report import compare_sessions
+from importlib import import_module
+from typing import Any
 
-__all__ = ["CompareOptions", "FilterSpec", "MeasuredSession", "SessionComparison", "TheoryRanking",
-           "WindowResult", "WindowScores", "WindowSpec", "compare_session", "compare_sessions", "iso18571",
-           "load_session", "parse_filter", "parse_windows", "rank_theories", "score_window"]
+_WHERE = {
+    "comparison.compare": ("CompareOptions", "SessionComparison", "TheoryRanking", "WindowResult",
+                           "compare_session", "rank_theories"),
+    "comparison.metrics": ("WindowScores", "iso18571", "score_window"),
+    "measurement.cycles": ("WindowSpec", "parse_windows"),
+    "measurement.filters": ("FilterSpec", "parse_filter"),
+    "measurement.session": ("MeasuredSession", "load_session"),
+}
+_MODULE = {name: module for module, names in _WHERE.items() for name in names}
+
+__all__ = ["CompareOptions", "FilterSpec", "MeasuredSession", "SessionComparison", "TheoryRanking", "WindowResult",
+           "WindowScores", "WindowSpec", "compare_session", "iso18571", "load_session", "parse_filter", "parse_windows",
+           "rank_theories", "score_window"]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _MODULE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f"{__name__}.{_MODULE[name]}"), name)
+    globals()[name] = value
+    return value

@@ -17,16 +17,17 @@ _FACE: dict[str, str] = {
     "load_bench": "wearbench.bench.load:load_bench",
     "simulate": "wearbench.model:simulate",
     "build_scene": "wearbench.model:build_scene",
-    "MeasuredSession": "wearbench.validation.measured:MeasuredSession",
-    "load_session": "wearbench.validation.measured:load_session",
-    "compare": "wearbench.validation.report:compare_sessions",
-    "identify": "wearbench.validation.assess:assess_sessions",
-    "estimate": "wearbench.validation.measure:estimate_sessions",
-    "track": "wearbench.validation.measure:track_sessions",
-    "calibrate": "wearbench.validation.measure:calibrate_sessions",
+    "MeasuredSession": "wearbench.validation.measurement.session:MeasuredSession",
+    "load_session": "wearbench.validation.measurement.session:load_session",
+    "compare": "wearbench.reports.comparison:compare_sessions",
+    "identify": "wearbench.validation.workflows.assess:assess_sessions",
+    "estimate": "wearbench.validation.workflows.measure:estimate_sessions",
+    "track": "wearbench.validation.workflows.measure:track_sessions",
+    "calibrate": "wearbench.validation.workflows.measure:calibrate_sessions",
 }
 
-__all__ = sorted(_FACE)
+__all__ = ["Bench", "BenchError", "MeasuredSession", "build_scene", "calibrate", "compare", "estimate", "identify",
+           "load_bench", "load_session", "simulate", "track"]
 
 
 def __getattr__(name: str) -> Any:

@@ -65,7 +65,7 @@ def test_inspect_and_recover_layout1(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_compare_layout1(tmp_path, capsys):
-    from wearbench.validation.theory import simulate_theory
+    from wearbench.validation.comparison.theory import simulate_theory
 
     s = read_session(LAYOUT1)
     theory = tmp_path / "theory.parquet"

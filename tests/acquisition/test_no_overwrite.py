@@ -17,7 +17,7 @@ from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import read_session
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.cli import main
-from wearbench.validation.cycles import cut_cycles
+from wearbench.validation.measurement.cycles import cut_cycles
 
 from .conftest import FAST, HARMONIC
 
@@ -152,7 +152,7 @@ def test_wear_files_are_checked_and_travel_in_the_session(bench, tmp_path, capsy
     the session can be scored after the file moved."""
     import numpy as np
     from wearbench.model.surfaces import JointSurfaces
-    from wearbench.validation.theory import resolve_surfaces
+    from wearbench.validation.comparison.theory import resolve_surfaces
 
     out = tmp_path / "s.mcap"
     assert main([*_record_args(bench, out, tmp_path), "--wear", "A=missing.npz"]) == 2

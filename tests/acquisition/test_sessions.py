@@ -16,7 +16,7 @@ from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block
 from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import frames, read_session, scan_mcap
-from wearbench.validation.cycles import cut_cycles, reference_angle
+from wearbench.validation.measurement.cycles import cut_cycles, reference_angle
 
 from .conftest import (
     FAST,

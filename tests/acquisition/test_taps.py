@@ -10,7 +10,7 @@ from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_file import read_session
 from wearbench.acquisition.taps import recorded_taps
-from wearbench.validation.tap_test import tap_test
+from wearbench.validation.measurement.tap_test import tap_test
 
 pytestmark = pytest.mark.timeout(120)
 DELAY = 0.4e-3

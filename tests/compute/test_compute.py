@@ -14,8 +14,9 @@ import cloudpickle
 import numpy as np
 import psutil
 import pytest
-from wearbench import compute
 from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_cache, task_key
+
+from wearbench import compute
 
 # the test module is imported by path (importlib mode), so workers get its functions by value
 cloudpickle.register_pickle_by_value(sys.modules[__name__])

@@ -10,11 +10,12 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
-from wearbench import model
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.wear import WearLaw
 from wearbench.model.wear_stages import StagePlan, convergence, run_stages, stage_label, wear_zones
 from wearbench.studies.wear_report import load_states, run_summary, write_run
+
+from wearbench import model
 
 FN, OMEGA = 600.0, 3.0  # N, rad/s: steady load, journal turning relative to the bearing
 DT = 2e-4

@@ -175,7 +175,7 @@ def test_a_non_twin_session_on_the_pty_identifies_as_its_state(serial_bench, rec
     """The model's physics through the serial emulator (a bench drawn with a seed no ensemble
     uses), recorded, then assert_identifies against small ensembles of two candidates: the true
     state passes, the other fails with a message naming its probability."""
-    from wearbench.validation.ensemble import EnsembleSettings, build_ensembles
+    from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
 
     states = [s for s in wearbench_bench.states if s.name in ("0.3 mm new", "0.6 mm new")]
     ensembles = build_ensembles(wearbench_bench, states, settings=EnsembleSettings(realisations=4, cycles=6),

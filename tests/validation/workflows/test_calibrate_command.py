@@ -1,0 +1,59 @@
+"""`wearbench calibrate` on a bench whose accelerometer sits on a carriage with a 700 Hz mode (damping
+0.05) the bench file does not know. The ensembles see every realisation through a drawn mount (0.3-3
+kHz), so the uncalibrated verdict already names 0.6 mm new and finds it consistent (before drawn
+paths: "none of the candidates", direction p 3e-8). Calibrated on one session of the same bench and
+mount in a known state (0.3 mm new), 0.6 mm is named with p >= 0.99, consistent, and the result names
+the calibration. Non-twin truths (seed 7000), shipped ensembles (no ensemble simulation). A calibrated
+bench named right where the uncalibrated verdict was "none": ``test_calibrated.py`` (a sensor reading
+half, outside the drawn paths)."""
+
+import json
+
+import pytest
+from wearbench.bench.load import load_bench, shipped_bench
+from wearbench.cli import main
+from wearbench.synthetic.truths import record_state, slug
+from wearbench.validation.inference.ensemble import (
+    EnsembleSettings,
+    build_ensembles,
+    ensembles_key,
+    save_ensembles,
+)
+
+pytestmark = pytest.mark.slow
+
+MOUNT = {"resonance": "700 Hz", "damping": 0.05}
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    bench = load_bench(shipped_bench("ninebar-testbed"))
+    out = tmp_path_factory.mktemp("mount")
+    paths = {}
+    for name in ("0.3 mm new", "0.6 mm new"):
+        state = next(s for s in bench.states if s.name == name)
+        paths[name] = out / f"{slug(name)}.mcap"
+        record_state(bench, state, 7000, paths[name], backend="sim", cycles=11, revolutions=14, accelerometer=MOUNT)
+    ens = build_ensembles(bench, bench.states, progress=None)  # shipped: no simulation
+    saved = save_ensembles(ens, out / "e.npz", key=ensembles_key(bench, bench.states, bench.speed, EnsembleSettings()),
+                           bench=bench, states=bench.states)
+    return paths, saved
+
+
+def test_a_mount_inside_the_drawn_paths_is_named_uncalibrated_and_calibrated(sessions, tmp_path, capsys):
+    paths, saved = sessions
+    exact = tmp_path / "exact.json"
+    assert main(["identify", str(paths["0.6 mm new"]), "--ensembles", str(saved), "--calibration", "none",
+                 "--json", str(exact)]) == 0
+    row = json.loads(exact.read_text())[0]
+    assert row["verdict"] == "0.6 mm new" and row["p_value"]["0.6 mm new"] > 0.01, row
+    assert main(["calibrate", str(paths["0.3 mm new"]), "--state", "0.3 mm new", "--ensembles", str(saved)]) == 0
+    out = capsys.readouterr().out
+    assert "calibration: " in out and "gain" in out
+    assert main(["calibrate", str(paths["0.3 mm new"]), "--state", "0.3 mm new", "--ensembles", str(saved)]) == 2
+    assert "--force" in capsys.readouterr().err
+    cal = tmp_path / "cal.json"
+    assert main(["identify", str(paths["0.6 mm new"]), "--ensembles", str(saved), "--json", str(cal)]) == 0
+    row = json.loads(cal.read_text())[0]
+    assert row["posterior"]["0.6 mm new"] >= 0.99 and row["p_value"]["0.6 mm new"] > 0.01, row
+    assert row["sensor_path"].startswith("calibration") and any("sensor path: calibration" in n for n in row["notes"])

@@ -1,0 +1,531 @@
+"""Clearance and wear as estimates with credible intervals: the posterior over a continuum of states.
+
+Parameters: the radial clearance ``c`` shared by the bench's clearance joints (the test bed's A and
+B are made alike) and the wear as cycles run ``N`` along the bench's own Archard trajectory: the
+surfaces that the wear model (``wearbench.model.wear_stages``) predicts after ``N`` cycles from
+clearance ``c`` at the bench's speed. The ``[tolerances]`` stay nuisance parameters as in the
+ensembles, and so does the sensor path (``sensor_path.py``).
+
+Method (an emulator of the ensemble statistics over the parameter box, chosen because the
+likelihood of ``identify`` then carries over unchanged, and a 2-D grid is exact and fast for two
+parameters; an MCMC or a neural estimator adds nothing there):
+
+1. **Design.** A grid of design points ``clearances x cycles`` (cycles equally spaced from 0, one
+   wear stage apart). Per design clearance one wear run on the compute layer gives the surfaces at
+   every design ``N`` (cached by content); per design point one theory ensemble (cached by content,
+   ``ensemble.build_ensembles``). ``N`` between design points is interpolated in the *features*,
+   not in the surfaces: the features move smoothly with wear, surfaces worn partway are not
+   linear in ``N`` where the contact zone moves. Together the design's ensembles are the estimator
+   artefact, keyed like the ensembles (:func:`estimator_key`, :func:`shipped_estimator_path`).
+2. **Statistics.** ``identify.fit_states`` over the design points as if they were candidate states:
+   pooled between-bench and cycle-to-cycle covariances, the sensor path marginalised, and the
+   temperature that calibrates the likelihood on held-out realisations. The feature mean between
+   design points is a tensor polynomial in (c, N) (degree up to 4 in ``c``, through the default
+   design's five clearances, and up to 2 in ``N``) fitted to the design points' means; its residual
+   variance is added to the covariance as the emulator's error. The design points share their
+   realisations' seeds (the same benches at every point: differences between points are precise),
+   so a seed's deviation is common to the points (correlation 0.7-0.8 measured on the shipped
+   design's impact bands) and the fit's residual holds little of the design means' sampling error:
+   it is not subtracted (it was, and zeroed the emulator error). The common part is in the
+   covariance as the ensemble mean's error (``StateStatistics.covariance``).
+3. **Posterior** on a grid over the design box (uniform prior), tempered as ``identify`` tempers;
+   marginal medians, 50 % and 90 % central credible intervals of ``c``, ``N`` and the wear depth
+   (the largest clearance growth of any joint, its bearing's and journal's deepest points added,
+   interpolated from the wear runs: what a clearance limit is checked against).
+4. **Consistency**: the session's smallest distance over the grid against the same statistic of the
+   design's own realisations (a gamma fitted by moments); below ``consistency`` the answer is "no
+   parameter value explains it".
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from scipy import linalg, optimize, special, stats
+from wearbench.bench.output_file import save_npz
+from wearbench.bench.schema import Bench, WearState
+from wearbench.bench.units import parse_quantity
+from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings, build_ensembles
+from wearbench.validation.inference.identify import IdentifyOptions, _floor, _models, default_sensor
+from wearbench.validation.inference.sensor_path import SensorPath
+from wearbench.validation.inference.statistics import StateStatistics
+from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
+
+__all__ = ["Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval", "build_estimator",
+           "estimate_features", "estimator_key", "fit_estimator", "load_estimator", "predictive_band",
+           "save_estimator", "shipped_estimator_path"]
+
+NO_VALUE = "no parameter value explains it"
+
+
+@dataclass(frozen=True)
+class EstimatorDesign:
+    """Design points: every clearance (m, shared by the clearance joints) x every cycles-run value
+    (equally spaced from 0: one wear stage apart); ensembles of ``settings`` at each."""
+
+    clearances: tuple[float, ...] = (0.25e-3, 0.35e-3, 0.45e-3, 0.55e-3, 0.65e-3)
+    cycles: tuple[float, ...] = (0.0, 200_000.0, 400_000.0, 600_000.0)
+    settings: EnsembleSettings = field(default_factory=lambda: EnsembleSettings(realisations=48))
+
+    def __post_init__(self) -> None:
+        c, n = np.asarray(self.clearances, float), np.asarray(self.cycles, float)
+        if c.size < 2 or np.any(np.diff(c) <= 0) or c[0] <= 0:
+            raise ValueError(f"estimator design: clearances = {self.clearances}: expected at least two increasing "
+                             "positive values (m)")
+        if n.size < 2 or n[0] != 0 or not np.allclose(np.diff(n), n[1]) or n[1] <= 0:
+            raise ValueError(f"estimator design: cycles = {self.cycles}: expected at least two values equally "
+                             "spaced from 0 (one wear stage apart)")
+        # 12 significant digits: "0.45mm" typed (0.45 * 1e-3 = 0.00045000000000000004) keys as 0.45e-3 does
+        object.__setattr__(self, "clearances", tuple(float(f"{v:.12g}") for v in c))
+        object.__setattr__(self, "cycles", tuple(float(f"{v:.12g}") for v in n))
+
+    @classmethod
+    def small(cls) -> EstimatorDesign:
+        """A small design for a first look (the demo's while no shipped estimator fits): 3 clearances
+        0.25-0.65 mm x cycles run 0, 200,000, 400,000, 3 realisations x 4 cycles each (about 2 min of
+        CPU). Coarse: 3 x 3 points fit the emulator exactly, so its own error comes from leave-one-out."""
+        return cls((0.25e-3, 0.45e-3, 0.65e-3), (0.0, 200_000.0, 400_000.0), EnsembleSettings(realisations=3, cycles=4))
+
+    @classmethod
+    def parse(cls, clearances: str, cycles: str, *, realisations: int = 48,
+              ensemble_cycles: int = 8) -> EstimatorDesign:
+        """A design from text as a user types it: ``"0.25mm,0.45mm,0.65mm"``, ``"0,200000,400000"``."""
+        try:
+            c = tuple(parse_quantity(v, "length", bare_unit="mm") for v in clearances.split(","))
+            n = tuple(float(v) for v in cycles.split(","))
+        except ValueError as exc:
+            raise ValueError(f"design clearances {clearances!r} / cycles {cycles!r}: {exc}") from None
+        return cls(c, n, EnsembleSettings(realisations=realisations, cycles=ensemble_cycles))
+
+    def state(self, i: int, j: int, surfaces: Mapping[str, Path], joints: Sequence[str]) -> WearState:
+        c, n = self.clearances[i], self.cycles[j]
+        return WearState(point_name(c, n), {jn: c for jn in joints}, dict(surfaces))
+
+    def as_dict(self) -> dict:
+        return {"clearances": list(self.clearances), "cycles": list(self.cycles),
+                "settings": {**asdict(self.settings), "features": self.settings.features.as_dict()}}
+
+
+def point_name(c: float, n: float) -> str:
+    return f"{c * 1e3:.4g} mm after {n:,.0f} cycles"
+
+
+@dataclass(frozen=True)
+class Estimator:
+    """The artefact: the design and its simulations (per design point an ensemble's features), and
+    the worn depth of the wear runs; fitted in seconds by :func:`fit_estimator`."""
+
+    bench: str
+    key: str
+    design: EstimatorDesign
+    features: np.ndarray  # (clearances, cycles, M, C, p)
+    depth: np.ndarray  # (clearances, cycles) wear depth: largest bearing + journal max depth of any joint (m)
+    speed: float
+    path: Path | None = field(default=None, compare=False)  # the file it was loaded from (its move beside it)
+
+    @property
+    def spec(self) -> FeatureSpec:
+        return self.design.settings.features
+
+
+# ---- building ---------------------------------------------------------------------------------
+
+
+def wear_trajectory(bench: Bench, clearance: float, stages: int, stage_cycles: float, speed: float
+                    ) -> list[dict[str, tuple[np.ndarray, np.ndarray, float]]]:
+    """The surfaces after each of ``stages`` wear stages from ``clearance`` (a compute-layer task):
+    per stage {joint: (bearing depth, journal depth, cycles)}."""
+    from wearbench.model.wear_stages import StagePlan, run_stages
+
+    plan = StagePlan.from_bench(bench, stages=stages, stage_cycles=stage_cycles)
+    run = run_stages(bench, plan, clearances={j.name: clearance for j in bench.clearance_joints}, speed=speed)
+    return [{j: (s.bearing, s.journal, s.cycles) for j, s in st.surfaces.items()} for st in run.stages]
+
+
+def estimator_key(bench: Bench, design: EstimatorDesign, speed: float) -> str:
+    """Content address of an estimator (also keys a shipped one): bench physics and tolerances, the
+    wear settings, the design, the speed and the model source."""
+    from wearbench.bench.content import bench_key
+    from wearbench.compute import task_key
+
+    return task_key("estimator", bench_key(bench), asdict(bench.tolerances), asdict(bench.wear), design.as_dict(),
+                    round(speed, 9))
+
+
+def shipped_estimator_path(bench: Bench) -> Path:
+    """Where a precomputed estimator of a shipped bench lives (``hardware/benches/estimators/NAME.npz``)."""
+    from wearbench.bench.load import BENCH_DIR
+
+    return BENCH_DIR / "estimators" / f"{bench.name}.npz"
+
+
+def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *, speed: float | None = None,
+                    scheduler: str | None = None, workers: int | None = None, cache: bool = True,
+                    shipped: bool = True, progress: str | None = "estimator") -> Estimator:
+    """The estimator of ``bench``: a shipped one when its key matches, else the design's wear runs
+    (one per clearance) and ensembles (one per design point) on the compute layer, cached by content.
+    A shipped estimator of the same design with fewer realisations holds the first of them
+    (realisation i is seed + i at every size): only the seeds it lacks are simulated."""
+    from wearbench.bench.content import cache_folder
+    from wearbench.compute import Task, TaskFailure, run_tasks, task_key
+    from wearbench.model.surfaces import JointSurfaces
+
+    speed = bench.speed if speed is None else float(speed)
+    joints = [j.name for j in bench.clearance_joints]
+    if not joints:
+        raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
+    key = estimator_key(bench, design, speed)
+    base, m0 = None, 0  # a shipped smaller estimator of this design and how many realisations it gives
+    if shipped and cache and shipped_estimator_path(bench).exists():
+        found = load_estimator(shipped_estimator_path(bench))
+        if found.key == key:
+            return found
+        base, m0 = found, _first_realisations(bench, design, speed, found)
+    stages, stage = len(design.cycles) - 1, design.cycles[1]
+    wkeys = [task_key("estimator-wear", key, c) for c in design.clearances]
+    runs = run_tasks([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages, "stage_cycles": stage,
+                                             "speed": speed}, k, f"wear {c * 1e3:.3g} mm")
+                      for c, k in zip(design.clearances, wkeys, strict=True)],
+                     scheduler=scheduler, workers=workers, cache=cache, progress=progress and f"{progress}: wear")
+    failed = [r for r in runs if isinstance(r, TaskFailure)]
+    if failed:
+        raise RuntimeError(f"estimator {bench.name}: wear run failed: {failed[0]}")
+    folder = cache_folder("estimator-surfaces")
+    states, depth = [], np.zeros((len(design.clearances), len(design.cycles)))
+    for i, (run, wk) in enumerate(zip(runs, wkeys, strict=True)):
+        for j in range(len(design.cycles)):
+            files = {}
+            for jn, (b, jr, cyc) in (run[j - 1].items() if j else ()):
+                path = folder / f"{wk[:24]}_{jn}_{j}.npz"
+                if not path.exists():
+                    JointSurfaces(b, jr, cyc, f"{point_name(design.clearances[i], design.cycles[j])}").save(path)
+                files[jn] = path
+                depth[i, j] = max(depth[i, j], float(np.max(b)) + float(np.max(jr)))
+            states.append(design.state(i, j, files, joints))
+    if m0 and not np.array_equal(base.depth, depth):
+        m0 = 0  # its wear runs are not these: its realisations saw other surfaces
+    settings = design.settings if not m0 else replace(design.settings, seed=design.settings.seed + m0,
+                                                      realisations=design.settings.realisations - m0)
+    ens = build_ensembles(bench, states, speed=speed, settings=settings, scheduler=scheduler,
+                          workers=workers, cache=cache, shipped=False, progress=progress and f"{progress}: ensembles")
+    est = estimator_from_ensembles(bench.name, key, design, ens, depth, speed)
+    if m0:
+        c = min(base.features.shape[3], est.features.shape[3])
+        est = replace(est, features=np.concatenate([base.features[:, :, :, :c], est.features[:, :, :, :c]], axis=2))
+    return est
+
+
+def _first_realisations(bench: Bench, design: EstimatorDesign, speed: float, est: Estimator) -> int:
+    """How many of ``design``'s first realisations ``est`` holds: all of its own when it is ``design``
+    with fewer realisations from the same first seed (by its key), all good, and at least 3 short of
+    ``design`` (an ensemble's least); else 0."""
+    m = est.features.shape[2]
+    if not 0 < m <= design.settings.realisations - 3:
+        return 0
+    smaller = replace(design, settings=replace(design.settings, realisations=m))
+    return m if est.key == estimator_key(bench, smaller, speed) else 0
+
+
+def estimator_from_ensembles(bench: str, key: str, design: EstimatorDesign, ensembles: Mapping[str, Ensemble],
+                             depth: np.ndarray, speed: float) -> Estimator:
+    """An :class:`Estimator` from the design points' ensembles (named by :func:`point_name`)."""
+    m = min(e.realisations for e in ensembles.values())
+    c = min(e.features.shape[1] for e in ensembles.values())
+    feats = np.stack([np.stack([ensembles[point_name(ci, nj)].features[:m, :c] for nj in design.cycles])
+                      for ci in design.clearances])
+    return Estimator(bench, key, design, feats, np.asarray(depth, float), float(speed))
+
+
+def save_estimator(est: Estimator, path: str | Path) -> Path:
+    return save_npz(path, key=np.array(est.key), features=est.features, depth=est.depth,
+                    meta=np.array(json.dumps({"bench": est.bench, "speed": est.speed,
+                                              "design": est.design.as_dict()})))
+
+
+def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | None:
+    """An estimator saved by :func:`save_estimator`; None when ``key`` is given and differs (stale).
+    A file that is not one (another .npz, a session, a cut file) raises one ValueError naming it."""
+    path = Path(path)
+    if path.is_file() and not zipfile.is_zipfile(path):
+        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' (not an .npz archive)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if key is not None and str(data["key"]) != key:
+                return None
+            meta = json.loads(str(data["meta"]))
+            d = meta["design"]
+            settings = EnsembleSettings.from_dict(d["settings"])
+            design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]), settings)
+            return Estimator(meta["bench"], str(data["key"]), design, data["features"], data["depth"],
+                             float(meta["speed"]), path)
+    except FileNotFoundError:
+        raise OSError(f"{path}: no such estimator file") from None
+    except KeyError as exc:
+        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' (no {exc.args[0]!r})") from None
+    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' ({type(exc).__name__}: "
+                         f"{exc})") from None
+
+
+# ---- fitting ----------------------------------------------------------------------------------
+
+
+def _basis(u: np.ndarray, v: np.ndarray, degrees: tuple[int, int]) -> np.ndarray:
+    """Tensor monomials u^a v^b, a <= degrees[0], b <= degrees[1] (u, v scaled to [-1, 1])."""
+    return np.stack([u ** a * v ** b for a in range(degrees[0] + 1) for b in range(degrees[1] + 1)], axis=-1)
+
+
+def _loo_error(phi: np.ndarray, means: np.ndarray) -> np.ndarray:
+    """Per feature, the emulator's error variance from predicting each design point's mean by the
+    (minimum-norm) fit to the others, each squared error divided by 1 + the prediction weights'
+    squared norm (the others' sampling error it carries)."""
+    out = np.zeros(means.shape[1])
+    for k in range(phi.shape[0]):
+        rest = np.delete(np.arange(phi.shape[0]), k)
+        w = phi[k] @ np.linalg.pinv(phi[rest])  # prediction weights on the other points' means
+        out += (means[k] - w @ means[rest]) ** 2 / (1.0 + w @ w)
+    return out / phi.shape[0]
+
+
+@dataclass
+class EstimatorModel:
+    """A fitted estimator: the design's statistics, the mean emulator, and the grid."""
+
+    estimator: Estimator
+    stats: dict[str, StateStatistics]  # the design points as states (pooled covariances, sensor path)
+    options: IdentifyOptions
+    sensor: SensorPath | None
+    temperature: float
+    coef: np.ndarray  # (basis, p)
+    degrees: tuple[int, int]
+    discrepancy: np.ndarray  # (p,) emulator error variance
+    grid_c: np.ndarray
+    grid_n: np.ndarray
+    grid_mean: np.ndarray  # (gc, gn, p)
+    grid_depth: np.ndarray  # (gc, gn)
+    null: tuple[float, float]
+    reference: str  # the design point whose covariance (with its sensor nuisance) the grid uses
+
+    def scaled(self, c: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d = self.estimator.design
+        lo, hi = d.clearances[0], d.clearances[-1]
+        return (2 * (np.asarray(c) - lo) / (hi - lo) - 1, 2 * np.asarray(n) / d.cycles[-1] - 1)
+
+    def mean(self, c: np.ndarray | float, n: np.ndarray | float) -> np.ndarray:
+        """Emulated feature mean at clearance ``c`` (m) after ``n`` cycles (model columns)."""
+        return _basis(*self.scaled(c, n), self.degrees) @ self.coef
+
+    def covariance(self, cycles: float) -> np.ndarray:
+        return self.stats[self.reference].covariance(cycles) + np.diag(self.discrepancy)
+
+    def distances(self, xbar: np.ndarray, cycles: float) -> np.ndarray:
+        """Squared Mahalanobis distance of a session mean over ``cycles`` to every grid point (gc, gn)."""
+        chol = linalg.cholesky(self.covariance(cycles), lower=True)
+        d = (np.asarray(xbar, float) - self.grid_mean).reshape(-1, self.grid_mean.shape[-1])
+        z = linalg.solve_triangular(chol, d.T, lower=True)
+        return np.sum(z * z, axis=0).reshape(self.grid_mean.shape[:2])
+
+    def log_likelihood(self, xbar: np.ndarray, cycles: float, c: float, n: float) -> float:
+        """Untempered Gaussian log likelihood at one parameter value (what ranks candidate states)."""
+        cov = self.covariance(cycles)
+        chol = linalg.cholesky(cov, lower=True)
+        z = linalg.solve_triangular(chol, np.asarray(xbar, float) - self.mean(c, n), lower=True)
+        return float(-0.5 * (z @ z) - np.log(np.diag(chol)).sum() - 0.5 * z.size * np.log(2 * np.pi))
+
+
+def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sensor: SensorPath | None = None,
+                  grid: tuple[int, int] = (81, 61)) -> EstimatorModel:
+    """Fit the design's statistics, the mean emulator, the grid and the consistency null
+    (``options``: identification's, default ``IdentifyOptions()``; ``sensor``: a calibration)."""
+    options = options or IdentifyOptions()
+    d = est.design
+    nc, nn = len(d.clearances), len(d.cycles)
+    names = [point_name(c, n) for c in d.clearances for n in d.cycles]
+    spec = est.spec
+    sensor = sensor or default_sensor(spec, options)
+    floor = _floor(spec, options)
+    own = {nm: StateStatistics.fit(est.features[i, j], floor)
+           for (i, j), nm in zip(np.ndindex(nc, nn), names, strict=True)}
+    fitted = _models(own, options.pooled, spec, sensor, slice(None))
+    means = np.stack([fitted[nm].mean for nm in names])  # (D, p), the sensor prior's mean included
+    cc, nn_ = np.meshgrid(d.clearances, d.cycles, indexing="ij")
+    degrees = (min(4, nc - 1), min(2, nn - 1))
+    lo, hi = d.clearances[0], d.clearances[-1]
+    u, v = 2 * (cc.ravel() - lo) / (hi - lo) - 1, 2 * nn_.ravel() / d.cycles[-1] - 1
+    phi = _basis(u, v, degrees)
+    pinv = np.linalg.pinv(phi)
+    coef = pinv @ means
+    dof = phi.shape[0] - phi.shape[1]
+    if dof > 0:
+        discrepancy = np.sum((means - phi @ coef) ** 2, axis=0) / dof
+    else:  # an exact fit (e.g. 3 x 3 points, quadratic): each point predicted from the others instead
+        discrepancy = _loo_error(phi, means)
+    gc = np.linspace(lo, hi, grid[0])
+    gn = np.linspace(0.0, d.cycles[-1], grid[1])
+    gu, gv = np.meshgrid(2 * (gc - lo) / (hi - lo) - 1, 2 * gn / d.cycles[-1] - 1, indexing="ij")
+    basis = _basis(gu, gv, degrees)
+    # wear depth: linear in N along each design clearance's run, then linear in c
+    along = np.stack([np.interp(gn, d.cycles, est.depth[i]) for i in range(nc)])  # (nc, gn)
+    grid_depth = np.stack([np.interp(gc, d.clearances, along[:, k]) for k in range(gn.size)], axis=1)
+    centre = names[(nc // 2) * nn + nn // 2]
+    model = EstimatorModel(est, fitted, options, sensor, 1.0, coef, degrees, discrepancy, gc, gn, basis @ coef,
+                           grid_depth, (1.0, 1.0), centre)
+    # held-out realisations of the design: each one's distances to the grid with the emulator refitted
+    # without it (its design point's mean moves; the covariances are kept), for the temperature and the
+    # consistency null
+    m_real, c_real = est.features.shape[2], est.features.shape[3]
+    chol = linalg.cholesky(model.covariance(c_real), lower=True)
+    whiten = lambda a: linalg.solve_triangular(chol, a.T, lower=True).T
+    grid_w = whiten(model.grid_mean.reshape(-1, means.shape[1]))
+    basis_w = basis.reshape(-1, basis.shape[-1])
+    cell_c = np.abs(gc[:, None] - np.asarray(d.clearances)[None]).argmin(axis=0)
+    cell_n = np.abs(gn[:, None] - np.asarray(d.cycles)[None]).argmin(axis=0)
+    d2s, truth = [], []
+    for k, (i, j) in enumerate(np.ndindex(nc, nn)):
+        for r in range(m_real):
+            x = est.features[i, j, r].mean(axis=0)
+            moved = (x - est.features[i, j].mean(axis=(0, 1))) / (1 - m_real)  # the mean without r, less the mean
+            grid_loo = grid_w + whiten(np.outer(basis_w @ pinv[:, k], moved))
+            d2 = np.sum((whiten(x[None])[0] - grid_loo) ** 2, axis=1)
+            d2s.append(d2)
+            truth.append(cell_c[i] * gn.size + cell_n[j])
+    d2s_a, truth_a = np.asarray(d2s), np.asarray(truth)
+
+    def log_loss(log_t: float) -> float:
+        z = -0.5 * d2s_a / np.exp(log_t)
+        return float(-np.mean(z[np.arange(len(truth_a)), truth_a] - special.logsumexp(z, axis=1)))
+
+    model.temperature = float(np.exp(optimize.minimize_scalar(log_loss, bounds=(np.log(0.2), np.log(20.0)),
+                                                              method="bounded").x))
+    own_min = d2s_a.min(axis=1)
+    mean_, var = float(np.mean(own_min)), float(np.var(own_min, ddof=1))
+    model.null = (mean_ * mean_ / var, var / mean_)
+    return model
+
+
+# ---- estimating -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Interval:
+    """Posterior median and central credible intervals of one parameter (SI units)."""
+
+    median: float
+    lo50: float
+    hi50: float
+    lo90: float
+    hi90: float
+
+    def contains(self, x: float, level: int = 90) -> bool:
+        lo, hi = (self.lo90, self.hi90) if level == 90 else (self.lo50, self.hi50)
+        return lo <= x <= hi
+
+
+def _interval(values: np.ndarray, weights: np.ndarray) -> Interval:
+    """Quantiles of a distribution given on sorted grid ``values`` by ``weights`` (piecewise linear CDF)."""
+    order = np.argsort(values, kind="stable")
+    x, w = np.asarray(values, float)[order], np.asarray(weights, float)[order]
+    cdf = np.cumsum(w)
+    cdf = cdf / cdf[-1]
+    mid = cdf - 0.5 * w / w.sum()  # each grid value holds the mass of its cell, centred on it
+    q = lambda p: float(np.interp(p, mid, x))
+    return Interval(q(0.5), q(0.25), q(0.75), q(0.05), q(0.95))
+
+
+@dataclass
+class Estimate:
+    """The answer for one session: marginal intervals, the joint posterior, the consistency test."""
+
+    session: str
+    cycles: int
+    clearance: Interval  # m
+    cycles_run: Interval  # cycles
+    depth: Interval  # m, wear depth: largest clearance growth of any joint (bearing + journal deepest points)
+    mode: tuple[float, float]  # (c m, N cycles) at the posterior's maximum
+    correlation: float  # of c and N under the posterior
+    p_value: float
+    explains: bool
+    verdict: str  # "c = ... mm, N = ..." or NO_VALUE
+    sensor_path: str
+    notes: list[str] = field(default_factory=list)
+    inside: float = float("nan")  # fraction of the measured cycles' features inside the 90 % predictive band
+    posterior: np.ndarray | None = field(default=None, repr=False)  # (gc, gn) on the model's grid
+    band: np.ndarray | None = field(default=None, repr=False)  # (3, p) 5/50/95 % of one cycle's features
+    measured: np.ndarray | None = field(default=None, repr=False)  # (cycles, p) the session's cycle features
+    meta: dict = field(default_factory=dict)  # grid_c (m), grid_n (cycles): the grid's ranges; bins, bands
+
+    def as_dict(self) -> dict:
+        return {k: v for k, v in asdict(self).items() if k not in ("posterior", "band", "measured")}
+
+    def line(self) -> str:
+        """The estimate in one line, as the demo's summary and the report's table give it."""
+        if not self.explains:
+            return NO_VALUE
+        c, n, d = self.clearance, self.cycles_run, self.depth
+        return (f"{c.median * 1e3:.3f} mm [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}], {n.median / 1e3:.0f}k cycles "
+                f"[{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k], wear {d.median * 1e6:.1f} um "
+                f"[{d.lo90 * 1e6:.1f}-{d.hi90 * 1e6:.1f}]")
+
+
+def predictive_band(model: EstimatorModel, posterior: np.ndarray, *, draws: int = 4000, seed: int = 0
+                    ) -> np.ndarray:
+    """The posterior predictive 5 %, 50 % and 95 % of one cycle's features (3, p): parameter values
+    drawn from ``posterior`` (on the model's grid), then a cycle of a bench drawn from the tolerances
+    at that value (between-bench, cycle-to-cycle, sensor path and emulator error), by sampling with a
+    fixed seed (a session gets the same band every time)."""
+    rng = np.random.default_rng(seed)
+    w = posterior.ravel() / posterior.sum()
+    means = model.grid_mean.reshape(w.size, -1)[rng.choice(w.size, size=draws, p=w)]
+    chol = linalg.cholesky(model.covariance(1.0), lower=True)
+    x = means + rng.standard_normal(means.shape) @ chol.T
+    return np.percentile(x, [5.0, 50.0, 95.0], axis=0)
+
+
+def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: str = "session") -> Estimate:
+    """Posterior of clearance and wear for a session's cycle ``features``."""
+    x = features.values
+    n = features.cycles
+    if n < 1:
+        raise ValueError(f"estimate {label}: the session holds no complete crank cycle")
+    xbar = x.mean(axis=0)
+    d2 = model.distances(xbar, n)
+    logp = -0.5 * d2 / model.temperature
+    post = np.exp(logp - special.logsumexp(logp))
+    gc, gn = model.grid_c, model.grid_n
+    c_int = _interval(gc, post.sum(axis=1))
+    n_int = _interval(gn, post.sum(axis=0))
+    depth_int = _interval(model.grid_depth.ravel(), post.ravel())
+    i, j = np.unravel_index(int(np.argmax(post)), post.shape)
+    cc, nn = np.meshgrid(gc, gn, indexing="ij")
+    mc, mn = float((post * cc).sum()), float((post * nn).sum())
+    cov = float((post * (cc - mc) * (nn - mn)).sum())
+    sd = np.sqrt(float((post * (cc - mc) ** 2).sum()) * float((post * (nn - mn) ** 2).sum()))
+    p = float(stats.gamma.sf(float(d2.min()), model.null[0], scale=model.null[1]))
+    explains = p >= model.options.consistency
+    notes = []
+    verdict = (f"clearance {c_int.median * 1e3:.3f} mm (90 % {c_int.lo90 * 1e3:.3f}-{c_int.hi90 * 1e3:.3f}), "
+               f"{n_int.median / 1e3:.0f}k cycles run (90 % {n_int.lo90 / 1e3:.0f}k-{n_int.hi90 / 1e3:.0f}k)")
+    if not explains:
+        verdict = NO_VALUE
+        notes.append(f"no clearance in {gc[0] * 1e3:.3g}-{gc[-1] * 1e3:.3g} mm and wear of 0-{gn[-1]:,.0f} cycles "
+                     f"explains the session (p {p:.2g}): outside the estimator's range, or a sensor path or bench "
+                     "unlike the model's")
+    edge = post[0].sum() + post[-1].sum() + post[:, -1].sum()
+    if explains and edge > 0.2:
+        notes.append("much of the posterior lies at the edge of the estimator's range: the truth may lie beyond it")
+    clipped = int(features.clipped.sum())
+    if clipped:
+        notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
+    sensor = model.sensor.source if model.sensor else "none"
+    band = predictive_band(model, post)
+    inside = float(np.mean((x >= band[0]) & (x <= band[2])))
+    spec = features.spec
+    return Estimate(label, n, c_int, n_int, depth_int, (float(gc[i]), float(gn[j])),
+                    cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, inside, post, band, x,
+                    {"grid_c": [float(gc[0]), float(gc[-1])], "grid_n": [float(gn[0]), float(gn[-1])],
+                     "bins": spec.bins, "bands": [list(b) for b in spec.bands], "estimator": model.estimator.key})

@@ -1,0 +1,177 @@
+"""A measured session as validation sees it: acceleration and encoder in pandas, cut into cycles.
+
+Holds ``MeasuredSession`` (time signals, cycle table, crank-angle view, recorded conditions) and
+``load_session`` (from a session MCAP via wearbench.acquisition.session_file.read_session). The
+session owns what was recorded: its sample rate, its clip level (the recorder's rule on the recorded
+calibration), its gaps (the acquisition's rule) and each sample's crank angle, direction and cycle
+(``cycles.crank_turns``); features, windows and identification take them from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from wearbench.acquisition.layout import recorded_clip_level
+from wearbench.acquisition.sequence import gaps
+from wearbench.validation.measurement.chain_delay import StatedDelay, stated_delay
+from wearbench.validation.measurement.cycles import (
+    CrankTurns,
+    angle_view,
+    crank_turns,
+    cut_cycles,
+    reference_angle,
+)
+from wearbench.validation.measurement.features import (
+    CycleFeatures,
+    FeatureSpec,
+    cycle_features,
+    sample_rate,
+)
+
+__all__ = ["MeasuredSession", "load_session", "stream_start"]
+
+
+def stream_start(acc: pd.DataFrame, fs: float) -> float:
+    """When an accelerometer stream (a session's ``acceleration``, sampled at ``fs`` Hz) began (s): its
+    first sample, less the blocks before it (sequence numbers count blocks from the stream's start)."""
+    t0 = float(acc["time"].iloc[0])
+    if "sequence" not in acc.columns:
+        return t0
+    seq = acc["sequence"].to_numpy()
+    block = int(np.count_nonzero(seq == seq[0]))
+    return t0 - int(seq[0]) * block / fs
+
+
+@dataclass
+class MeasuredSession:
+    """Acceleration (time, acc) and encoder (time, angle, speed, index) of one session, device clock.
+
+    cycles: ``cut_cycles`` table; angles: ``angle_view`` of the acceleration (cycle, angle, value);
+    fs: acceleration sample rate (Hz, ``features.sample_rate`` of the recorded sample times); gaps:
+    acceleration time steps the acquisition counts as gaps (``acquisition.sequence.gaps``: dropped
+    samples), windows spanning one are not scored; clip_level: |a| (m/s^2) from which a sample is
+    clipped, the recorder's rule on the recorded calibration (None when the session recorded no
+    range); crank_angle: the encoder's crank angle (rad, unwrapped) at each acceleration sample;
+    turns: its ``crank_turns`` (direction, progress and cycle index per sample, cycles from crank
+    angle 0 as the features count them).
+    """
+
+    label: str
+    acceleration: pd.DataFrame
+    encoder: pd.DataFrame
+    bench: Any = None  # wearbench.bench.schema.Bench or None
+    clearances: dict[str, float] = field(default_factory=dict)
+    wear_state: dict[str, str] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    path: Path | None = None
+    surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> worn-surface .npz embedded
+    finished: bool = True  # False: the file was cut short (read up to its last complete chunk)
+    problem: str | None = None  # why the file is not finished
+    speed_tolerance: float = 0.02
+    points_per_rev: int = 720
+
+    def __post_init__(self) -> None:
+        for name, frame, cols in (("acceleration", self.acceleration, ("time", "acc")),
+                                  ("encoder", self.encoder, ("time", "angle"))):
+            missing = [c for c in cols if c not in frame.columns]
+            if missing:
+                raise ValueError(f"session {self.label}: {name} lacks column(s) {missing}")
+        self.acceleration = self.acceleration.sort_values("time", kind="stable").reset_index(drop=True)
+        self.encoder = self.encoder.sort_values("time", kind="stable").reset_index(drop=True)
+        t = self.acceleration["time"].to_numpy(float)
+        if t.size < 16:
+            raise ValueError(f"session {self.label}: only {t.size} acceleration samples")
+        if self.encoder["angle"].isna().all():
+            raise ValueError(f"session {self.label}: the encoder angle is missing (no counts per revolution "
+                             "in the bench or calibration)")
+        self.fs = sample_rate(t)
+        self.gap_times = t[:-1][gaps(np.diff(t), self.fs)]
+        level = recorded_clip_level(self.metadata.get("calibration", {}))
+        self.clip_level = level if np.isfinite(level) else None
+        self.crank_angle = np.interp(t, self.encoder["time"].to_numpy(float), self.encoder["angle"].to_numpy(float))
+        self.turns: CrankTurns = crank_turns(self.crank_angle)
+        self.direction = self.turns.direction
+        self.start_angle = reference_angle(self.encoder)
+        self.cycles = cut_cycles(self.encoder, start_angle=self.start_angle,
+                                 speed_tolerance=self.speed_tolerance)
+        self.angles = angle_view(t, self.acceleration["acc"].to_numpy(float), self.encoder, self.cycles,
+                                 start_angle=self.start_angle, points_per_rev=self.points_per_rev)
+
+    @property
+    def samples(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Acceleration sample times (s), the crank angle at each (rad) and the samples (m/s^2)."""
+        return self.acceleration["time"].to_numpy(float), self.crank_angle, self.acceleration["acc"].to_numpy(float)
+
+    @property
+    def gaps(self) -> int:
+        return int(self.gap_times.size)
+
+    @property
+    def steady_speed(self) -> float:
+        """Mean crank speed (rad/s, signed) over the steady cycles."""
+        steady = self.cycles[self.cycles["steady"]]
+        if steady.empty:
+            raise ValueError(f"session {self.label}: no steady complete crank cycle in the record")
+        return float(2 * np.pi * len(steady) / (steady["t_end"] - steady["t_start"]).sum()) * self.direction
+
+    @property
+    def encoder_joint(self) -> str | None:
+        """The joint of the crank the encoder reads (the bench's); None for a session without a bench."""
+        return None if self.bench is None else self.bench.encoder_driver.joint
+
+    @property
+    def motor_speed(self) -> float:
+        """Motor speed (rad/s) that turns the encoder's crank at the measured steady speed."""
+        crank = self.steady_speed
+        ratio = self.bench.encoder_driver.ratio if self.bench is not None else 0.0
+        return crank / ratio if ratio else crank
+
+    @property
+    def commanded_speed(self) -> float:
+        """The commanded motor speed (rad/s) as recorded in the session's metadata, else the measured one."""
+        raw = self.metadata.get("session", {}).get("speed_rad_s")
+        return float(raw) if raw is not None else self.motor_speed
+
+    @property
+    def stream_start(self) -> float:
+        """When the accelerometer's stream began (s, device clock): :func:`stream_start`."""
+        return stream_start(self.acceleration, self.fs)
+
+    def features(self, spec: FeatureSpec | None = None) -> CycleFeatures:
+        """Cycle features of the session, from its samples, sample rate and clip level (the recorder's
+        rule at the range the session recorded in its calibration)."""
+        return cycle_features(*self.samples, spec or FeatureSpec(), clip_level=self.clip_level, fs=self.fs)
+
+    def stated_delay(self, band: tuple[float, float] = (1.0, 100.0)) -> StatedDelay | None:
+        """The accelerometer delay the session's bench states (its ``[sensor.chain]``), its filters'
+        group delay averaged over ``band`` (Hz); None without a statement."""
+        if self.bench is None:
+            return None
+        try:
+            chain = self.bench.sensor("accelerometer").chain
+        except KeyError:
+            return None
+        return stated_delay(chain, band) if chain is not None else None
+
+
+def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSession:
+    """Read a session MCAP (tolerates unfinished files) into a ``MeasuredSession``; the label of an
+    unfinished one (a killed recorder, a file cut short) says so: ``NAME (unfinished)``."""
+    from wearbench.acquisition.session_file import read_session
+
+    path = Path(path)
+    s = read_session(path)
+    if s.acceleration.empty:
+        raise ValueError(f"{path}: the session holds no acceleration samples")
+    if s.encoder.empty:
+        raise ValueError(f"{path}: the session holds no encoder samples")
+    if label is None:
+        label = path.stem if s.finished else f"{path.stem} (unfinished)"
+    return MeasuredSession(label=label, acceleration=s.acceleration[["time", "acc"]],
+                           encoder=s.encoder, bench=s.bench, clearances=dict(s.clearances),
+                           wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path,
+                           surface_files=dict(s.surface_files), finished=s.finished, problem=s.problem)
