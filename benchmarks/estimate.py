@@ -414,10 +414,10 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     it but without the features' rate spread (``track_features(rate_spread=0)``, track before it)."""
     from wearbench.compute import TaskFailure
     from wearbench.validation.inference.move import life_move
-    from wearbench.validation.inference.track import RATE_SPREAD, _depth_curve, track_features
+    from wearbench.validation.inference.track import RATE_SPREAD, depth_curve, track_features
     from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
-    n_curve, d_curve = _depth_curve(model)
+    n_curve, d_curve = depth_curve(model)
     good = [((c, seed), r) for (c, seed), r in zip(lives, runs, strict=True) if not isinstance(r, TaskFailure)]
     for (c, seed), r in zip(lives, runs, strict=True):
         if isinstance(r, TaskFailure):

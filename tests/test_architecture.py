@@ -4,7 +4,12 @@ counted (also those inside functions and those named by a string to ``importlib.
 a lazy import cannot hide an upward edge. The benchmarks are read too: they stand beside the command
 line, may import every library layer, but not the program itself.
 
-The rules are the README's "Architecture" section; this test is their owner.
+Three more rules keep the seams visible: no name with a leading underscore is imported or used
+across modules (a name another file needs is public, documented and in its module's ``__all__``);
+every import by a computed name (``importlib.import_module``) and every place that starts a process
+is on an explicit list below, with the reason.
+
+The rules are the docs' architecture page (docs/reference/architecture.md); this test is their owner.
 """
 
 from __future__ import annotations
@@ -314,3 +319,160 @@ def test_the_check_catches_a_circle_through_a_package_init(init_source, circle):
                    "wearbench.validation.comparison.compare": "from wearbench.validation import CompareOptions\n"})
     found = [c for c in cycles(edges) if "wearbench.validation" in c]
     assert bool(found) is circle
+
+
+# ---- public seams ----------------------------------------------------------------------------------
+
+# module -> why it imports by a computed name (the call sites allowed; any other is a failure)
+DYNAMIC_IMPORTS: dict[str, str] = {
+    "wearbench": "the public face: names load with their module on first use",
+    "wearbench.validation": "a lazy face over its job groups",
+    "wearbench.testing": "a lazy face: the pytest plugin loads the acquisition stack only when a test uses it",
+    "wearbench.cli": "one module per subcommand, imported by name so --help stays fast",
+    "wearbench.acquisition.backends": "the backend registry: a backend's module by its name in the bench file",
+}
+# module -> the processes it starts (any other module starting one is a failure)
+PROCESS_LAUNCHES: dict[str, str] = {
+    "wearbench.compute.cluster": "the Dask LocalCluster's worker processes",
+    "wearbench.hardware.emulators.serial_server": "the serial emulator in its own process (forkserver)",
+    "wearbench.testing.mcap_readers": "npm and node: the reader Foxglove uses, checking the files we write",
+    "benchmarks.scale_out": "a process pool timed against the cluster",
+    "benchmarks.trajectory_identity": "a fresh interpreter per model source, for bit identity",
+    "benchmarks.profile_revolution": "a fresh interpreter, so compilation is not timed",
+}
+# module -> its calls that start a process
+_PROCESS_CALLS = {
+    "subprocess": {"run", "Popen", "call", "check_call", "check_output"},
+    "os": {"system", "popen", "spawnl", "spawnlp", "spawnv", "spawnvp", "execl", "execlp", "execv", "execvp"},
+    "asyncio": {"create_subprocess_exec", "create_subprocess_shell"},
+    "multiprocessing": {"get_context", "Process", "Pool"},
+}
+
+
+def _wearbench_aliases(tree: ast.Module, module: str, known: set[str]) -> dict[str, str]:
+    """Local names bound to wearbench modules by ``import`` / ``from ... import module``."""
+    package = module if module + ".__init__" in known else module.rpartition(".")[0]
+    aliases = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("wearbench."):
+                    aliases[a.asname or a.name.split(".")[0]] = a.name if a.asname else "wearbench"
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                base = ".".join(anchor[: len(anchor) - (node.level - 1)] + ([base] if base else []))
+            for a in node.names:
+                if f"{base}.{a.name}" in known:
+                    aliases[a.asname or a.name] = f"{base}.{a.name}"
+    return aliases
+
+
+def private_crossings(source: str, module: str, known: set[str]) -> list[str]:
+    """Names with one leading underscore that ``source`` (module ``module``) imports from, or reads
+    off, another wearbench module: ``module -> other._name``."""
+    tree = ast.parse(source)
+    package = module if module + ".__init__" in known else module.rpartition(".")[0]
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                base = ".".join(anchor[: len(anchor) - (node.level - 1)] + ([base] if base else []))
+            if base.startswith("wearbench") and base != module:
+                found += [f"{module} -> {base}.{a.name}" for a in node.names
+                          if a.name.startswith("_") and not a.name.startswith("__")]
+    aliases = _wearbench_aliases(tree, module, known)
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+                and isinstance(node.value, ast.Name) and node.value.id in aliases
+                and aliases[node.value.id] != module):
+            found.append(f"{module} -> {aliases[node.value.id]}.{node.attr}")
+    return sorted(set(found))
+
+
+def dynamic_imports(source: str) -> int:
+    """How many calls of ``source`` import a module by a computed name (``import_module``, ``__import__``)."""
+    return sum(1 for node in ast.walk(ast.parse(source)) if isinstance(node, ast.Call)
+               and (getattr(node.func, "attr", None) or getattr(node.func, "id", None)) in ("import_module", "__import__"))
+
+
+def starts_processes(source: str) -> bool:
+    """Whether ``source`` starts a process: ``subprocess``/``os``/``asyncio``/``multiprocessing`` calls that
+    launch one, a multiprocessing context's ``Process``/``Pool``, or a Dask ``LocalCluster``."""
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.Call):
+            continue
+        func = node.func
+        if isinstance(func, ast.Name) and func.id in ("Popen", "LocalCluster"):
+            return True
+        if isinstance(func, ast.Attribute):
+            base = func.value
+            while isinstance(base, ast.Attribute):
+                base = base.value
+            if isinstance(base, ast.Name) and func.attr in _PROCESS_CALLS.get(base.id, ()):
+                return True
+            if func.attr in ("Process", "Pool") and isinstance(func.value, ast.Name) and "context" in func.value.id:
+                return True
+    return False
+
+
+def _sources() -> tuple[dict[str, str], set[str]]:
+    modules = library_modules()
+    known = set(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
+    texts = {m: p.read_text(encoding="utf-8") for m, p in {**modules, **benchmark_scripts()}.items()}
+    return texts, known
+
+
+def test_no_private_name_crosses_a_module():
+    texts, known = _sources()
+    assert [c for m, t in texts.items() for c in private_crossings(t, m, known)] == []
+
+
+def test_imports_by_computed_name_are_the_listed_ones():
+    texts, _ = _sources()
+    assert sorted(m for m, t in texts.items() if dynamic_imports(t)) == sorted(DYNAMIC_IMPORTS)
+
+
+def test_processes_start_only_where_listed():
+    texts, _ = _sources()
+    assert sorted(m for m, t in texts.items() if starts_processes(t)) == sorted(PROCESS_LAUNCHES)
+
+
+@pytest.mark.parametrize("module, source, expected", [
+    ("wearbench.validation.inference.track", "from wearbench.validation.inference.estimate import _interval\n",
+     ["wearbench.validation.inference.track -> wearbench.validation.inference.estimate._interval"]),
+    ("benchmarks.profile", "import wearbench.model.kernel as K\nK._schur(1)\n",
+     ["benchmarks.profile -> wearbench.model.kernel._schur"]),
+    ("wearbench.validation.inference.track", "from wearbench.validation.inference import estimate\nestimate._x\n",
+     ["wearbench.validation.inference.track -> wearbench.validation.inference.estimate._x"]),
+    ("wearbench.validation.inference.track", "from wearbench.validation.inference.estimate import Interval\n", []),
+    ("wearbench.validation.inference.track", "def _own():\n    pass\n_own()\nx.__class__\n", []),
+])
+def test_the_check_catches_a_private_name_crossing(module, source, expected):
+    _, known = _sources()
+    assert private_crossings(source, module, known) == expected
+
+
+@pytest.mark.parametrize("source, count", [
+    ("import importlib\nimportlib.import_module(name)\n", 1),
+    ("from importlib import import_module\nimport_module(f'wearbench.{x}')\n", 1),
+    ("__import__(name)\n", 1),
+    ("import importlib\nimportlib.reload(m)\n", 0),
+])
+def test_the_check_catches_an_import_by_computed_name(source, count):
+    assert dynamic_imports(source) == count
+
+
+@pytest.mark.parametrize("source, launches", [
+    ("import subprocess\nsubprocess.run(['node', 'x.mjs'])\n", True),
+    ("import os\nos.system('ls')\n", True),
+    ("import multiprocessing\nctx = multiprocessing.get_context('spawn')\n", True),
+    ("context.Process(target=f).start()\n", True),
+    ("from distributed import LocalCluster\nLocalCluster(n_workers=2)\n", True),
+    ("recorder.run()\nos.path.join('a', 'b')\nasyncio.run(main())\n", False),
+])
+def test_the_check_catches_a_process_launch(source, launches):
+    assert starts_processes(source) is launches

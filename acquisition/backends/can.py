@@ -46,8 +46,18 @@ from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode
 from wearbench.hardware.protocol.taps import TAP_EVENT, tap_message
 
-__all__ = ["BUS_OPTIONS", "BenchFrames", "CanDrive", "CanSource", "FrameLog", "frame_log", "open_bus", "open_rig",
-           "replay"]
+__all__ = [
+    "BUS_OPTIONS",
+    "BenchFrames",
+    "CanDrive",
+    "CanSource",
+    "FrameLog",
+    "check_bus_options",
+    "frame_log",
+    "open_bus",
+    "open_rig",
+    "replay",
+]
 
 BUS_OPTIONS = {"interface", "channel", "bitrate", "data_bitrate", "fd", "reply_timeout", "log_frames"}
 
@@ -383,7 +393,8 @@ class _Bus:
         self.bus.shutdown()
 
 
-def _check(bench: Bench, options: Mapping[str, Any], allowed: set[str], section: str) -> float:
+def check_bus_options(bench: Bench, options: Mapping[str, Any], allowed: set[str], section: str) -> float:
+    """The reply timeout (s) of a ``[hardware.SECTION]`` table, refusing options not in ``allowed``."""
     unknown = set(options) - allowed
     if unknown:
         raise ValueError(f"[hardware.{section}]: unknown option(s) {sorted(unknown)}; expected {sorted(allowed)}")
@@ -391,7 +402,7 @@ def _check(bench: Bench, options: Mapping[str, Any], allowed: set[str], section:
 
 
 def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
-    reply_timeout = _check(bench, options, BUS_OPTIONS, "can")
+    reply_timeout = check_bus_options(bench, options, BUS_OPTIONS, "can")
     bus = open_bus(options)
     frames, log = BenchFrames.for_bench(bench), frame_log(options)
     notifier = can.Notifier(bus, [frames, *([log] if log else [])], timeout=0.1)

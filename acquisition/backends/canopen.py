@@ -26,7 +26,7 @@ from wearbench.acquisition.backends.can import (
     BUS_OPTIONS,
     BenchFrames,
     CanSource,
-    _check,
+    check_bus_options,
     frame_log,
     open_bus,
 )
@@ -212,7 +212,7 @@ class Cia402Drive(MotorDrive):
 
 
 def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
-    reply_timeout = _check(bench, options, BUS_OPTIONS | {"node_id", "eds"}, "canopen")
+    reply_timeout = check_bus_options(bench, options, BUS_OPTIONS | {"node_id", "eds"}, "canopen")
     node_id = int(options.get("node_id", 5))
     eds = str(options.get("eds", EDS_PATH))
     bus = open_bus(options)

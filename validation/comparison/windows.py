@@ -60,7 +60,7 @@ from wearbench.validation.comparison.metrics import iso18571
 from wearbench.validation.inference.ensemble import Ensemble
 from wearbench.validation.inference.identify import (
     StateModels,
-    _ranges,
+    angle_ranges,
     candidate_ratio,
     direction_distance2,
     feature_ranges,
@@ -590,7 +590,7 @@ def score_windows(measured: MeasuredCurves, theory: WindowTheory, features: Cycl
         x = measured.at(delay, cyc)
         values, sub, bins = theory.statistics(x, theory.reference, theory.iso_pool)
         p = {k: _p_value(theory.null[k], v) for k, v in values.items()}
-        departs = [f"band {r}" for r in _ranges(bins > theory.null_bins.max(axis=0), BINS)]
+        departs = [f"band {r}" for r in angle_ranges(bins > theory.null_bins.max(axis=0), BINS)]
         if use_features:
             distances = theory.feature_distances(features.values[cyc])
             values.update({k: v for k, v in distances.items() if k in theory.null})

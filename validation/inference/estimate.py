@@ -51,7 +51,13 @@ from wearbench.bench.output_file import save_npz
 from wearbench.bench.schema import Bench, WearState
 from wearbench.bench.units import parse_quantity
 from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings, build_ensembles
-from wearbench.validation.inference.identify import IdentifyOptions, _floor, _models, default_sensor
+from wearbench.validation.inference.identify import (
+    IdentifyOptions,
+    default_sensor,
+    gamma_by_moments,
+    state_statistics,
+    variance_floor,
+)
 from wearbench.validation.inference.sensor_path import SensorPath
 from wearbench.validation.inference.statistics import StateStatistics
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
@@ -348,10 +354,10 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
     names = [point_name(c, n) for c in d.clearances for n in d.cycles]
     spec = est.spec
     sensor = sensor or default_sensor(spec, options)
-    floor = _floor(spec, options)
+    floor = variance_floor(spec, options)
     own = {nm: StateStatistics.fit(est.features[i, j], floor)
            for (i, j), nm in zip(np.ndindex(nc, nn), names, strict=True)}
-    fitted = _models(own, options.pooled, spec, sensor, slice(None))
+    fitted = state_statistics(own, options.pooled, spec, sensor, slice(None))
     means = np.stack([fitted[nm].mean for nm in names])  # (D, p), the sensor prior's mean included
     cc, nn_ = np.meshgrid(d.clearances, d.cycles, indexing="ij")
     degrees = (min(4, nc - 1), min(2, nn - 1))
@@ -403,8 +409,7 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
     model.temperature = float(np.exp(optimize.minimize_scalar(log_loss, bounds=(np.log(0.2), np.log(20.0)),
                                                               method="bounded").x))
     own_min = d2s_a.min(axis=1)
-    mean_, var = float(np.mean(own_min)), float(np.var(own_min, ddof=1))
-    model.null = (mean_ * mean_ / var, var / mean_)
+    model.null = gamma_by_moments(own_min)
     return model
 
 
@@ -425,16 +430,16 @@ class Interval:
         lo, hi = (self.lo90, self.hi90) if level == 90 else (self.lo50, self.hi50)
         return lo <= x <= hi
 
-
-def _interval(values: np.ndarray, weights: np.ndarray) -> Interval:
-    """Quantiles of a distribution given on sorted grid ``values`` by ``weights`` (piecewise linear CDF)."""
-    order = np.argsort(values, kind="stable")
-    x, w = np.asarray(values, float)[order], np.asarray(weights, float)[order]
-    cdf = np.cumsum(w)
-    cdf = cdf / cdf[-1]
-    mid = cdf - 0.5 * w / w.sum()  # each grid value holds the mass of its cell, centred on it
-    q = lambda p: float(np.interp(p, mid, x))
-    return Interval(q(0.5), q(0.25), q(0.75), q(0.05), q(0.95))
+    @classmethod
+    def from_weights(cls, values: np.ndarray, weights: np.ndarray) -> Interval:
+        """Quantiles of a distribution given on sorted grid ``values`` by ``weights`` (piecewise linear CDF)."""
+        order = np.argsort(values, kind="stable")
+        x, w = np.asarray(values, float)[order], np.asarray(weights, float)[order]
+        cdf = np.cumsum(w)
+        cdf = cdf / cdf[-1]
+        mid = cdf - 0.5 * w / w.sum()  # each grid value holds the mass of its cell, centred on it
+        q = lambda p: float(np.interp(p, mid, x))
+        return cls(q(0.5), q(0.25), q(0.75), q(0.05), q(0.95))
 
 
 @dataclass
@@ -497,9 +502,9 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     logp = -0.5 * d2 / model.temperature
     post = np.exp(logp - special.logsumexp(logp))
     gc, gn = model.grid_c, model.grid_n
-    c_int = _interval(gc, post.sum(axis=1))
-    n_int = _interval(gn, post.sum(axis=0))
-    depth_int = _interval(model.grid_depth.ravel(), post.ravel())
+    c_int = Interval.from_weights(gc, post.sum(axis=1))
+    n_int = Interval.from_weights(gn, post.sum(axis=0))
+    depth_int = Interval.from_weights(model.grid_depth.ravel(), post.ravel())
     i, j = np.unravel_index(int(np.argmax(post)), post.shape)
     cc, nn = np.meshgrid(gc, gn, indexing="ij")
     mc, mn = float((post * cc).sum()), float((post * nn).sum())

@@ -128,7 +128,7 @@ class Identification:
         return asdict(self)
 
 
-def _floor(spec: FeatureSpec, options: IdentifyOptions) -> np.ndarray:
+def variance_floor(spec: FeatureSpec, options: IdentifyOptions) -> np.ndarray:
     return np.concatenate([np.full(spec.bins, options.floor_curve ** 2),
                            np.full(spec.size - spec.bins, options.floor_energy ** 2)])
 
@@ -138,7 +138,7 @@ def _posterior(ll: np.ndarray, temperature: float) -> np.ndarray:
     return np.exp(z - special.logsumexp(z))
 
 
-def _gamma(values: list[float]) -> tuple[float, float]:
+def gamma_by_moments(values: list[float]) -> tuple[float, float]:
     """Gamma (shape, scale) with the mean and variance of ``values``."""
     v = np.asarray(values)
     mean, var = float(v.mean()), float(v.var(ddof=1))
@@ -186,7 +186,7 @@ def with_sensor(st: StateStatistics, spec: FeatureSpec, sensor: SensorPath | Non
     return st.with_nuisance(*sensor.nuisance(spec, full, columns))
 
 
-def _models(fits: dict[str, StateStatistics], pooled: bool, spec: FeatureSpec, sensor: SensorPath | None,
+def state_statistics(fits: dict[str, StateStatistics], pooled: bool, spec: FeatureSpec, sensor: SensorPath | None,
             columns: slice) -> dict[str, StateStatistics]:
     models = dict(zip(fits, StateStatistics.pooled(list(fits.values())), strict=True)) if pooled else fits
     return {s: with_sensor(m, spec, sensor, columns) for s, m in models.items()}
@@ -221,10 +221,10 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
     names = tuple(ensembles)
     spec = next(iter(ensembles.values())).settings.features
     sensor = sensor or default_sensor(spec, options)
-    floor = _floor(spec, options)[columns]
+    floor = variance_floor(spec, options)[columns]
     features = {s: e.features[:, :, columns] for s, e in ensembles.items()}
     own = {s: StateStatistics.fit(f, floor) for s, f in features.items()}
-    fitted = _models(own, options.pooled, spec, sensor, columns)
+    fitted = state_statistics(own, options.pooled, spec, sensor, columns)
     # held-out realisations: their distance to their own state (refit without them, and so the
     # pooled covariances), and their log likelihood under every state, for the null distributions
     # and the temperature
@@ -233,7 +233,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         d2, t2, wn = [], [], []
         others = [fitted[t].mean for t in names if t != s]
         for r in range(f.shape[0]):
-            models = _models({**own, s: StateStatistics.fit(np.delete(f, r, axis=0), floor)}, options.pooled,
+            models = state_statistics({**own, s: StateStatistics.fit(np.delete(f, r, axis=0), floor)}, options.pooled,
                              spec, sensor, columns)
             xbar, n = f[r].mean(axis=0), f.shape[1]
             d2.append(models[s].distance2(xbar, n))
@@ -246,8 +246,8 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
                            direction_distance2(models[s], others, wbar, window_cycles),
                            candidate_ratio(models[s], others, wbar, window_cycles)))
         window_null[s] = np.asarray(wn).reshape(-1, 3)
-        null[s] = _gamma(d2)
-        null_direction[s] = _gamma(t2) if others else (1.0, 1.0)  # one candidate: distance 0, p 1
+        null[s] = gamma_by_moments(d2)
+        null_direction[s] = gamma_by_moments(t2) if others else (1.0, 1.0)  # one candidate: distance 0, p 1
     temperature = temper(np.asarray(lls), np.asarray(truth)) if len(names) > 1 else 1.0
     limit, lo, hi = {}, {}, {}
     for s, f in features.items():
@@ -261,7 +261,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
                        window_null=window_null, window_cycles=window_cycles, spec=spec, sensor=sensor)
 
 
-def _ranges(flags: np.ndarray, bins: int) -> list[str]:
+def angle_ranges(flags: np.ndarray, bins: int) -> list[str]:
     """Crank-angle ranges (deg) of the runs of True in a per-bin flag array."""
     width = 360.0 / bins
     out, i = [], 0
@@ -280,9 +280,9 @@ def _ranges(flags: np.ndarray, bins: int) -> list[str]:
 def feature_ranges(flags: np.ndarray, spec: FeatureSpec) -> list[str]:
     """Crank-angle ranges of the flagged features (``spec.size`` flags), e.g. "impacts 50-150 Hz 40-60 deg"."""
     blocks = np.asarray(flags, dtype=bool).reshape(-1, spec.bins)
-    return [f"curve {r}" for r in _ranges(blocks[0], spec.bins)] + [
+    return [f"curve {r}" for r in angle_ranges(blocks[0], spec.bins)] + [
         f"impacts {lo:g}-{hi:g} Hz {r}" for (lo, hi), flags in zip(spec.bands, blocks[1:], strict=True)
-        for r in _ranges(flags, spec.bins)]
+        for r in angle_ranges(flags, spec.bins)]
 
 
 def identify_features(features: CycleFeatures, models: StateModels, *, label: str = "session") -> Identification:
@@ -366,7 +366,7 @@ def diagnose(xbar: np.ndarray, n: int, models: StateModels, state: str) -> dict:
     names = ["curve"] + [f"impacts {lo:g}-{hi:g} Hz" for lo, hi in spec.bands]
     rms = {nm: float(np.sqrt(np.nanmean(b ** 2))) for nm, b in zip(names, blocks, strict=True)
            if np.isfinite(b).any()}
-    angles = [f"{nm} {r}" for nm, b in zip(names, blocks, strict=True) for r in _ranges(np.abs(b) > 3, spec.bins)]
+    angles = [f"{nm} {r}" for nm, b in zip(names, blocks, strict=True) for r in angle_ranges(np.abs(b) > 3, spec.bins)]
     broad = SensorPath.prior(spec, PathSpread(mode=(100.0, 10000.0), damping=(0.01, 0.3), sensitivity=0.3))
     full_x, full_m = np.zeros(spec.size), np.zeros(spec.size)
     full_x[cols], full_m[cols] = xbar, base

@@ -43,15 +43,19 @@ from wearbench.validation.inference.ensemble import Ensemble
 from wearbench.validation.inference.identify import (
     IdentifyOptions,
     StateModels,
-    _floor,
-    _gamma,
     direction_distance2,
     fit_states,
+    gamma_by_moments,
     temper,
+    variance_floor,
     with_sensor,
 )
 from wearbench.validation.inference.sensor_path import SensorPath, calibrate_path
-from wearbench.validation.inference.statistics import StateStatistics, _psd, shrunk_covariance
+from wearbench.validation.inference.statistics import (
+    StateStatistics,
+    nearest_psd,
+    shrunk_covariance,
+)
 from wearbench.validation.measurement.features import FeatureSpec
 
 __all__ = ["HeldOut", "RelativeStatistics", "WeightedStatistics", "calibrated_models", "fit_calibrated",
@@ -75,7 +79,7 @@ def _paired(features: Mapping[str, np.ndarray], known: str) -> tuple[np.ndarray,
         diff = f.mean(axis=1) - features[known].mean(axis=1)  # realisation i is the same bench in every state
         means[s] = diff.mean(axis=0)
         if s != known:
-            cov.append(_psd(shrunk_covariance(diff) - 2.0 * within / c))
+            cov.append(nearest_psd(shrunk_covariance(diff) - 2.0 * within / c))
     # pooled over the states, the known one included (as the candidates' covariances are pooled): a
     # state of its own, tighter covariance would win every session near the calibration by its determinant
     pooled = np.mean(cov, axis=0) if cov else np.zeros_like(within)
@@ -147,8 +151,8 @@ class HeldOut:
                     wbar = cycles[k:k + w].mean(axis=0)
                     wn[s].append((st.distance2(wbar, w), direction_distance2(st, others, wbar, w)))
         return cls(temper(np.asarray(lls), np.asarray(truth)) if len(names) > 1 else 1.0,
-                   {s: _gamma(d2[s]) for s in names},
-                   {s: _gamma(t2[s]) if len(names) > 1 else (1.0, 1.0) for s in names},
+                   {s: gamma_by_moments(d2[s]) for s in names},
+                   {s: gamma_by_moments(t2[s]) if len(names) > 1 else (1.0, 1.0) for s in names},
                    {s: np.asarray(wn[s]).reshape(-1, 2) for s in names}, window_cycles,
                    {s: (f - f.mean(axis=(0, 1))).reshape(-1, f.shape[-1]) for s, f in features.items()})
 
@@ -225,7 +229,7 @@ class RelativeStatistics(_Calibrated):
         options = options or IdentifyOptions()
         features = _checked(ensembles, known)
         spec = ensembles[known].settings.features
-        floor = _floor(spec, options)
+        floor = variance_floor(spec, options)
         gain_var = float(SensorPath.prior(spec).theta_cov[0, 0])
 
         def fit(f: Mapping[str, np.ndarray]) -> RelativeStatistics:
@@ -277,7 +281,7 @@ class WeightedStatistics(_Calibrated):
         options = options or IdentifyOptions()
         features = _checked(ensembles, known)
         spec = ensembles[known].settings.features
-        floor = _floor(spec, options)
+        floor = variance_floor(spec, options)
 
         def fit(f: Mapping[str, np.ndarray]) -> WeightedStatistics:
             return cls(tuple(f), known, _within(f), {s: v.mean(axis=1) for s, v in f.items()}, floor,
@@ -307,7 +311,7 @@ class WeightedStatistics(_Calibrated):
         """Each state's statistics conditioned on a calibration mean ``xbar_cal`` of ``n_cal`` cycles."""
         w = self.weights(xbar_cal, n_cal)
         c = self.cycles
-        between = np.mean([_psd(shrunk_covariance(v, w) - self.within / c)
+        between = np.mean([nearest_psd(shrunk_covariance(v, w) - self.within / c)
                            for v in self.realisation_means.values()], axis=0)
         size = max(3, round(1.0 / float(np.sum(w * w))))
         out = {s: StateStatistics(w @ v, self.within, between, self.floor, size, c)

@@ -72,7 +72,7 @@ def shrunk_covariance(x: np.ndarray, weights: np.ndarray | None = None) -> np.nd
     return rs * np.outer(sd, sd)
 
 
-def _psd(a: np.ndarray) -> np.ndarray:
+def nearest_psd(a: np.ndarray) -> np.ndarray:
     a = 0.5 * (a + a.T)
     vals, vecs = np.linalg.eigh(a)
     return (vecs * np.clip(vals, 0.0, None)) @ vecs.T
@@ -101,7 +101,7 @@ class StateStatistics:
         m, c, p = values.shape
         means = values.mean(axis=1)
         within = shrunk_covariance((values - means[:, None, :]).reshape(-1, p)) * (m * c - 1) / (m * (c - 1))
-        between = _psd(shrunk_covariance(means) - within / c)
+        between = nearest_psd(shrunk_covariance(means) - within / c)
         return cls(means.mean(axis=0), within, between, np.asarray(floor, dtype=float), m, c)
 
     @staticmethod

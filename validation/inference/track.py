@@ -94,9 +94,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from scipy import linalg, special
-from wearbench.validation.inference.estimate import EstimatorModel, Interval, _interval
+from wearbench.validation.inference.estimate import EstimatorModel, Interval
 from wearbench.validation.inference.move import Move, Rate
-from wearbench.validation.inference.statistics import _psd, shrunk_covariance
+from wearbench.validation.inference.statistics import nearest_psd, shrunk_covariance
 from wearbench.validation.measurement.features import CycleFeatures
 
 __all__ = ["Track", "joint_log_likelihood", "life_rate", "session_covariances", "track_features",
@@ -129,7 +129,7 @@ class Track:
         return asdict(self)
 
 
-def _depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
+def depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
     """Cycles (effective) and wear depth (gc, points) along each grid clearance's trajectory,
     extrapolated linearly to ``extend`` x the last design cycles at the last stage's rate."""
     gn, depth = model.grid_n, np.maximum.accumulate(model.grid_depth, axis=1)
@@ -151,7 +151,7 @@ def wear_drift(model: EstimatorModel) -> np.ndarray:
     b = xb - xb.mean(axis=2, keepdims=True)
     d = (b[:, 1:].mean(axis=1) - b[:, 0]).reshape(-1, p)
     cov = shrunk_covariance(d) * (d.shape[0] - 1) / (d.shape[0] - nc)  # each clearance's mean taken out
-    return _psd(cov - model.stats[model.reference].within / c * (1 + 1 / (nn - 1)))
+    return nearest_psd(cov - model.stats[model.reference].within / c * (1 + 1 / (nn - 1)))
 
 
 def session_covariances(model: EstimatorModel) -> tuple[np.ndarray, np.ndarray]:
@@ -331,18 +331,18 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     log_post = (_spread_rate(log_post, inside, step, rate_spread) if rate is None
                 else _spread_rate(log_post, inside, step, rate.at(gc)[1], rate.at(gc)[0]))
     post = np.exp(log_post - special.logsumexp(log_post))
-    c_int = _interval(gc, post.sum(axis=1))
-    k_int = _interval(np.log(ks), post.sum(axis=0))
+    c_int = Interval.from_weights(gc, post.sum(axis=1))
+    k_int = Interval.from_weights(np.log(ks), post.sum(axis=0))
     k_int = Interval(*(float(np.exp(v)) for v in asdict(k_int).values()))
     coef = Interval(*(v * coefficient for v in asdict(k_int).values()))
-    n_curve, d_curve = _depth_curve(model)
+    n_curve, d_curve = depth_curve(model)
     nodes, qw = np.polynomial.hermite_e.hermegauss(9 if depth_spread > 0 else 1)
     deltas, qw = np.exp(depth_spread * nodes), qw / qw.sum()  # the bench's depth / the trajectory's
     weights = post[:, :, None] * qw  # (c, k, delta)
 
     def depth_at(n: float) -> Interval:
         d = np.stack([np.interp(ks * n, n_curve, d_curve[i]) for i in range(gc.size)])
-        return _interval((d[:, :, None] * deltas).ravel(), weights.ravel())
+        return Interval.from_weights((d[:, :, None] * deltas).ravel(), weights.ravel())
 
     depth = [depth_at(n) for n in cycles_run]
     to_limit, beyond, notes = None, 0.0, []
@@ -354,7 +354,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
         finite = np.isfinite(cycles)
         beyond = float(weights[~finite].sum())
         if beyond < 0.5:
-            to_limit = _interval(cycles[finite], weights[finite])
+            to_limit = Interval.from_weights(cycles[finite], weights[finite])
         if beyond > 0.05:
             notes.append(f"{beyond:.0%} of the posterior reaches the limit beyond {n_curve[-1]:,.0f} effective cycles "
                          "(100x the estimator's range): the interval's upper end is a lower bound")

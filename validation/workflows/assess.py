@@ -81,7 +81,7 @@ class Assessment:
 
 
 
-def _states(bench, candidates) -> tuple[WearState, ...]:
+def candidate_states(bench, candidates) -> tuple[WearState, ...]:
     if candidates is None:
         states = bench.states
     elif isinstance(candidates, (str, Path)):
@@ -165,10 +165,10 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
     for idx in groups.values():
         first = loaded[idx[0]]
         if ensembles_file is not None:
-            states = _states(first.bench, candidates) if first.bench and (candidates or first.bench.states) else None
+            states = candidate_states(first.bench, candidates) if first.bench and (candidates or first.bench.states) else None
             check_ensembles_fit(ensembles_file, ensembles, bench=first.bench, states=states,
                                 speed=first.commanded_speed, session=first.label)
-        ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates),
+        ens = ensembles or build_ensembles(first.bench, candidate_states(first.bench, candidates),
                                            speed=first.commanded_speed, settings=settings, scheduler=scheduler,
                                            workers=workers, progress=progress)
         st = next(iter(ens.values())).settings

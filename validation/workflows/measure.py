@@ -33,7 +33,7 @@ from wearbench.validation.inference.identify import IdentifyOptions, fit_states
 from wearbench.validation.inference.move import Move, stored_move
 from wearbench.validation.inference.track import Track, track_features
 from wearbench.validation.measurement.session import MeasuredSession, load_session
-from wearbench.validation.workflows.assess import Assessment, _states
+from wearbench.validation.workflows.assess import Assessment, candidate_states
 
 __all__ = ["calibrate_sessions", "estimate_assessed", "estimate_sessions", "named_outside", "recorded_cycles_run",
            "track_sessions"]
@@ -84,7 +84,7 @@ def calibrate_sessions(sessions: Sequence[str | Path | MeasuredSession], state: 
     if before is not None:
         spec = next(iter(ensembles.values())).settings.features if ensembles else settings.features
         before(calibration_key(first.bench, first.metadata, spec, mount))
-    ens = ensembles or build_ensembles(first.bench, _states(first.bench, candidates), speed=first.commanded_speed,
+    ens = ensembles or build_ensembles(first.bench, candidate_states(first.bench, candidates), speed=first.commanded_speed,
                                        settings=settings, scheduler=scheduler, workers=workers, progress=progress)
     if state not in ens:
         raise ValueError(f"calibrate: --state {state!r}: expected one of the bench's states {list(ens)}")

@@ -130,10 +130,10 @@ def test_design_must_be_a_grid_of_stages():
 
 
 def test_interval_of_a_known_distribution():
-    from wearbench.validation.inference.estimate import _interval
+    from wearbench.validation.inference.estimate import Interval
 
     x = np.linspace(-6, 6, 2001)
-    i = _interval(x, stats.norm.pdf(x))
+    i = Interval.from_weights(x, stats.norm.pdf(x))
     assert i.median == pytest.approx(0, abs=1e-3) and i.hi90 == pytest.approx(1.645, abs=0.01)
     assert i.lo50 == pytest.approx(-0.674, abs=0.01)
 

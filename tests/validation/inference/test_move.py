@@ -22,8 +22,8 @@ from wearbench.validation.inference.move import (
 from wearbench.validation.inference.track import track_features
 from wearbench.validation.measurement.features import CycleFeatures
 
-from . import test_estimate
 from ..workflows import test_track_sessions
+from . import test_estimate
 from .test_estimate import SB, SPEC, SW, P, true_mean
 
 model = test_estimate.model  # the synthetic estimator (a fixture)
