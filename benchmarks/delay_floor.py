@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import signal
+from wearbench.compute.options import QUIET
 
 
 def shifts(spec: np.ndarray, f: np.ndarray, fmax: float, search: float = 3e-3) -> np.ndarray:
@@ -39,7 +40,7 @@ def main() -> None:
     from wearbench.validation.inference.ensemble import build_ensembles
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
-    ens = build_ensembles(bench, bench.states, progress=None)
+    ens = build_ensembles(bench, bench.states, compute=QUIET)
     print("time shift of a realisation's 8-cycle mean against the others' (true delay 0), ms")
     print(f"{'state':20s} {'signal':38s} {'p5':>6s} {'p50':>6s} {'p95':>6s}  within 0.2 ms")
     for name, e in ens.items():

@@ -85,6 +85,7 @@ def main() -> None:
     from wearbench.compute.task_cache import MISSING, cache_load
     from wearbench.synthetic.truths import prepare_truth, record_state, slug, truth_revolutions
     from wearbench.validation import load_session
+    from wearbench.validation.inference import artefacts
     from wearbench.validation.inference.ensemble import (
         EnsembleSettings,
         build_ensembles,
@@ -92,7 +93,6 @@ def main() -> None:
         load_ensembles,
         realisation_keys,
         save_ensembles,
-        shipped_ensembles_path,
     )
     from wearbench.validation.inference.identify import (
         IdentifyOptions,
@@ -104,7 +104,7 @@ def main() -> None:
     states, names = bench.states, [s.name for s in bench.states]
     sizes = sorted(int(v) for v in args.sizes.split(","))
     seeds = [int(v) for v in args.seeds.split(",")]
-    shipped_path = shipped_ensembles_path(bench)
+    shipped_path = artefacts.shipped_path("ensembles", bench.name)
     out = Path(args.out or tempfile.mkdtemp(prefix="wearbench-stability-"))
     if out.resolve() == shipped_path.parent.resolve():
         raise SystemExit(f"--out {out}: the shipped ensembles' folder; give a scratch folder")
@@ -170,7 +170,7 @@ def main() -> None:
                 new = sum(cache_load(k) is MISSING for k in realisation_keys(bench, states, bench.speed, settings))
                 t0, c0 = time.perf_counter(), cpu()
                 ensembles = build_ensembles(bench, states, settings=settings, cache=True, shipped=False,
-                                            progress=f"M {m} seed {seed}")
+                                            label=f"M {m} seed {seed}")
                 wall, used = time.perf_counter() - t0, cpu() - c0
                 save_ensembles(ensembles, out / f"{bench.name}-M{m}-seed{seed}.npz", bench=bench, states=states,
                                key=ensembles_key(bench, states, bench.speed, settings))

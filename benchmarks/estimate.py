@@ -149,7 +149,7 @@ def main() -> None:
         built = []
         for d in designs:  # a larger one reuses a shipped smaller one's realisations (build_estimator)
             t0 = time.perf_counter()
-            built.append((build_estimator(bench, d, progress=f"estimator ({d.settings.realisations})",
+            built.append((build_estimator(bench, d, label=f"estimator ({d.settings.realisations})",
                                           shipped=args.shipped), time.perf_counter() - t0))
         t0 = time.perf_counter()
 

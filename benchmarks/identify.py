@@ -48,6 +48,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from wearbench.compute.options import QUIET
 
 
 def main() -> None:
@@ -134,7 +135,7 @@ def main() -> None:
     calibrations = [(known[s.name], seed) for s, seed in truths] if args.calibrate else []
     with compute_client(workers=args.workers):
         t0 = time.perf_counter()
-        ensembles = build_ensembles(bench, states, settings=settings, cache=True, progress="ensembles")
+        ensembles = build_ensembles(bench, states, settings=settings, cache=True, label="ensembles")
         t_ens = time.perf_counter() - t0
         t0 = time.perf_counter()
         revolutions = truth_revolutions(args.cycles + 1)
@@ -162,7 +163,7 @@ def main() -> None:
     t_record = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    assess_sessions([paths[0]], ensembles=build_ensembles(bench, states, settings=settings, progress=None))
+    assess_sessions([paths[0]], ensembles=build_ensembles(bench, states, settings=settings, compute=QUIET))
     t_one = time.perf_counter() - t0
     options = IdentifyOptions()
     models = fit_states(ensembles, options)

@@ -17,6 +17,7 @@ import argparse
 from dataclasses import replace
 
 import numpy as np
+from wearbench.compute.options import QUIET
 
 
 def main() -> None:
@@ -39,7 +40,7 @@ def main() -> None:
     bench = load_bench(shipped_bench("ninebar-testbed"))
     states = [s for s in bench.states if s.clearances and max(s.clearances.values()) < 0.5e-3]
     settings = EnsembleSettings()
-    models = fit_states(build_ensembles(bench, bench.states, settings=settings, progress=None))
+    models = fit_states(build_ensembles(bench, bench.states, settings=settings, compute=QUIET))
     jobs = [(s, 1000 + k) for s in states for k in range(args.draws)]
     long = replace(settings, cycles=args.cycles)  # an ensemble realisation, only longer
     results = run_tasks([Task(realisation_summary, {"bench": bench, "state": s, "seed": seed, "speed": bench.speed,

@@ -28,6 +28,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from wearbench.compute.options import QUIET
 from windows import chain_delay, delay_rates, record_truths, tap_latencies, truth_specs
 
 
@@ -75,7 +76,7 @@ def main() -> None:
     print(f"  tap test error: median {np.median(errors) * 1e6:.2f} us, largest {errors.max() * 1e6:.2f} us "
           f"({len(errors)} truths)")
 
-    ensembles = build_ensembles(bench, bench.states, settings=EnsembleSettings(), progress=None)
+    ensembles = build_ensembles(bench, bench.states, settings=EnsembleSettings(), compute=QUIET)
     ways = {"stated, latency from wearbench taptest": lambda p, d: replace(chain, latency=round(tapped[p][0], 6)),
             "stated, latency copied from the truth": lambda p, d: replace(chain, latency=round(d, 5)),
             "signal alone (no statement)": lambda p, d: None}

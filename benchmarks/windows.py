@@ -46,6 +46,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from wearbench.compute.options import QUIET
 
 
 def chain_delay(config, bench) -> tuple[float, float]:
@@ -224,7 +225,7 @@ def delay_rates(bench, truths, tapped, ensembles, options, ways=None) -> None:
           f"{'flagged disagrees':>18s}")
     for label, statement in ways.items():
         sessions = [_with_chain(load_session(p, label=f"{name} #{p.stem}"), statement(p, d)) for name, p, d in truths]
-        assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, progress=None)
+        assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, compute=QUIET)
         err, bound, flag = [], [], []
         for (truth, path, _), s, a in zip(truths, sessions, assessed, strict=True):
             sw = a.windows[truth]
@@ -301,7 +302,7 @@ def report(bench, states, truths, args, folder: Path) -> None:
     from wearbench.validation.workflows.assess import assess_sessions
 
     names = [s.name for s in states]
-    ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), progress=None)
+    ensembles = build_ensembles(bench, states, settings=EnsembleSettings(), compute=QUIET)
     options = WindowOptions(alpha=args.alpha)
     if args.separation_only:
         separation_table(ensembles, names, options, args.alpha)
@@ -318,10 +319,10 @@ def report(bench, states, truths, args, folder: Path) -> None:
     timings = []  # the calibration (fit, window nulls) is computed the first time, then cached
     for _ in range(2):
         t0, c0 = time.perf_counter(), time.process_time()
-        assess_sessions([sessions[0]], ensembles=ensembles, window_options=options, progress=None)
+        assess_sessions([sessions[0]], ensembles=ensembles, window_options=options, compute=QUIET)
         timings.append((time.perf_counter() - t0, time.process_time() - c0))
     t0 = time.perf_counter()
-    assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, progress=None)
+    assessed = assess_sessions(sessions, ensembles=ensembles, window_options=options, compute=QUIET)
     t_all = time.perf_counter() - t0
     rows = []  # (truth, state, window, true delay)
     for (truth, _, delay), a in zip(truths, assessed, strict=True):

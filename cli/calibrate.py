@@ -52,13 +52,11 @@ def run(args: argparse.Namespace) -> int:
         check_calibration_output,
         save_calibration,
     )
-    from wearbench.validation.inference.ensemble import load_ensembles
     from wearbench.validation.workflows.measure import calibrate_sessions
 
-    ensembles = load_ensembles(args.ensembles) if args.ensembles else None
-    cal = calibrate_sessions(args.sessions, args.state, candidates=args.candidates, ensembles=ensembles,
+    cal = calibrate_sessions(args.sessions, args.state, candidates=args.candidates, ensembles=args.ensembles,
                              mount=args.mount, before=lambda key: check_calibration_output(key, args.dir, force=args.force),
-                             **compute_options(args))
+                             compute=compute_options(args))
     path = save_calibration(cal, args.dir, force=args.force)
     print(cal.describe())
     sd = cal.path.theta_cov.diagonal() ** 0.5

@@ -69,22 +69,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def demo_estimator(bench, progress: str | None = "estimator"):
+def demo_estimator(bench):
     """The test bed's shipped estimator when its key matches, else ``EstimatorDesign.small()`` (cached)."""
+    from wearbench.validation.inference import artefacts
     from wearbench.validation.inference.estimate import (
         EstimatorDesign,
         build_estimator,
         estimator_key,
         load_estimator,
-        shipped_estimator_path,
     )
 
-    shipped = shipped_estimator_path(bench)
+    shipped = artefacts.shipped_path("estimator", bench.name)
     if shipped.exists():
         found = load_estimator(shipped, key=estimator_key(bench, EstimatorDesign(), bench.speed))
         if found is not None:
             return found
-    return build_estimator(bench, EstimatorDesign.small(), shipped=False, progress=progress)
+    return build_estimator(bench, EstimatorDesign.small(), shipped=False)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -111,8 +111,9 @@ def run(args: argparse.Namespace) -> int:
     force = claim_folder(args.out, paths, report_dir, force=args.force)
     sessions_dir.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
-    with compute_client(**compute_options(args)):
-        ensembles = build_ensembles(bench, candidates, settings=EnsembleSettings(), progress="theory ensembles")
+    compute = compute_options(args)
+    with compute_client(compute.scheduler, compute.workers):
+        ensembles = build_ensembles(bench, candidates, settings=EnsembleSettings(), label="theory ensembles")
         estimator = demo_estimator(bench)
         revolutions = truth_revolutions(args.cycles)
         tasks = [Task(prepare_truth, {"bench": bench, "state": s, "seed": seeds[s.name], "revolutions": revolutions},

@@ -34,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-ensembles.npz)")
     add_force_argument(p)
     p.add_argument("--ship", action="store_true",
-                   help="save where wearbench looks for a shipped bench's precomputed ensembles (maintainers)")
+                   help="save where wearbench looks for a shipped bench's precomputed ensembles (maintainers: only "
+                   "in a source checkout, and replacing the shipped file only with --force)")
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
@@ -44,12 +45,12 @@ def run(args: argparse.Namespace) -> int:
 
     from wearbench.bench.load import load_bench, load_states, resolve_bench
     from wearbench.bench.output_file import check_output, output_file
+    from wearbench.validation.inference import artefacts
     from wearbench.validation.inference.ensemble import (
         EnsembleSettings,
         build_ensembles,
         ensembles_key,
         save_ensembles,
-        shipped_ensembles_path,
     )
     from wearbench.validation.inference.sensor_path import PathSpread
 
@@ -61,16 +62,20 @@ def run(args: argparse.Namespace) -> int:
              if args.speed else bench.speed)
     settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.cycles,
                                 sensor_paths=PathSpread() if args.sensor_paths == "drawn" else None)
-    out = shipped_ensembles_path(bench) if args.ship else Path(args.out or f"{bench.name}-ensembles.npz")
-    check_output(out, force=args.force or args.ship)  # refused before the realisations run
+    replaced = None
+    if args.ship:  # a maintainer's: only in a source checkout, replacing the shipped file only with --force
+        out, replaced = artefacts.ship_target("ensembles", bench.name, force=args.force)
+    else:
+        out = check_output(Path(args.out or f"{bench.name}-ensembles.npz"), force=args.force)
     # built fresh (no shipped file is consulted), so --ship really refreshes it
     ensembles = build_ensembles(bench, states, speed=speed, settings=settings, shipped=False,
-                                **compute_options(args, bench))
-    with output_file(out, force=args.force or args.ship) as tmp:
+                                compute=compute_options(args, bench))
+    with output_file(out, force=args.force, option="--ship" if args.ship else "--out") as tmp:
         save_ensembles(ensembles, tmp, key=ensembles_key(bench, states, speed, settings), bench=bench, states=states)
     for name, e in ensembles.items():
         failed = f", {len(e.failures)} failed" if e.failures else ""
         print(f"{name}: {e.realisations} realisations x {e.features.shape[1]} cycles{failed}")
     print(f"sensor paths: {'drawn per realisation' if settings.sensor_paths else 'none (the model as it is)'}")
-    print(f"saved: {out}")
+    print(f"saved: {out}" + (f" (replaced the shipped {replaced.describe()}, key {replaced.key[:12]})"
+                             if replaced else ""))
     return 0

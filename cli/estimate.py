@@ -40,15 +40,13 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wearbench.bench.output_file import check_output, output_file, output_folder
-    from wearbench.validation.inference.estimate import load_estimator
     from wearbench.validation.workflows.measure import estimate_sessions
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the estimator is built
             check_output(path, force=args.force, option=option, folder=folder)
-    estimator = load_estimator(args.estimator) if args.estimator else None
-    results = estimate_sessions(args.sessions, design=design_from_args(args), estimator=estimator,
-                                **calibration_options(args), **compute_options(args))
+    results = estimate_sessions(args.sessions, design=design_from_args(args), estimator=args.estimator,
+                                **calibration_options(args), compute=compute_options(args))
     for e in results:
         print(f"{e.session} ({e.cycles} cycles): {e.verdict}")
         if e.explains:

@@ -46,8 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", metavar="FILE.npz", help="where to save (default: BENCHNAME-estimator.npz)")
     add_force_argument(p)
     p.add_argument("--ship", action="store_true",
-                   help="save where wearbench looks for a shipped bench's precomputed estimator, replacing it "
-                   "(maintainers)")
+                   help="save where wearbench looks for a shipped bench's precomputed estimator (maintainers: only "
+                   "in a source checkout, and replacing the shipped file only with --force)")
     p.add_argument("--lives", type=positive_int, metavar="N",
                    help="also simulate N lives of the bench (known truth, sessions at five cycles-run values) on the "
                    "compute layer and store the benches' move from new to worn beyond the estimator's beside it "
@@ -70,39 +70,46 @@ def run(args: argparse.Namespace) -> int:
 
     from wearbench.bench.load import load_bench, resolve_bench
     from wearbench.bench.output_file import check_output, output_file
+    from wearbench.validation.inference import artefacts
     from wearbench.validation.inference.estimate import (
         build_estimator,
         estimator_key,
         load_estimator,
         save_estimator,
-        shipped_estimator_path,
     )
     from wearbench.validation.inference.move import move_path, save_move
 
     bench = load_bench(resolve_bench(args.bench))
     design = design_from_args(args)
-    out = shipped_estimator_path(bench) if args.ship else Path(args.out or f"{bench.name}-estimator.npz")
-    force = args.force or args.ship  # --ship refreshes the package's own file
+    out = artefacts.shipped_path("estimator", bench.name) if args.ship else Path(args.out or f"{bench.name}-estimator.npz")
+    option = "--ship" if args.ship else "--out"
     key = estimator_key(bench, design, bench.speed)
     kept = load_estimator(out, key=key) if args.lives and out.is_file() else None
-    if kept is None:
-        check_output(out, force=force)  # refused before the design is simulated
+    replaced = None
+    if kept is None:  # refused before the design is simulated
+        if args.ship:
+            out, replaced = artefacts.ship_target("estimator", bench.name, force=args.force)
+        else:
+            check_output(out, force=args.force)
     if args.lives:
-        check_output(move_path(out), force=force, option="--lives")
-    est = kept or build_estimator(bench, design, **compute_options(args, bench))  # grows a shipped smaller one
+        if args.ship:
+            artefacts.check_shipping(move_path(out))
+        check_output(move_path(out), force=args.force, option="--lives")
+    est = kept or build_estimator(bench, design, compute=compute_options(args, bench))  # grows a shipped smaller one
     if kept is None:
-        with output_file(out, force=force) as tmp:
+        with output_file(out, force=args.force, option=option) as tmp:
             save_estimator(est, tmp)
     print(f"{len(design.clearances)} clearances x {len(design.cycles)} cycles-run values, "
           f"{est.features.shape[2]} realisations x {est.features.shape[3]} cycles each; largest wear depth "
           f"{est.depth.max() * 1e6:.1f} um")
-    print(f"{'kept (this design, key matches)' if kept is not None else 'saved'}: {out}")
+    print(f"{'kept (this design, key matches)' if kept is not None else 'saved'}: {out}"
+          + (f" (replaced the shipped {replaced.describe()}, key {replaced.key[:12]})" if replaced else ""))
     if args.lives:
         from wearbench.synthetic.lives import measure_move
 
         move = measure_move(bench, est, lives=args.lives, factor=args.life_factor, spread=args.life_sensor_paths,
-                            cycles=args.life_cycles, seed=args.life_seed, **compute_options(args, bench))
-        with output_file(move_path(out), force=force, option="--lives") as tmp:
+                            cycles=args.life_cycles, seed=args.life_seed, compute=compute_options(args, bench))
+        with output_file(move_path(out), force=args.force, option="--lives") as tmp:
             save_move(move, tmp)
         print(f"move from new to worn {move.describe()}: largest |mean| / its standard error "
               f"{float((abs(move.mean) / move.covariance.diagonal() ** 0.5).max()):.1f}")

@@ -56,10 +56,11 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.cli.progress import console as progress_console
     from wearbench.reports.assessment import write_assessment_report
     from wearbench.validation.inference.ensemble import EnsembleSettings
-    from wearbench.validation.inference.estimate import EstimatorDesign, load_estimator
+    from wearbench.validation.inference.estimate import Estimator, EstimatorDesign, load_estimator
     from wearbench.validation.inference.identify import IdentifyOptions
     from wearbench.validation.workflows.assess import assess_sessions
     from wearbench.validation.workflows.measure import estimate_assessed
+    from wearbench.validation.workflows.session_set import SessionSet
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the ensembles are built
@@ -68,10 +69,15 @@ def run(args: argparse.Namespace) -> int:
     estimator = (load_estimator(args.estimator) if args.estimator
                  else EstimatorDesign() if args.estimate else None)
     options = IdentifyOptions(threshold=args.threshold)
-    assessed = assess_sessions(args.sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
-                               options=options, **calibration_options(args), **compute_options(args))
+    sessions = SessionSet(args.sessions, **calibration_options(args))
+    # ready-made theory is checked against every session before any is built
+    sessions.check_artefacts(ensembles=args.ensembles, candidates=args.candidates,
+                             estimator=estimator if isinstance(estimator, Estimator) else None)
+    compute = compute_options(args)
+    assessed = assess_sessions(sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
+                               options=options, compute=compute)
     if estimator is not None:
-        estimate_assessed(assessed, estimator, options=options, **calibration_options(args), **compute_options(args))
+        estimate_assessed(assessed, estimator, options=options, **calibration_options(args), compute=compute)
     results = [a.identification for a in assessed]
     states = list(results[0].posterior)
     table = Table(title=f"posterior probability of each state (named at p >= {args.threshold:g})")

@@ -63,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
     plan = plan_from_args(args, bench, 1)
     sizes = {k: getattr(args, k) for k in _SIZES if getattr(args, k) is not None}
     config = StudyConfig.quick(plan, **sizes) if args.quick else StudyConfig(plan=plan, **sizes)
-    config = replace(config, **compute_options(args, bench))
+    compute = compute_options(args, bench)
+    config = replace(config, scheduler=compute.scheduler, workers=compute.workers)
     with output_folder(args.out, force=args.force) as out:
         summary = run_study(bench, out, config)
     if args.json:

@@ -88,7 +88,9 @@ def run(args: argparse.Namespace) -> int:
                      settle=args.dyn_settle, output_rate=args.output_rate)
     n = len(spec.points()) * spec.realisations
     check_output(args.out, force=args.force, folder=True)  # refused before the runs
-    result = run_sweep(bench, spec, progress=f"sweep {bench.name} ({n} runs)", **compute_options(args, bench))
+    compute = compute_options(args, bench)
+    result = run_sweep(bench, spec, progress=f"sweep {bench.name} ({n} runs)", scheduler=compute.scheduler,
+                       workers=compute.workers)
     with output_folder(args.out, force=args.force) as tmp:
         summary = write_sweep(result, spec, tmp, plots=not args.no_plots)
     if args.json:

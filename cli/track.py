@@ -47,7 +47,6 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.bench.output_file import check_output, output_file
     from wearbench.bench.units import parse_quantity
     from wearbench.reports.track import track_figure
-    from wearbench.validation.inference.estimate import load_estimator
     from wearbench.validation.workflows.measure import track_sessions
 
     runs = None
@@ -63,9 +62,8 @@ def run(args: argparse.Namespace) -> int:
         if path:  # refused before the estimator is built
             check_output(path, force=args.force, option=option)
     limit = parse_quantity(args.limit, "length", bare_unit="mm") if args.limit else None
-    estimator = load_estimator(args.estimator) if args.estimator else None
-    t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=estimator,
-                       move=not args.no_move, **calibration_options(args), **compute_options(args))
+    t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=args.estimator,
+                       move=not args.no_move, **calibration_options(args), compute=compute_options(args))
     for label, n, d in zip(t.sessions, t.cycles_run, t.depth, strict=True):
         print(f"{label}: {n:,.0f} cycles run, wear depth {d.median * 1e6:.1f} um (90 % {d.lo90 * 1e6:.1f}-"
               f"{d.hi90 * 1e6:.1f})")

@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     clearances = parse_clearances(args.clearance, bench) or None
     speed = parse_speed(args.speed)
     plan = plan_from_args(args, bench, args.stages)
-    compute = compute_options(args, bench) if args.convergence else {}  # a bad scheduler fails now, not after the run
+    compute = compute_options(args, bench) if args.convergence else None  # a bad scheduler fails now, not after the run
     ks = _refinements(args.convergence) if args.convergence else []
     initial = surfaces_from_bench(bench) or None
     check_output(args.out, force=args.force, folder=True)  # refused before the wear run
@@ -132,7 +132,8 @@ def run(args: argparse.Namespace) -> int:
 
             total = plan.stage_cycles * plan.stages
             rows = staging_convergence(bench, ks, total, plan, clearances=clearances, speed=speed, initial=initial,
-                                       out=out, known={plan.refinement: wear_run}, **compute)
+                                       out=out, known={plan.refinement: wear_run}, scheduler=compute.scheduler,
+                                       workers=compute.workers)
             summary["convergence"] = rows
             paths["summary"].write_text(json.dumps(summary, indent=2, default=float) + "\n")
     if ks and not args.json:

@@ -20,6 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 from wearbench.bench.schema import Bench
+from wearbench.compute.options import DEFAULT, Compute
 from wearbench.validation.inference.estimate import Estimator
 
 __all__ = ["life_features", "life_means", "life_plan", "measure_move", "move_with_rate", "truth_features"]
@@ -139,8 +140,7 @@ def move_with_rate(model, lives, about: dict, *, cycles: int, benches=None):
 
 
 def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float = 1.3, spread: bool = False,
-                 cycles: int = 20, seed: int = 100_000, scheduler: str | None = None, workers: int | None = None,
-                 progress: str | None = "lives"):
+                 cycles: int = 20, seed: int = 100_000, compute: Compute = DEFAULT):
     """The benches' move from new to worn beyond ``est``'s mean change (``track_move.Move``), with the
     features' rate along the lives against clearance (``track.life_rate``), measured
     on ``lives`` simulated lives of ``bench`` (:func:`life_plan`; ``spread``: each with a drawn sensor
@@ -148,7 +148,7 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     emulated sensor chain, the life). A failed life raises (a move measured on fewer lives than asked
     would say otherwise)."""
     from wearbench.bench.content import bench_key, canonical
-    from wearbench.compute import Task, TaskFailure, run_tasks, task_key
+    from wearbench.compute import Task, TaskFailure, task_key
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.validation.inference.estimate import fit_estimator
 
@@ -158,7 +158,7 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
                                   "seed": s, "cycles": cycles, "spread": spread},
                   task_key("estimator-life", est.key, bench_key(bench), chain, c, factor, step, s, cycles, spread),
                   f"life {s}") for c, s in plan]
-    runs = run_tasks(tasks, scheduler=scheduler, workers=workers, progress=progress)
+    runs = compute.run(tasks, label="lives")
     failed = [r for r in runs if isinstance(r, TaskFailure)]
     if failed:
         raise RuntimeError(f"{len(failed)} of {lives} simulated lives failed; the first: {failed[0]}")

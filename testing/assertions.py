@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 from wearbench.acquisition.session_file import Session, read_session
+from wearbench.compute.options import QUIET
 from wearbench.testing import mcap_readers
 from wearbench.testing.recording import (
     STREAMS,
@@ -107,7 +108,7 @@ def assert_identifies(recorded: RecordedSession | Session | str | Path, state: s
     from wearbench.validation.workflows.assess import assess_sessions
 
     path = _path(recorded)
-    (assessed,) = assess_sessions([path], candidates=candidates, ensembles=ensembles, progress=None, **assess)
+    (assessed,) = assess_sessions([path], candidates=candidates, ensembles=ensembles, compute=QUIET, **assess)
     r = assessed.identification
     p = r.posterior.get(state)
     assert p is not None, f"{path}: {state!r} is not a candidate state: {sorted(r.posterior)}"

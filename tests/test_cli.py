@@ -44,20 +44,20 @@ def test_estimator_defaults_are_the_shipped_estimator():
     """`wearbench estimator`'s design defaults are EstimatorDesign()'s, and the test bed's shipped
     estimator has that design's key: `estimate`, `identify --estimate` and the demo use it instead of
     building one (regenerate it when this fails: `wearbench estimator
-    hardware/benches/ninebar-testbed.toml --ship`, then its move, README "How large ...")."""
+    ninebar-testbed --ship --force`, then its move, README "How large ...")."""
     from wearbench.bench.load import load_bench
     from wearbench.cli.estimator import design_from_args
+    from wearbench.validation.inference.artefacts import shipped_path
     from wearbench.validation.inference.estimate import (
         EstimatorDesign,
         estimator_key,
         load_estimator,
-        shipped_estimator_path,
     )
 
     assert design_from_args(build_parser().parse_args(["estimator", "b.toml"])) == EstimatorDesign()
     bench = load_bench(shipped_bench("ninebar-testbed"))
     key = estimator_key(bench, EstimatorDesign(), bench.speed)
-    assert load_estimator(shipped_estimator_path(bench), key=key) is not None, "stale: the model, bench or design changed"
+    assert load_estimator(shipped_path("estimator", bench.name), key=key) is not None, "stale: the model, bench or design changed"
 
 
 def test_bench_check_reports_degrees_of_freedom(capsys):

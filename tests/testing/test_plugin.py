@@ -175,11 +175,12 @@ def test_a_non_twin_session_on_the_pty_identifies_as_its_state(serial_bench, rec
     """The model's physics through the serial emulator (a bench drawn with a seed no ensemble
     uses), recorded, then assert_identifies against small ensembles of two candidates: the true
     state passes, the other fails with a message naming its probability."""
+    from wearbench.compute.options import QUIET
     from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
 
     states = [s for s in wearbench_bench.states if s.name in ("0.3 mm new", "0.6 mm new")]
     ensembles = build_ensembles(wearbench_bench, states, settings=EnsembleSettings(realisations=4, cycles=6),
-                                shipped=False, progress=None)
+                                shipped=False, compute=QUIET)
     bench = serial_bench(state="0.6 mm new", seed=7021, table={"signal": "model", "revolutions": 14})
     rec = record_session(bench, cycles=8)
     assert rec.completed, rec.reason

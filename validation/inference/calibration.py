@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 from wearbench.bench.output_file import check_output, output_file
+from wearbench.validation.inference import artefacts
 from wearbench.validation.inference.sensor_path import SensorPath, calibrate_path, design_matrix
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
@@ -71,7 +72,15 @@ class Calibration:
     path: SensorPath
     p_value: float  # consistency of the calibration sessions with the known state once the path is fitted
     created: str
-    features: tuple[float, ...] = ()  # the sessions' mean cycle features (the spec's, all): ``calibrated.py``
+    features: tuple[float, ...] = ()  # the sessions' mean cycle features (the spec's, all): ``relative_states.py``
+    bench_key: str = ""  # the bench's physics and tolerances (``bench.content.bench_key``)
+
+    @property
+    def about(self) -> artefacts.About:
+        """Its artefact record: for its bench's sensor (and mount), at any speed."""
+        return artefacts.About("calibration", self.key, self.bench, self.bench_key, float("nan"),
+                               f"calibrated from {self.cycles} cycles of {self.state!r}"
+                               + (f", mount {self.mount}" if self.mount else ""))
 
     def describe(self) -> str:
         g = self.path.gains_db()
@@ -79,20 +88,21 @@ class Calibration:
         return (f"calibration {self.key[:12]} ({self.bench}{', mount ' + self.mount if self.mount else ''}: "
                 f"{self.cycles} cycles of {self.state!r}, {self.created}; gain {g['gain']:.3f}, bands {bands})")
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"key": self.key, "bench": self.bench, "state": self.state, "sessions": list(self.sessions),
                 "cycles": self.cycles, "mount": self.mount, "path": self.path.as_dict(), "p_value": self.p_value,
-                "created": self.created, "features": list(self.features)}
+                "created": self.created, "features": list(self.features), "bench_key": self.bench_key}
 
     @classmethod
     def from_dict(cls, d: dict) -> Calibration:
         return cls(d["key"], d["bench"], d["state"], tuple(d["sessions"]), int(d["cycles"]), d.get("mount", ""),
                    SensorPath.from_dict(d["path"]), float(d["p_value"]), d["created"],
-                   tuple(float(v) for v in d.get("features", ())))
+                   tuple(float(v) for v in d.get("features", ())), d.get("bench_key", ""))
 
 
 def fit_calibration(features: Sequence[CycleFeatures], models_exact, state: str, *, key: str, bench: str,
-                    labels: Sequence[str], mount: str = "", prior: SensorPath | None = None) -> Calibration:
+                    labels: Sequence[str], mount: str = "", prior: SensorPath | None = None,
+                    bench_key: str = "") -> Calibration:
     """Calibration from the cycle ``features`` of sessions of the known ``state``; ``models_exact``:
     ``StateModels`` fitted with the sensor path taken as exact (``IdentifyOptions(sensor_path="none")``)."""
     from scipy import stats
@@ -116,7 +126,7 @@ def fit_calibration(features: Sequence[CycleFeatures], models_exact, state: str,
     full[models_exact.columns] = xbar
     return Calibration(key, bench, state, tuple(labels), n, mount, path, p,
                        time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()) + " UTC",
-                       tuple(float(v) for v in full) if np.isfinite(full).all() else ())
+                       tuple(float(v) for v in full) if np.isfinite(full).all() else (), bench_key)
 
 
 def calibration_path(key: str, directory: str | Path | None = None) -> Path:
@@ -145,15 +155,17 @@ def save_calibration(cal: Calibration, directory: str | Path | None = None, *, f
     (FileExistsError) unless ``force``, and it is replaced only once the new one is complete."""
     path = check_calibration_output(cal.key, directory, force=force)
     with output_file(path, force=force, option="calibration") as tmp:
-        tmp.write_text(json.dumps(cal.as_dict(), indent=1), encoding="utf-8")
+        artefacts.write_json(tmp, cal.about, cal.to_dict())
     return path
 
 
 def load_calibration(path: str | Path) -> Calibration:
+    """A calibration saved by :func:`save_calibration` (ArtefactError for a file that is not one)."""
+    _, content = artefacts.read_json(path, "calibration")
     try:
-        return Calibration.from_dict(json.loads(Path(path).read_text(encoding="utf-8")))
+        return Calibration.from_dict(content)
     except (KeyError, TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: not a wearbench calibration file ({exc})") from None
+        raise artefacts.ArtefactError(f"{path}: a calibration missing or damaging {exc}") from None
 
 
 def find_calibration(key: str, directory: str | Path | None = None) -> Calibration | None:

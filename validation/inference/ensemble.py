@@ -15,21 +15,21 @@ tolerances, seed, settings and the model's source digest.
 from __future__ import annotations
 
 import json
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 from wearbench.bench.content import bench_key, file_digest
-from wearbench.bench.output_file import save_npz
 from wearbench.bench.schema import Bench, WearState
+from wearbench.compute.options import DEFAULT, Compute
+from wearbench.validation.inference import artefacts
 from wearbench.validation.inference.sensor_path import PathSpread
 from wearbench.validation.measurement.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.measurement.filters import parse_filter
 
 __all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "build_ensembles", "check_ensembles_fit",
-           "ensembles_key", "load_ensembles", "realisation_keys", "realisation_summary", "save_ensembles", "shipped_ensembles_path"]
+           "ensembles_key", "load_ensembles", "realisation_keys", "realisation_summary", "save_ensembles", "sensor_paths_text"]
 
 @dataclass(frozen=True)
 class EnsembleSettings:
@@ -129,17 +129,17 @@ def realisation_keys(bench: Bench, states: Sequence[WearState], speed: float,
                      round(speed, 9), how) for state in states for i in range(settings.realisations)]
 
 
-def shipped_ensembles_path(bench: Bench) -> Path:
-    """Where precomputed ensembles of a shipped bench live (``hardware/benches/ensembles/NAME.npz``)."""
-    from wearbench.bench.load import BENCH_DIR
-
-    return BENCH_DIR / "ensembles" / f"{bench.name}.npz"
+def sensor_paths_text(settings: EnsembleSettings) -> str:
+    """The sensor path ensembles of ``settings`` assume, in words (their artefact's record)."""
+    if settings.sensor_paths is None:
+        return "none (the model's acceleration as it is)"
+    lo, hi = settings.sensor_paths.mode
+    return f"drawn per realisation (a mount mode {lo:g}-{hi:g} Hz)"
 
 
 def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float | None = None,
-                    settings: EnsembleSettings = EnsembleSettings(), scheduler: str | None = None,
-                    workers: int | None = None, cache: bool = True, shipped: bool = True,
-                    progress: str | None = "theory ensembles") -> dict[str, Ensemble]:
+                    settings: EnsembleSettings = EnsembleSettings(), compute: Compute = DEFAULT,
+                    cache: bool = True, shipped: bool = True, label: str = "theory ensembles") -> dict[str, Ensemble]:
     """Ensembles of every candidate ``state`` of ``bench`` at commanded motor ``speed`` (rad/s).
 
     Precomputed ensembles shipped for the bench are used (``shipped``) when their content key matches
@@ -147,7 +147,7 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     go to the compute layer as one batch. A realisation that fails numerically is reported in
     ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
     """
-    from wearbench.compute import Task, TaskFailure, run_tasks
+    from wearbench.compute import Task, TaskFailure
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
@@ -159,10 +159,10 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
                 JointSurfaces.load(surface)
             except (OSError, ValueError) as exc:
                 raise ValueError(f"candidate state {state.name!r}, joint {joint}: {exc}") from None
-    if shipped and cache and shipped_ensembles_path(bench).exists():
-        found = load_ensembles(shipped_ensembles_path(bench), key=ensembles_key(bench, states, speed, settings))
+    if shipped and cache:
+        found = artefacts.shipped("ensembles", bench.name, ensembles_key(bench, states, speed, settings))
         if found is not None:
-            return found
+            return _from_arrays(found[1])
     tasks, owners = [], []
     keys = iter(realisation_keys(bench, states, speed, settings))
     for state in states:
@@ -171,7 +171,7 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
             tasks.append(Task(realisation_summary, {"bench": bench, "state": state, "seed": seed, "speed": speed,
                                                     "settings": settings}, next(keys), f"{state.name} #{i}"))
             owners.append(state.name)
-    results = run_tasks(tasks, scheduler=scheduler, workers=workers, cache=cache, progress=progress)
+    results = compute.run(tasks, label=label, cache=cache)
     out: dict[str, Ensemble] = {}
     for state in states:
         mine = [r for r, o in zip(results, owners, strict=True) if o == state.name]
@@ -192,78 +192,61 @@ MIN_REALISATIONS = 4  # identification fits each state without one realisation a
 
 def save_ensembles(ensembles: Mapping[str, Ensemble], path: str | Path, *, key: str, bench: Bench,
                    states: Sequence[WearState]) -> Path:
-    """Write ensembles to one ``.npz`` (float32 curves) tagged with ``key`` (see :func:`ensembles_key`)
-    and with what they fit: the bench (name and :func:`bench_key`) and the candidate states' keys
-    (the speed is each ensemble's), checked by :func:`check_ensembles_fit` before a session uses them."""
-    fit = {"bench": bench.name, "bench_key": bench_key(bench), "states": [_state_key(s) for s in states]}
-    arrays: dict[str, np.ndarray] = {"key": np.array(key), "states": np.array(list(ensembles)),
-                                     "fit": np.array(json.dumps(fit))}
+    """Write ensembles to one artefact file (float32 curves) keyed ``key`` (:func:`ensembles_key`), naming
+    the bench, speed and sensor path they were built for and the candidate states' keys, which
+    :func:`check_ensembles_fit` checks before a session uses them."""
+    first = next(iter(ensembles.values()))
+    about = artefacts.About.of("ensembles", key, bench, first.speed, sensor_paths_text(first.settings))
+    arrays: dict[str, np.ndarray] = {"states": np.array(list(ensembles)),
+                                     "candidates": np.array(json.dumps([_state_key(s) for s in states]))}
     for i, e in enumerate(ensembles.values()):
         arrays[f"features_{i}"] = e.features
         arrays[f"curves_{i}"] = e.curves.astype(np.float32)
         arrays[f"peaks_{i}"] = e.peaks
         arrays[f"meta_{i}"] = np.array(json.dumps({"speed": e.speed, "failures": list(e.failures),
                                                    "settings": asdict(e.settings)}))
-    return save_npz(path, **arrays)
+    return artefacts.write(path, about, arrays)
 
 
-def _not_ensembles(path: Path, why: str) -> ValueError:
-    return ValueError(f"{path}: not an ensembles file saved by 'wearbench ensemble' ({why})")
+def _from_arrays(data: Mapping[str, np.ndarray]) -> dict[str, Ensemble]:
+    out = {}
+    for i, name in enumerate(data["states"]):
+        meta = json.loads(str(data[f"meta_{i}"]))
+        settings = EnsembleSettings.from_dict(meta["settings"])
+        out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"], data[f"curves_{i}"].astype(float),
+                                  data[f"peaks_{i}"], float(meta["speed"]), tuple(meta["failures"]))
+    return out
 
 
 def load_ensembles(path: str | Path, *, key: str | None = None) -> dict[str, Ensemble] | None:
     """Ensembles saved by :func:`save_ensembles`; None when ``key`` is given and differs (stale).
-    A file that is not one (another .npz, a cut file) raises one ValueError naming it."""
-    path = Path(path)
-    if path.is_file() and not zipfile.is_zipfile(path):
-        raise _not_ensembles(path, "not an .npz archive")
+    A file that is not one (another artefact, another .npz, a cut file) raises one ArtefactError."""
+    found = artefacts.read(path, "ensembles", key=key)
+    if found is None:
+        return None
     try:
-        with np.load(path, allow_pickle=False) as data:
-            if key is not None and str(data["key"]) != key:
-                return None
-            out = {}
-            for i, name in enumerate(data["states"]):
-                meta = json.loads(str(data[f"meta_{i}"]))
-                settings = EnsembleSettings.from_dict(meta["settings"])
-                out[str(name)] = Ensemble(str(name), settings, data[f"features_{i}"],
-                                          data[f"curves_{i}"].astype(float), data[f"peaks_{i}"],
-                                          float(meta["speed"]), tuple(meta["failures"]))
-    except FileNotFoundError:
-        raise OSError(f"{path}: no such ensembles file") from None
-    except KeyError as exc:
-        raise _not_ensembles(path, f"no array {exc.args[0]!r}") from None
-    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
-        raise _not_ensembles(path, f"{type(exc).__name__}: {exc}") from None
-    return out
+        return _from_arrays(found[1])
+    except (KeyError, ValueError, TypeError) as exc:
+        raise artefacts.ArtefactError(f"{path}: an ensembles file missing or damaging {exc}") from None
 
 
 def check_ensembles_fit(path: str | Path, ensembles: Mapping[str, Ensemble], *, bench: Bench | None,
                         states: Sequence[WearState] | None, speed: float, session: str) -> None:
-    """Refuse (one ValueError line naming the mismatch) ensembles from ``path`` that do not fit a
+    """Refuse (one ArtefactError line naming the mismatch) ensembles from ``path`` that do not fit a
     session of ``bench`` commanded at ``speed`` with candidate ``states`` (None: not known, unchecked)."""
     path = Path(path)
-    with np.load(path, allow_pickle=False) as data:
-        fit = json.loads(str(data["fit"])) if "fit" in data.files else None
-    if fit is None:
-        raise ValueError(f"{path}: saved without the bench, speed and candidates it was built for (an earlier "
-                         "wearbench); build it again with 'wearbench ensemble'")
+    about = artefacts.read_about(path, "ensembles")
     first = next(iter(ensembles.values()))
     if first.realisations < MIN_REALISATIONS:
-        raise ValueError(f"{path}: {first.realisations} realisations per state; identification needs at least "
-                         f"{MIN_REALISATIONS} (wearbench ensemble --realisations)")
-    if bench is not None and fit["bench_key"] != bench_key(bench):
-        same = "another version of " if fit["bench"] == bench.name else ""
-        raise ValueError(f"{path}: built for bench {fit['bench']!r}; session {session} was recorded on "
-                         f"{same}bench {bench.name!r} (other physics or tolerances): build its ensembles with "
-                         "'wearbench ensemble BENCH'")
-    if not np.isclose(first.speed, speed, rtol=1e-6, atol=1e-9):
-        raise ValueError(f"{path}: built at {first.speed:.6g} rad/s; session {session} was commanded at "
-                         f"{speed:.6g} rad/s: build its ensembles with 'wearbench ensemble BENCH --speed ...'")
-    if states is not None and [_state_key(s) for s in states] != fit["states"]:
-        built = [s["name"] for s in fit["states"]]
-        asked = [s.name for s in states]
-        what = "other clearances or worn surfaces" if built == asked else f"{asked}"
-        raise ValueError(f"{path}: built for the candidate states {built}; session {session}'s candidates "
-                         f"(--candidates, else its bench's [[state]] tables) are {what}")
-
-
+        raise artefacts.ArtefactError(f"{path}: {first.realisations} realisations per state; identification needs "
+                                      f"at least {MIN_REALISATIONS} (wearbench ensemble --realisations)")
+    about.check(path, bench=bench, speed=speed, session=session)
+    if states is not None:
+        with np.load(path, allow_pickle=False) as data:
+            built_keys = json.loads(str(data["candidates"]))
+        if [_state_key(s) for s in states] != built_keys:
+            built = [s["name"] for s in built_keys]
+            asked = [s.name for s in states]
+            what = "other clearances or worn surfaces" if built == asked else f"{asked}"
+            raise artefacts.ArtefactError(f"{path}: built for the candidate states {built}; session {session}'s "
+                                          f"candidates (--candidates, else its bench's [[state]] tables) are {what}")

@@ -16,7 +16,7 @@ parameters; an MCMC or a neural estimator adds nothing there):
    ``ensemble.build_ensembles``). ``N`` between design points is interpolated in the *features*,
    not in the surfaces: the features move smoothly with wear, surfaces worn partway are not
    linear in ``N`` where the contact zone moves. Together the design's ensembles are the estimator
-   artefact, keyed like the ensembles (:func:`estimator_key`, :func:`shipped_estimator_path`).
+   artefact, keyed like the ensembles (:func:`estimator_key`; shipped ones: ``artefacts.shipped_path``).
 2. **Statistics.** ``identify.fit_states`` over the design points as if they were candidate states:
    pooled between-bench and cycle-to-cycle covariances, the sensor path marginalised, and the
    temperature that calibrates the likelihood on held-out realisations. The feature mean between
@@ -40,17 +40,22 @@ parameters; an MCMC or a neural estimator adds nothing there):
 from __future__ import annotations
 
 import json
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from scipy import linalg, optimize, special, stats
-from wearbench.bench.output_file import save_npz
 from wearbench.bench.schema import Bench, WearState
 from wearbench.bench.units import parse_quantity
-from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings, build_ensembles
+from wearbench.compute.options import DEFAULT, Compute
+from wearbench.validation.inference import artefacts
+from wearbench.validation.inference.ensemble import (
+    Ensemble,
+    EnsembleSettings,
+    build_ensembles,
+    sensor_paths_text,
+)
 from wearbench.validation.inference.identify import (
     IdentifyOptions,
     default_sensor,
@@ -64,7 +69,7 @@ from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
 __all__ = ["Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval", "build_estimator",
            "estimate_features", "estimator_key", "fit_estimator", "load_estimator", "predictive_band",
-           "save_estimator", "shipped_estimator_path"]
+           "save_estimator"]
 
 NO_VALUE = "no parameter value explains it"
 
@@ -133,6 +138,7 @@ class Estimator:
     depth: np.ndarray  # (clearances, cycles) wear depth: largest bearing + journal max depth of any joint (m)
     speed: float
     path: Path | None = field(default=None, compare=False)  # the file it was loaded from (its move beside it)
+    about: artefacts.About | None = field(default=None, compare=False)  # its record, when loaded from a file
 
     @property
     def spec(self) -> FeatureSpec:
@@ -163,22 +169,15 @@ def estimator_key(bench: Bench, design: EstimatorDesign, speed: float) -> str:
                     round(speed, 9))
 
 
-def shipped_estimator_path(bench: Bench) -> Path:
-    """Where a precomputed estimator of a shipped bench lives (``hardware/benches/estimators/NAME.npz``)."""
-    from wearbench.bench.load import BENCH_DIR
-
-    return BENCH_DIR / "estimators" / f"{bench.name}.npz"
-
-
 def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *, speed: float | None = None,
-                    scheduler: str | None = None, workers: int | None = None, cache: bool = True,
-                    shipped: bool = True, progress: str | None = "estimator") -> Estimator:
+                    compute: Compute = DEFAULT, cache: bool = True, shipped: bool = True,
+                    label: str = "estimator") -> Estimator:
     """The estimator of ``bench``: a shipped one when its key matches, else the design's wear runs
     (one per clearance) and ensembles (one per design point) on the compute layer, cached by content.
     A shipped estimator of the same design with fewer realisations holds the first of them
     (realisation i is seed + i at every size): only the seeds it lacks are simulated."""
     from wearbench.bench.content import cache_folder
-    from wearbench.compute import Task, TaskFailure, run_tasks, task_key
+    from wearbench.compute import Task, TaskFailure, task_key
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
@@ -187,17 +186,17 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
         raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
     key = estimator_key(bench, design, speed)
     base, m0 = None, 0  # a shipped smaller estimator of this design and how many realisations it gives
-    if shipped and cache and shipped_estimator_path(bench).exists():
-        found = load_estimator(shipped_estimator_path(bench))
+    if shipped and cache and artefacts.shipped_path("estimator", bench.name).exists():
+        found = load_estimator(artefacts.shipped_path("estimator", bench.name))
         if found.key == key:
             return found
         base, m0 = found, _first_realisations(bench, design, speed, found)
     stages, stage = len(design.cycles) - 1, design.cycles[1]
     wkeys = [task_key("estimator-wear", key, c) for c in design.clearances]
-    runs = run_tasks([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages, "stage_cycles": stage,
+    runs = compute.run([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages, "stage_cycles": stage,
                                              "speed": speed}, k, f"wear {c * 1e3:.3g} mm")
                       for c, k in zip(design.clearances, wkeys, strict=True)],
-                     scheduler=scheduler, workers=workers, cache=cache, progress=progress and f"{progress}: wear")
+                     label=f"{label}: wear", cache=cache)
     failed = [r for r in runs if isinstance(r, TaskFailure)]
     if failed:
         raise RuntimeError(f"estimator {bench.name}: wear run failed: {failed[0]}")
@@ -217,9 +216,10 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
         m0 = 0  # its wear runs are not these: its realisations saw other surfaces
     settings = design.settings if not m0 else replace(design.settings, seed=design.settings.seed + m0,
                                                       realisations=design.settings.realisations - m0)
-    ens = build_ensembles(bench, states, speed=speed, settings=settings, scheduler=scheduler,
-                          workers=workers, cache=cache, shipped=False, progress=progress and f"{progress}: ensembles")
+    ens = build_ensembles(bench, states, speed=speed, settings=settings, compute=compute, cache=cache, shipped=False,
+                          label=f"{label}: ensembles")
     est = estimator_from_ensembles(bench.name, key, design, ens, depth, speed)
+    est = replace(est, about=artefacts.About.of("estimator", key, bench, speed, sensor_paths_text(design.settings)))
     if m0:
         c = min(base.features.shape[3], est.features.shape[3])
         est = replace(est, features=np.concatenate([base.features[:, :, :, :c], est.features[:, :, :, :c]], axis=2))
@@ -248,34 +248,30 @@ def estimator_from_ensembles(bench: str, key: str, design: EstimatorDesign, ense
 
 
 def save_estimator(est: Estimator, path: str | Path) -> Path:
-    return save_npz(path, key=np.array(est.key), features=est.features, depth=est.depth,
-                    meta=np.array(json.dumps({"bench": est.bench, "speed": est.speed,
-                                              "design": est.design.as_dict()})))
+    """Write ``est`` as an artefact naming the bench, speed and sensor path it was built for (an
+    estimator made by hand, not built from a bench, names no bench key)."""
+    about = est.about or artefacts.About("estimator", est.key, est.bench, "", est.speed,
+                                         sensor_paths_text(est.design.settings))
+    return artefacts.write(path, about, {"features": est.features, "depth": est.depth,
+                                         "design": np.array(json.dumps(est.design.as_dict()))})
 
 
 def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | None:
     """An estimator saved by :func:`save_estimator`; None when ``key`` is given and differs (stale).
-    A file that is not one (another .npz, a session, a cut file) raises one ValueError naming it."""
-    path = Path(path)
-    if path.is_file() and not zipfile.is_zipfile(path):
-        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' (not an .npz archive)")
+    A file that is not one (another artefact, another .npz, a session, a cut file) raises one
+    ArtefactError naming it."""
+    found = artefacts.read(path, "estimator", key=key)
+    if found is None:
+        return None
+    about, data = found
     try:
-        with np.load(path, allow_pickle=False) as data:
-            if key is not None and str(data["key"]) != key:
-                return None
-            meta = json.loads(str(data["meta"]))
-            d = meta["design"]
-            settings = EnsembleSettings.from_dict(d["settings"])
-            design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]), settings)
-            return Estimator(meta["bench"], str(data["key"]), design, data["features"], data["depth"],
-                             float(meta["speed"]), path)
-    except FileNotFoundError:
-        raise OSError(f"{path}: no such estimator file") from None
-    except KeyError as exc:
-        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' (no {exc.args[0]!r})") from None
-    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{path}: not an estimator saved by 'wearbench estimator' ({type(exc).__name__}: "
-                         f"{exc})") from None
+        d = json.loads(str(data["design"]))
+        design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]),
+                                 EnsembleSettings.from_dict(d["settings"]))
+        return Estimator(about.bench, about.key, design, data["features"], data["depth"], about.speed, Path(path),
+                         about)
+    except (KeyError, ValueError, TypeError) as exc:
+        raise artefacts.ArtefactError(f"{path}: an estimator missing or damaging {exc}") from None
 
 
 # ---- fitting ----------------------------------------------------------------------------------

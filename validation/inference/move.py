@@ -20,19 +20,17 @@ with that estimator and refused with any other.
 from __future__ import annotations
 
 import json
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from wearbench.bench.output_file import save_npz
+from wearbench.validation.inference import artefacts
 from wearbench.validation.inference.estimate import Estimator, EstimatorModel
 from wearbench.validation.inference.statistics import shrunk_covariance
 
 __all__ = ["Move", "Rate", "life_move", "load_move", "move_path", "save_move", "stored_move"]
 
-FORMAT = "wearbench estimator move 1"  # its optional field 'rate' (a Rate) added later: older moves lack it
 
 
 @dataclass(frozen=True)
@@ -127,7 +125,7 @@ def life_move(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[
         raise ValueError(f"life_move: {per.shape[0]} lives (benches): at least three are needed (the mean's "
                          "covariance is their spread)")
     return Move(per.mean(axis=0), shrunk_covariance(per) / per.shape[0], model.estimator.key, rows,
-                {**dict(about or {}), "benches": int(per.shape[0])})
+                {"bench": model.estimator.bench, **dict(about or {}), "benches": int(per.shape[0])})
 
 
 def move_path(estimator_path: str | Path) -> Path:
@@ -137,53 +135,45 @@ def move_path(estimator_path: str | Path) -> Path:
 
 
 def save_move(move: Move, path: str | Path) -> Path:
+    """Write ``move`` as an artefact keyed by the estimator it was measured against."""
+    paths = ", ".join(move.about.get("sensor_paths", [])) or "unstated"
+    record = artefacts.About("move", move.estimator, str(move.about.get("bench", "")), "", float("nan"),
+                             f"the lives' {paths}")
     rate = {} if move.rate is None else {"rate": np.array([move.rate.clearances, move.rate.mean, move.rate.spread])}
-    return save_npz(path, format=np.array(FORMAT), estimator=np.array(move.estimator), mean=move.mean,
-                    covariance=move.covariance, rows=move.rows, about=np.array(json.dumps(dict(move.about))), **rate)
+    return artefacts.write(path, record, {"mean": move.mean, "covariance": move.covariance, "rows": move.rows,
+                                          "lives": np.array(json.dumps(dict(move.about))), **rate})
 
 
 def load_move(path: str | Path, estimator: Estimator | str) -> Move:
     """The move saved at ``path``, which must have been measured against ``estimator`` (or its key):
-    a move of another estimator, or a file that is not a move, raises one ValueError naming the file,
-    the field and its value."""
+    a move of another estimator, or a file that is not a move, raises one ArtefactError naming the
+    file, the field and its value."""
     path = Path(path)
     key = estimator if isinstance(estimator, str) else estimator.key
-    what = "a move saved by 'wearbench estimator --lives'"
-    if not path.is_file():
-        raise OSError(f"{path}: no such move file")
-    if not zipfile.is_zipfile(path):
-        raise ValueError(f"{path}: not {what} (not an .npz archive)")
+    about, data = artefacts.read(path, "move")
+    if about.key != key:
+        raise artefacts.ArtefactError(
+            f"{path}: a move measured against another estimator (key {about.key[:12]}); expected this estimator's "
+            f"key {key[:12]} (measure it again: 'wearbench estimator ... --lives N', or track without it: --no-move)")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            missing = [f for f in ("format", "estimator", "mean", "covariance", "rows", "about") if f not in data.files]
-            if missing:
-                raise KeyError(missing[0])
-            fmt, found = str(data["format"]), str(data["estimator"])
-            mean, cov, rows = data["mean"], data["covariance"], data["rows"]
-            about = json.loads(str(data["about"]))
-            rate = data["rate"] if "rate" in data.files else None
-    except KeyError as exc:
-        raise ValueError(f"{path}: not {what} (no field {exc.args[0]!r})") from None
-    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{path}: not {what} ({exc})") from None
-    if fmt != FORMAT:
-        raise ValueError(f"{path}: field 'format' = {fmt!r}: expected {FORMAT!r}")
-    if found != key:
-        raise ValueError(f"{path}: field 'estimator' = {found!r}: the move was measured against another estimator; "
-                         f"expected this estimator's key {key!r} (measure it again: 'wearbench estimator ... --lives "
-                         "N', or track without it: --no-move)")
+        mean, cov, rows = data["mean"], data["covariance"], data["rows"]
+        lives = json.loads(str(data["lives"]))
+    except (KeyError, ValueError) as exc:
+        raise artefacts.ArtefactError(f"{path}: a move missing or damaging {exc}") from None
+    rate = data.get("rate")
     p = mean.shape[0]
     if mean.shape != (p,) or cov.shape != (p, p) or rows.ndim != 2 or rows.shape[1] != p:
-        raise ValueError(f"{path}: field 'covariance' shape {cov.shape}, 'mean' {mean.shape}, 'rows' {rows.shape}: "
-                         "expected (p, p), (p,) and (lives, p)")
+        raise artefacts.ArtefactError(f"{path}: field 'covariance' shape {cov.shape}, 'mean' {mean.shape}, 'rows' "
+                                      f"{rows.shape}: expected (p, p), (p,) and (lives, p)")
     if rate is not None:
         if rate.ndim != 2 or rate.shape[0] != 3:
-            raise ValueError(f"{path}: field 'rate' shape {rate.shape}: expected (3, knots): clearances, log-mean, sd")
+            raise artefacts.ArtefactError(f"{path}: field 'rate' shape {rate.shape}: expected (3, knots): "
+                                          "clearances, log-mean, sd")
         try:
             rate = Rate(*(tuple(float(v) for v in row) for row in rate))
         except ValueError as exc:
-            raise ValueError(f"{path}: field 'rate': {exc}") from None
-    return Move(mean, cov, found, rows, about, str(path), rate)
+            raise artefacts.ArtefactError(f"{path}: field 'rate': {exc}") from None
+    return Move(mean, cov, about.key, rows, lives, str(path), rate)
 
 
 def stored_move(estimator: Estimator) -> Move | None:

@@ -15,8 +15,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from wearbench.bench.load import load_states
 from wearbench.bench.schema import WearState
+from wearbench.compute.options import Compute
 from wearbench.validation.comparison.bands import BandComparison, compare_bands
 from wearbench.validation.comparison.windows import (
     MeasuredCurves,
@@ -27,13 +27,10 @@ from wearbench.validation.comparison.windows import (
     score_windows,
     window_theory,
 )
-from wearbench.validation.inference.calibration import Calibration, session_calibration
+from wearbench.validation.inference.calibration import Calibration
 from wearbench.validation.inference.ensemble import (
     Ensemble,
     EnsembleSettings,
-    build_ensembles,
-    check_ensembles_fit,
-    load_ensembles,
 )
 from wearbench.validation.inference.estimate import Estimate
 from wearbench.validation.inference.identify import (
@@ -43,7 +40,8 @@ from wearbench.validation.inference.identify import (
     fit_states,
     identify_features,
 )
-from wearbench.validation.measurement.session import MeasuredSession, load_session
+from wearbench.validation.measurement.session import MeasuredSession
+from wearbench.validation.workflows.session_set import SessionSet
 
 __all__ = ["Assessment", "assess_sessions", "judging_models"]
 
@@ -81,17 +79,6 @@ class Assessment:
 
 
 
-def candidate_states(bench, candidates) -> tuple[WearState, ...]:
-    if candidates is None:
-        states = bench.states
-    elif isinstance(candidates, (str, Path)):
-        states = load_states(candidates, bench)
-    else:
-        states = tuple(candidates)
-    if not states:
-        raise ValueError(f"bench {bench.name!r} declares no [[state]] tables; give the candidate states "
-                         "(--candidates STATES.toml)")
-    return states
 
 
 def _source_digest() -> str:
@@ -131,58 +118,42 @@ def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, 
     return models, theories
 
 
-def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
+def assess_sessions(sessions: SessionSet | Sequence[str | Path | MeasuredSession], *,
                     candidates: str | Path | Sequence[WearState] | None = None,
                     settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
                     window_options: WindowOptions | None = None,
-                    ensembles: Mapping[str, Ensemble] | str | Path | None = None, scheduler: str | None = None,
-                    workers: int | None = None, progress: str | None = "theory ensembles",
+                    ensembles: Mapping[str, Ensemble] | str | Path | None = None, compute: Compute | None = None,
                     calibration: str | Path | None = "auto", mount: str = "") -> list[Assessment]:
-    """Identify and compare each session (paths or ``MeasuredSession``) among candidate states.
+    """Identify and compare each session (paths, ``MeasuredSession``s or a ``SessionSet``) among
+    candidate states.
 
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
     recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
-    layer and cached; ``ensembles`` ({state: Ensemble}, or a file saved by ``wearbench ensemble``,
-    refused where its bench, speed or candidates do not fit a session) uses those instead. Defaults:
-    the default ensemble settings, identification options and window options.
-    calibration: "auto" uses the stored calibration of each session's bench, sensor and ``mount``
-    (``calibration.py``) when there is one, else the sensor-path prior; a calibration file uses that;
-    None never uses one.
+    layer (``compute``) and cached; ``ensembles`` ({state: Ensemble}, or a file saved by ``wearbench
+    ensemble``, refused before anything is built where its bench, speed or candidates do not fit a
+    session) uses those instead. calibration: "auto" uses the stored calibration of each session's
+    bench, sensor and ``mount`` when there is one, else the sensor-path prior; a calibration file uses
+    that; None never uses one. Defaults: the default settings and options.
     """
-    settings, options = settings or EnsembleSettings(), options or IdentifyOptions()
-    ensembles_file = None
-    if isinstance(ensembles, (str, Path)):
-        ensembles_file, ensembles = Path(ensembles), load_ensembles(ensembles)
-    window_options = window_options or WindowOptions()
-    loaded = [s if isinstance(s, MeasuredSession) else load_session(s) for s in sessions]
-    groups: dict[tuple, list[int]] = {}
-    for i, s in enumerate(loaded):
-        if s.bench is None and ensembles is None:
-            why = next((p for p in (s.problem or "").split("; ") if "bench" in p), "no bench file recorded in it")
-            raise ValueError(f"session {s.label}: {why}; candidate states need its bench")
-        groups.setdefault((s.bench.sha256 if s.bench else "", round(s.commanded_speed, 6)), []).append(i)
-    out: list[Assessment | None] = [None] * len(loaded)
-    for idx in groups.values():
-        first = loaded[idx[0]]
-        if ensembles_file is not None:
-            states = candidate_states(first.bench, candidates) if first.bench and (candidates or first.bench.states) else None
-            check_ensembles_fit(ensembles_file, ensembles, bench=first.bench, states=states,
-                                speed=first.commanded_speed, session=first.label)
-        ens = ensembles or build_ensembles(first.bench, candidate_states(first.bench, candidates),
-                                           speed=first.commanded_speed, settings=settings, scheduler=scheduler,
-                                           workers=workers, progress=progress)
+    options, window_options = options or IdentifyOptions(), window_options or WindowOptions()
+    sessions = SessionSet.of(sessions, calibration=calibration, mount=mount)
+    if ensembles is None:
+        sessions.require_benches("candidate states need its bench")
+    sessions.check_artefacts(ensembles=ensembles, candidates=candidates)
+    out: list[Assessment | None] = [None] * len(sessions)
+    for group in sessions.groups():
+        ens = sessions.ensembles(group, candidates=candidates, settings=settings, ensembles=ensembles,
+                                 compute=compute)
         st = next(iter(ens.values())).settings
-        bench = first.bench
-        crank = next(iter(ens.values())).speed * (bench.encoder_driver.ratio if bench is not None else 1.0)
+        crank = next(iter(ens.values())).speed * (group.bench.encoder_driver.ratio if group.bench else 1.0)
         judged: dict[str, tuple] = {}
-        for i in idx:
-            s = loaded[i]
-            cal = session_calibration(s, st.features, calibration, mount)
+        for i, s in zip(group.indices, group.sessions, strict=True):
+            cal = sessions.calibration(s, st.features)
             tag = cal.key if cal else ""
             if tag not in judged:
                 judged[tag] = judging_models(ens, options, window_options, crank, cal)
             models, theories = judged[tag]
-            feats = s.features(st.features)
+            feats = sessions.features(s, st.features)
             ident = identify_features(feats, models, label=s.label)
             if cal is not None:
                 ident.notes.append(f"sensor path: {cal.describe()}")
@@ -190,7 +161,6 @@ def assess_sessions(sessions: Sequence[str | Path | MeasuredSession], *,
             mc = measured_curves(*s.samples, grid=st.grid, filter_spec=st.curve_filter,
                                  lowpass=window_options.delay_lowpass, fs=s.fs, stream_start=s.stream_start)
             bands = compare_bands(mc.at(0.0), mc.peaks, ens[state])
-            stated = s.stated_delay()
-            windows = {name: score_windows(mc, th, feats, stated) for name, th in theories.items()}
+            windows = {name: score_windows(mc, th, feats, s.stated_delay()) for name, th in theories.items()}
             out[i] = Assessment(s, ident, bands, windows, mc)
     return out

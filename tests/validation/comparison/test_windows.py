@@ -15,6 +15,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from wearbench.compute.options import QUIET
 from wearbench.reports.assessment import write_assessment_report
 from wearbench.validation.comparison.windows import (
     FEATURE_STATISTICS,
@@ -96,7 +97,7 @@ def ensembles():
 @pytest.fixture(scope="module")
 def assessed(ensembles):
     sessions = [session(s, 5000 + 10 * k + d) for k, s in enumerate(STATES) for d in range(3)]
-    return assess_sessions(sessions, ensembles=ensembles, progress=None)
+    return assess_sessions(sessions, ensembles=ensembles, compute=QUIET)
 
 
 def test_delay_is_found_within_a_fifth_of_a_millisecond(assessed):
@@ -251,18 +252,18 @@ def test_calibration_is_computed_once_per_ensembles_content(ensembles, monkeypat
 
     monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path))
     s = session("soft", 5100)
-    first = assess.assess_sessions([s], ensembles=ensembles, progress=None)[0]
+    first = assess.assess_sessions([s], ensembles=ensembles, compute=QUIET)[0]
 
     def refit(*args, **kwargs):
         raise AssertionError("fitted again")
 
     monkeypatch.setattr(assess, "fit_states", refit)
-    again = assess.assess_sessions([s], ensembles=ensembles, progress=None)[0]
+    again = assess.assess_sessions([s], ensembles=ensembles, compute=QUIET)[0]
     for state in STATES:
         assert [w.p for w in again.windows[state].windows] == [w.p for w in first.windows[state].windows]
     other = {k: Ensemble(e.state, e.settings, e.features, e.curves * 1.01, e.peaks, e.speed) for k, e in ensembles.items()}
     with pytest.raises(AssertionError, match="fitted again"):
-        assess.assess_sessions([s], ensembles=other, progress=None)
+        assess.assess_sessions([s], ensembles=other, compute=QUIET)
 
 
 def test_stream_start_counts_the_blocks_before_the_first_recorded_one():

@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 from wearbench.bench.content import bench_key
 from wearbench.bench.load import load_bench, shipped_bench
+from wearbench.compute.options import SERIAL
+from wearbench.validation.inference.artefacts import shipped_path
 from wearbench.validation.inference.ensemble import (
     EnsembleSettings,
     build_ensembles,
     ensembles_key,
     load_ensembles,
     save_ensembles,
-    shipped_ensembles_path,
 )
 
 BENCH = load_bench(shipped_bench("ninebar-testbed"))
@@ -42,7 +43,7 @@ def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, 
     monkeypatch.setenv("WEARBENCH_CACHE", str(tmp_path / "cache"))
     settings = EnsembleSettings(realisations=3, cycles=2, settle=0.5, output_rate=10_000.0)
     state = BENCH.states[0]
-    ens = build_ensembles(BENCH, [state], settings=settings, workers=0, progress=None)[state.name]
+    ens = build_ensembles(BENCH, [state], settings=settings, compute=SERIAL)[state.name]
     assert ens.features.shape == (3, 2, settings.features.size) and ens.curves.shape == (3, 2, 720)
     assert not ens.failures and np.all(np.isfinite(ens.features))
     assert len({tuple(np.round(f[0, :5], 6)) for f in ens.features}) == 3  # every realisation differs
@@ -55,7 +56,7 @@ def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, 
     np.testing.assert_allclose(back.curves, ens.curves, rtol=1e-6)
     assert back.settings == settings and load_ensembles(path, key="stale") is None
     # a rerun is served from the cache: the same arrays, no simulation
-    again = build_ensembles(BENCH, [state], settings=settings, workers=0, progress=None)[state.name]
+    again = build_ensembles(BENCH, [state], settings=settings, compute=SERIAL)[state.name]
     np.testing.assert_array_equal(again.features, ens.features)
     # an ensemble of another size and first seed shares the realisations of the seeds they have in
     # common (seeds 1-3 here): only seed 0 is simulated
@@ -69,16 +70,15 @@ def test_a_small_ensemble_builds_on_the_compute_layer_and_round_trips(tmp_path, 
 
     keys = module.realisation_keys(BENCH, [state], BENCH.speed, replace(settings, realisations=4, seed=0))
     assert [cache_load(k) is MISSING for k in keys] == [True, False, False, False]
-    wider = build_ensembles(BENCH, [state], settings=replace(settings, realisations=4, seed=0), workers=0,
-                            progress=None)[state.name]
+    wider = build_ensembles(BENCH, [state], settings=replace(settings, realisations=4, seed=0), compute=SERIAL)[state.name]
     assert ran == [0]
     np.testing.assert_array_equal(wider.features[1:], ens.features)
 
 
 def test_the_shipped_ensembles_are_current():
     """The demo's precomputed ensembles must match the code: regenerate them when this fails
-    (`wearbench ensemble hardware/benches/ninebar-testbed.toml --ship`)."""
-    path = shipped_ensembles_path(BENCH)
+    (`wearbench ensemble ninebar-testbed --ship --force`)."""
+    path = shipped_path("ensembles", BENCH.name)
     assert path.exists(), path
     key = ensembles_key(BENCH, BENCH.states, BENCH.speed, EnsembleSettings())
     assert load_ensembles(path, key=key) is not None, "stale: the model, bench or settings changed since"

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.bench.schema import WearState
+from wearbench.compute.options import SERIAL
 from wearbench.validation.inference.ensemble import EnsembleSettings
 from wearbench.validation.inference.estimate import (
     NO_VALUE,
@@ -40,7 +41,7 @@ def model(bench, cache):
     mp = pytest.MonkeyPatch()
     mp.setenv("WEARBENCH_CACHE", str(cache))
     try:
-        est = build_estimator(bench, DESIGN, workers=0, progress=None)
+        est = build_estimator(bench, DESIGN, compute=SERIAL)
         return fit_estimator(est)
     finally:
         mp.undo()
@@ -85,23 +86,23 @@ def test_a_larger_design_simulates_only_the_realisations_a_shipped_smaller_one_l
     """Realisation i is seed + i at every size: DESIGN grown from a shipped estimator of its first 3
     realisations simulates seeds 4-6 only and equals DESIGN built whole, bit for bit; a shipped one
     of another first seed gives nothing (all 6 simulated)."""
-    from wearbench.validation.inference import estimate
+    from wearbench.validation.inference import artefacts, estimate
 
     monkeypatch.setenv("WEARBENCH_CACHE", str(cache))
     small = replace(DESIGN, settings=replace(DESIGN.settings, realisations=3))
-    shipped = tmp_path / "ninebar-testbed.npz"
-    estimate.save_estimator(build_estimator(bench, small, workers=0, progress=None, shipped=False), shipped)
-    monkeypatch.setattr(estimate, "shipped_estimator_path", lambda b: shipped)
+    shipped = tmp_path / "estimator" / "ninebar-testbed.npz"
+    estimate.save_estimator(build_estimator(bench, small, compute=SERIAL, shipped=False), shipped)
+    monkeypatch.setattr(artefacts, "SHIPPED", tmp_path)
     asked = []
     real = estimate.build_ensembles
     monkeypatch.setattr(estimate, "build_ensembles", lambda *a, **k: asked.append(k["settings"]) or real(*a, **k))
-    grown = build_estimator(bench, DESIGN, workers=0, progress=None)
+    grown = build_estimator(bench, DESIGN, compute=SERIAL)
     assert [(s.seed, s.realisations) for s in asked] == [(4, 3)]
     assert grown.key == model.estimator.key and np.array_equal(grown.features, model.estimator.features)
     assert np.array_equal(grown.depth, model.estimator.depth)
     other = replace(small, settings=replace(small.settings, seed=2))
     shipped.unlink()
-    estimate.save_estimator(build_estimator(bench, other, workers=0, progress=None, shipped=False), shipped)
+    estimate.save_estimator(build_estimator(bench, other, compute=SERIAL, shipped=False), shipped)
     asked.clear()
-    assert np.array_equal(build_estimator(bench, DESIGN, workers=0, progress=None).features, model.estimator.features)
+    assert np.array_equal(build_estimator(bench, DESIGN, compute=SERIAL).features, model.estimator.features)
     assert [(s.seed, s.realisations) for s in asked] == [(1, 6)]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.compute import Task, compute_client, run_tasks, task_key
+from wearbench.compute.options import QUIET
 from wearbench.synthetic.truths import prepare_truth, record_state, slug
 from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
 from wearbench.validation.inference.identify import NONE, UNDECIDED
@@ -29,7 +30,7 @@ def case(tmp_path_factory):
     states = bench.states
     truths = [(s, 7000 + 10 * k + d) for k, s in enumerate(states) for d in range(2)]
     out = tmp_path_factory.mktemp("nontwin")
-    ensembles = build_ensembles(bench, states, settings=SETTINGS, progress=None)  # shipped: no simulation
+    ensembles = build_ensembles(bench, states, settings=SETTINGS, compute=QUIET)  # shipped: no simulation
     with compute_client(workers=2):
         run_tasks([Task(prepare_truth, {"bench": bench, "state": s, "seed": seed, "revolutions": 14},
                         task_key("test-truth", s.name, seed), s.name) for s, seed in truths], cache=False)

@@ -186,12 +186,12 @@ def test_the_estimator_command_measures_and_stores_the_move_on_simulated_lives(t
 
 
 def test_the_shipped_move_belongs_to_the_shipped_estimator():
-    """The test bed's move ships beside its estimator (in the wheel: benches/estimators/*.npz), keyed to
+    """The test bed's move ships beside its estimator (in the wheel: validation/inference/shipped/estimator/*.npz), keyed to
     that file's key; rebuilding the estimator means measuring the move again (README, track)."""
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.validation.inference.estimate import shipped_estimator_path
+    from wearbench.validation.inference.artefacts import shipped_path
 
-    est = load_estimator(shipped_estimator_path(load_bench(shipped_bench("ninebar-testbed"))))
+    est = load_estimator(shipped_path("estimator", load_bench(shipped_bench("ninebar-testbed")).name))
     move = stored_move(est)
     assert move is not None and move.estimator == est.key and move.mean.shape == (est.features.shape[-1],)
     assert move.about["factor"] == 1.3 and move.about["benches"] >= 20

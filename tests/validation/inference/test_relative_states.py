@@ -6,6 +6,7 @@ ensembles' seeds make it)."""
 
 import numpy as np
 import pytest
+from wearbench.compute.options import SERIAL
 from wearbench.validation.inference.calibration import Calibration
 from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.inference.identify import (
@@ -115,7 +116,7 @@ def test_on_the_model_a_calibrated_bench_is_named_right_where_the_uncalibrated_v
     bench = load_bench(shipped_bench("ninebar-testbed"))
     new3, new6 = bench.states[:2]
     settings = EnsembleSettings(realisations=6, cycles=4)
-    ens = build_ensembles(bench, [new3, new6], settings=settings, workers=0, shipped=False, progress=None)
+    ens = build_ensembles(bench, [new3, new6], settings=settings, compute=SERIAL, shipped=False)
 
     def session_on_the_bench(state):
         run = simulate_state(bench, state, 9000, revolutions=11.0, speed=bench.speed, output_rate=20_000.0)

@@ -12,6 +12,7 @@ import json
 import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
+from wearbench.compute.options import QUIET
 from wearbench.synthetic.truths import record_state, slug
 from wearbench.validation.inference.ensemble import (
     EnsembleSettings,
@@ -34,7 +35,7 @@ def sessions(tmp_path_factory):
         state = next(s for s in bench.states if s.name == name)
         paths[name] = out / f"{slug(name)}.mcap"
         record_state(bench, state, 7000, paths[name], backend="sim", cycles=11, revolutions=14, accelerometer=MOUNT)
-    ens = build_ensembles(bench, bench.states, progress=None)  # shipped: no simulation
+    ens = build_ensembles(bench, bench.states, compute=QUIET)  # shipped: no simulation
     saved = save_ensembles(ens, out / "e.npz", key=ensembles_key(bench, bench.states, bench.speed, EnsembleSettings()),
                            bench=bench, states=bench.states)
     return paths, saved
