@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {note}")
     if args.json:
         with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
-            json.dump([e.as_dict() for e in results], f, indent=1)
+            json.dump([e.to_dict() for e in results], f, indent=1)
         print(f"results: {args.json}")
     if args.out:
         from wearbench.reports.estimate import posterior_figure, predictive_figure

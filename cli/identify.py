@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
                           f"{a.estimate.p_value:.2g})", highlight=False)
     if args.json:
         with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
-            json.dump([{**a.identification.as_dict(), **({"estimate": a.estimate.as_dict()} if a.estimate else {})}
+            json.dump([{**a.identification.to_dict(), **({"estimate": a.estimate.to_dict()} if a.estimate else {})}
                        for a in assessed], f, indent=1)
         console.print(f"results: {args.json}")
     if args.out:

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         from wearbench.bench.output_file import output_file
 
         with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
-            json.dump(result.as_dict(), f, indent=1)
+            json.dump(result.to_dict(), f, indent=1)
     if args.write_latency:
         from wearbench.bench.chain_latency import set_chain_latency
 

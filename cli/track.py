@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         print(note)
     if args.json:
         with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
-            json.dump(t.as_dict(), f, indent=1)
+            json.dump(t.to_dict(), f, indent=1)
         print(f"results: {args.json}")
     if args.figure:
         with output_file(args.figure, force=args.force, option="--figure") as tmp:

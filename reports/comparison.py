@@ -248,7 +248,7 @@ def _summary(comparisons: Sequence[SessionComparison],
     out = []
     for c in comparisons:
         rating = float(c.summary.loc["iso_rating", "mean"])
-        d = c.as_dict()
+        d = c.to_dict()
         ranks = rankings.get(c.label)
         out.append({"session": c.label, "theory": c.theory.label, "windows": len(c.windows),
                     "iso_rating": rating, "grade": grade(rating), "peak_acc_measured": d["peak_acc_measured"],
@@ -312,7 +312,7 @@ def _html(comparisons: Sequence[SessionComparison], figures: dict, title: str, s
         out.append("<table><tr><th>window (cycles)</th><th>t (s)</th><th>shift (ms)</th>"
                    + "".join(f"<th>{e(n)}</th>" for _, n in TABLE_METRICS) + "</tr>")
         for w in c.windows:
-            sd = w.scores.as_dict()
+            sd = w.scores.to_dict()
             out.append(f"<tr><td>{w.start_cycle}-{w.start_cycle + c.options.windows.cycles - 1}</td>"
                        f"<td>{w.t_start:.3f}-{w.t_end:.3f}</td><td>{w.shift_s * 1e3:+.2f}</td>"
                        + "".join(f"<td>{sd[k]:.3f}</td>" for k, _ in TABLE_METRICS) + "</tr>")
@@ -361,13 +361,13 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
     if identified:
         section, files, rows = identification_section(identified, out, _slug, _save, _img, threshold)
         figures["identification"] = files
-    options = dict(options) if options is not None else comparisons[0].options.as_dict()
+    options = dict(options) if options is not None else comparisons[0].options.to_dict()
     scores = {"generated": datetime.now(UTC).isoformat(timespec="seconds"), "title": title,
               "options": options,
               "method_notes": list((DEPARTURES if comparisons else ()) + (IDENTIFY_NOTES if identified else ())),
               "summary": _summary(comparisons, rankings or {}),
               "identification": rows,
-              "sessions": [c.as_dict() for c in comparisons],
+              "sessions": [c.to_dict() for c in comparisons],
               "rankings": {k: [{"label": r.label, "rating": r.rating, "rating_std": r.rating_std} for r in v]
                            for k, v in (rankings or {}).items()}}
     scores_path = out / "scores.json"

@@ -157,9 +157,9 @@ def identification_section(items: Sequence[IdentifiedSession], out: Path, slug: 
                      f"<td>{needed}</td><td>{100 * r.inside[top]:.0f} % ({e(top)})</td>"
                      f"<td>{b['peak_acc_measured_median']:.0f} / {b['peak_acc_theory_p5_p50_p95'][1]:.0f}</td>"
                      f"<td>{e('; '.join(r.notes + [f'leaves the band of {top}: ' + ', '.join(r.leaves[top])] if r.leaves[top] else r.notes))}</td></tr>")
-        rows.append({**r.as_dict(), "bands": b, "window_state": it.state, "window_verdict": it.window_verdict,
+        rows.append({**r.to_dict(), "bands": b, "window_state": it.state, "window_verdict": it.window_verdict,
                      "windows": {st: sw.summary() for st, sw in it.windows.items()},
-                     **({"estimate": it.estimate.as_dict()} if it.estimate is not None else {})})
+                     **({"estimate": it.estimate.to_dict()} if it.estimate is not None else {})})
     parts.append("</table>")
     parts.append(img(files[0]))
     if estimated:

@@ -296,7 +296,7 @@ def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(r
     folder.mkdir()
     for p in (old, figure, folder / "posterior_1.png", folder / "mine.txt"):
         p.write_bytes(OLD)
-    real_as_dict, real_figure = type(estimates[0]).as_dict, estimate_figure.posterior_figure
+    real_as_dict, real_figure = type(estimates[0]).to_dict, estimate_figure.posterior_figure
 
     def half_figure(e, path, *a, **k):  # the first figure is written, then Ctrl-C
         if e is estimates[1]:
@@ -308,7 +308,7 @@ def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(r
         raise KeyboardInterrupt
 
     with monkeypatch.context() as m:
-        m.setattr(type(estimates[0]), "as_dict", lambda e: _Interrupted(cut=1) if e is estimates[1] else real_as_dict(e))
+        m.setattr(type(estimates[0]), "to_dict", lambda e: _Interrupted(cut=1) if e is estimates[1] else real_as_dict(e))
         m.setattr(estimate_figure, "posterior_figure", half_figure)
         m.setattr(track_module, "track_figure", half_track_figure)
         assert main(["estimate", s, s, "--json", str(old), "--force"]) == 130
@@ -428,13 +428,13 @@ def test_a_stored_calibration_is_a_user_file(tmp_path):
     stored = tmp_path / f"{'k' * 64}.json"
     stored.write_bytes(OLD)
     with pytest.raises(FileExistsError, match="--force"):
-        save_calibration(SimpleNamespace(key="k" * 64, as_dict=dict), tmp_path)
+        save_calibration(SimpleNamespace(key="k" * 64, to_dict=dict), tmp_path)
 
     def cut():
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        save_calibration(SimpleNamespace(key="k" * 64, as_dict=cut), tmp_path, force=True)
+        save_calibration(SimpleNamespace(key="k" * 64, to_dict=cut), tmp_path, force=True)
     assert stored.read_bytes() == OLD and _left(tmp_path) == [stored.name]
-    assert save_calibration(SimpleNamespace(key="k" * 64, as_dict=lambda: {"new": 1}), tmp_path, force=True) == stored
+    assert save_calibration(SimpleNamespace(key="k" * 64, to_dict=lambda: {"new": 1}), tmp_path, force=True) == stored
     assert json.loads(stored.read_text()) == {"new": 1}

@@ -96,7 +96,7 @@ class ParserStats:
     bytes_skipped: int = 0
     bytes_in: int = 0
 
-    def as_dict(self) -> dict[str, int]:
+    def to_dict(self) -> dict[str, int]:
         return dict(self.__dict__)
 
 

@@ -72,7 +72,7 @@ class CompareOptions:
         if not self.max_delay >= 0:
             raise ValueError(f"max_delay = {self.max_delay} s: expected a non-negative delay")
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"filter": self.filter.label, "windows": self.windows.label,
                 "max_shift_cycles": self.max_shift_cycles, "max_delay_s": self.max_delay,
                 "dtw_band_cycles": self.dtw_band_cycles,
@@ -96,9 +96,9 @@ class WindowResult:
     test: np.ndarray
     theory: np.ndarray
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"start_cycle": self.start_cycle, "t_start": self.t_start, "t_end": self.t_end,
-                "shift_s": self.shift_s, "shift_deg": self.shift_deg, "scores": self.scores.as_dict()}
+                "shift_s": self.shift_s, "shift_deg": self.shift_deg, "scores": self.scores.to_dict()}
 
 
 @dataclass
@@ -120,7 +120,7 @@ class SessionComparison:
     def rating(self) -> float:
         return float(np.mean([w.scores.iso_rating for w in self.windows]))
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         s = self.session
         steady = s.cycles[s.cycles["steady"]] if not s.cycles.empty else s.cycles
         return {
@@ -132,10 +132,15 @@ class SessionComparison:
                        "revolutions": self.theory.revolutions},
             "peak_acc_measured": float(max(np.max(np.abs(w.test)) for w in self.windows)),
             "peak_acc_theory": float(max(np.max(np.abs(w.theory)) for w in self.windows)),
-            "windows": [w.as_dict() for w in self.windows],
+            "windows": [w.to_dict() for w in self.windows],
             "skipped": [{"start_cycle": c, "reason": r} for c, r in self.skipped],
             "summary": self.summary.to_dict(orient="index"),
         }
+
+    def row(self) -> dict:
+        """One table row: the session, its windows and the mean of each score over them."""
+        return {"session": self.label, "windows": len(self.windows),
+                **{k: float(v) for k, v in self.summary["mean"].items()}}
 
 
 

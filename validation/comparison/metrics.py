@@ -219,7 +219,7 @@ class WindowScores:
     sg_phase: float
     sg_comprehensive: float
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return asdict(self)
 
 
@@ -269,7 +269,7 @@ def aggregate(scores: list[WindowScores]) -> pd.DataFrame:
     """Mean, standard deviation, min and max of each numeric metric over windows (rows: metrics)."""
     if not scores:
         raise ValueError("aggregate: no windows were scored")
-    frame = pd.DataFrame([s.as_dict() for s in scores])[list(NUMERIC_METRICS)]
+    frame = pd.DataFrame([s.to_dict() for s in scores])[list(NUMERIC_METRICS)]
     table = pd.DataFrame({"mean": frame.mean(), "std": frame.std(ddof=1) if len(frame) > 1 else 0.0 * frame.mean(),
                           "min": frame.min(), "max": frame.max()})
     table["windows"] = len(frame)

@@ -438,7 +438,7 @@ class WindowVerdict:
     def statistic(self) -> str:
         return self.verdict_statistic
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"state": self.state, "start_cycle": self.start_cycle, "t_start": self.t_start, "t_end": self.t_end,
                 "delay_s": self.delay_s, "delay_stated_s": self.delay_stated_s,
                 "delay_residual_s": None if self.delay_stated_s is None else self.delay_s - self.delay_stated_s,
@@ -474,8 +474,8 @@ class SessionWindows:
         return {"state": self.state, "windows": len(self.windows), "consistent_windows": self.consistent,
                 "verdict": self.label, "statistic": self.options.statistic, "alpha": self.options.alpha,
                 "delay_s_median": float(np.median([w.delay_s for w in self.windows])) if self.windows else None,
-                "delay": self.delay.as_dict() if self.delay else None,
-                "window_details": [w.as_dict() for w in self.windows]}
+                "delay": self.delay.to_dict() if self.delay else None,
+                "window_details": [w.to_dict() for w in self.windows]}
 
 
 def _fit_shift(m: MeasuredCurves, cycles: np.ndarray, ref: _Reference, base: np.ndarray | float, lo: float,
@@ -530,12 +530,12 @@ class DelayFit:
                      f" (within the signal's floor of +/- {self.floor * 1e3:.1f} ms)")
         return text
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         out = {"source": "stated" if self.stated else "signal", "delay_s": self.delay,
                "signal_alone_s": self.signal_alone, "signal_floor_s": self.floor, "text": self.describe()}
         if self.stated:
             out.update(stated_s=self.stated_mean, residual_s=self.residual, at_bound=self.at_bound,
-                       disagrees=self.disagrees, statement=self.stated.as_dict())
+                       disagrees=self.disagrees, statement=self.stated.to_dict())
         return out
 
 

@@ -55,7 +55,7 @@ def calibration_key(bench, metadata: dict, spec: FeatureSpec, mount: str = "") -
     from wearbench.bench.content import bench_key
 
     content = {"bench": bench_key(bench), "sensor": sensor_record(metadata), "mount": mount,
-               "features": spec.as_dict()}
+               "features": spec.to_dict()}
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
 
 
@@ -90,7 +90,7 @@ class Calibration:
 
     def to_dict(self) -> dict:
         return {"key": self.key, "bench": self.bench, "state": self.state, "sessions": list(self.sessions),
-                "cycles": self.cycles, "mount": self.mount, "path": self.path.as_dict(), "p_value": self.p_value,
+                "cycles": self.cycles, "mount": self.mount, "path": self.path.to_dict(), "p_value": self.p_value,
                 "created": self.created, "features": list(self.features), "bench_key": self.bench_key}
 
     @classmethod

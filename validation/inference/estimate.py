@@ -117,9 +117,9 @@ class EstimatorDesign:
         c, n = self.clearances[i], self.cycles[j]
         return WearState(point_name(c, n), {jn: c for jn in joints}, dict(surfaces))
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"clearances": list(self.clearances), "cycles": list(self.cycles),
-                "settings": {**asdict(self.settings), "features": self.settings.features.as_dict()}}
+                "settings": {**asdict(self.settings), "features": self.settings.features.to_dict()}}
 
 
 def point_name(c: float, n: float) -> str:
@@ -165,7 +165,7 @@ def estimator_key(bench: Bench, design: EstimatorDesign, speed: float) -> str:
     from wearbench.bench.content import bench_key
     from wearbench.compute import task_key
 
-    return task_key("estimator", bench_key(bench), asdict(bench.tolerances), asdict(bench.wear), design.as_dict(),
+    return task_key("estimator", bench_key(bench), asdict(bench.tolerances), asdict(bench.wear), design.to_dict(),
                     round(speed, 9))
 
 
@@ -253,7 +253,7 @@ def save_estimator(est: Estimator, path: str | Path) -> Path:
     about = est.about or artefacts.About("estimator", est.key, est.bench, "", est.speed,
                                          sensor_paths_text(est.design.settings))
     return artefacts.write(path, about, {"features": est.features, "depth": est.depth,
-                                         "design": np.array(json.dumps(est.design.as_dict()))})
+                                         "design": np.array(json.dumps(est.design.to_dict()))})
 
 
 def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | None:
@@ -460,8 +460,15 @@ class Estimate:
     measured: np.ndarray | None = field(default=None, repr=False)  # (cycles, p) the session's cycle features
     meta: dict = field(default_factory=dict)  # grid_c (m), grid_n (cycles): the grid's ranges; bins, bands
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {k: v for k, v in asdict(self).items() if k not in ("posterior", "band", "measured")}
+
+    def row(self) -> dict:
+        """One table row (SI units): the median and 90 % interval of each parameter, the verdict."""
+        out = {"session": self.session, "cycles": self.cycles, "explains": self.explains, "p_value": self.p_value}
+        for name, i in (("clearance_m", self.clearance), ("cycles_run", self.cycles_run), ("wear_depth_m", self.depth)):
+            out.update({name: i.median, f"{name}_lo90": i.lo90, f"{name}_hi90": i.hi90})
+        return out
 
     def line(self) -> str:
         """The estimate in one line, as the demo's summary and the report's table give it."""

@@ -124,8 +124,13 @@ class Identification:
     sensor_path: str = ""  # the sensor path the likelihood allowed for (prior or which calibration)
     diagnosis: dict | None = None  # where the session departs from the top state (when none explains it)
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return asdict(self)
+
+    def row(self) -> dict:
+        """One table row: the session, its cycles, each state's posterior probability, the verdict."""
+        return {"session": self.session, "cycles": self.cycles, **{f"p[{s}]": p for s, p in self.posterior.items()},
+                "verdict": self.verdict}
 
 
 def variance_floor(spec: FeatureSpec, options: IdentifyOptions) -> np.ndarray:

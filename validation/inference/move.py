@@ -92,7 +92,7 @@ class Move:
                 f"{a.get('cycles', '?')} cycles each)" + (f"; {self.rate.describe()}" if self.rate else "")
                 + (f", {self.path}" if self.path else ""))
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         """What a result records of the move used (not its numbers)."""
         return {"file": self.path, "estimator": self.estimator, "lives": int(self.rows.shape[0]), **dict(self.about),
                 "described": self.describe(), "rate": None if self.rate is None else {

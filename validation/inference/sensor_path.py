@@ -175,7 +175,7 @@ class SensorPath:
         m = self.theta_mean
         return {"gain": float(1.0 + m[0]), **{f"band {k + 1}": float(10.0 * v) for k, v in enumerate(m[1:])}}
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"mean": list(self.mean), "cov": [list(r) for r in self.cov], "source": self.source}
 
     @classmethod

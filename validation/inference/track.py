@@ -93,6 +93,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+import pandas as pd
 from scipy import linalg, special
 from wearbench.validation.inference.estimate import EstimatorModel, Interval
 from wearbench.validation.inference.move import Move, Rate
@@ -121,12 +122,19 @@ class Track:
     beyond: float  # posterior mass whose limit lies beyond 100 x the estimator's range
     prediction: list[tuple[float, Interval]] = field(default_factory=list)  # (cycles, wear depth m)
     notes: list[str] = field(default_factory=list)
-    move: dict | None = None  # the measured move from new to worn used (Move.as_dict), None: none used
+    move: dict | None = None  # the measured move from new to worn used (Move.to_dict), None: none used
     rate_spread: float | None = 0.0  # lognormal sd of the features' rate along the life marginalised (0: none;
     # None: the move's rate against clearance, ``move['rate']``)
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return asdict(self)
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """One row per session: its cycles run and its wear depth (m), median and 90 % interval."""
+        return pd.DataFrame({"session": self.sessions, "cycles_run": self.cycles_run,
+                             "wear_depth_m": [d.median for d in self.depth],
+                             "wear_depth_m_lo90": [d.lo90 for d in self.depth],
+                             "wear_depth_m_hi90": [d.hi90 for d in self.depth]}).set_index("session")
 
 
 def depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
@@ -373,7 +381,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
                      f"{min(K_RANGE[1], float(ks[inside][-1])):.3g} x the file's (the last session's cycles run times "
                      "the factor must lie within the estimator's range)")
     return Track(labels, [float(n) for n in cycles_run], c_int, k_int, coef, depth, limit, to_limit, beyond,
-                 prediction, notes, move.as_dict() if move is not None else None, rate_spread)
+                 prediction, notes, move.to_dict() if move is not None else None, rate_spread)
 
 
 def life_rate(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[float], float, float]],

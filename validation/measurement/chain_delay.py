@@ -76,7 +76,7 @@ class StatedDelay:
         return (f"stated {self.constant * 1e3:.3f} ms (filter {self.filter * 1e3:.3f}, sensor {self.sensor * 1e3:.3f}, "
                 f"latency {self.latency * 1e3:.3f} ms{drift}; +/- {self.uncertainty * 1e3:.3f} ms)")
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"filter_s": self.filter, "sensor_s": self.sensor, "latency_s": self.latency,
                 "clock_drift": self.clock_drift, "uncertainty_s": self.uncertainty, "band_hz": list(self.band)}
 

@@ -54,13 +54,13 @@ class FeatureSpec:
 
     @classmethod
     def from_dict(cls, data: dict) -> FeatureSpec:
-        """The inverse of :meth:`as_dict` (lists from JSON back to tuples); a file of an earlier
+        """The inverse of :meth:`to_dict` (lists from JSON back to tuples); a file of an earlier
         version holds one ``band``."""
         data = dict(data)
         bands = data.pop("bands", None) or [data.pop("band")]
         return cls(**{**data, "bands": tuple(tuple(b) for b in bands)})
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return asdict(self)
 
     @property

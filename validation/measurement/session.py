@@ -106,6 +106,13 @@ class MeasuredSession:
         """Acceleration sample times (s), the crank angle at each (rad) and the samples (m/s^2)."""
         return self.acceleration["time"].to_numpy(float), self.crank_angle, self.acceleration["acc"].to_numpy(float)
 
+    def to_dataframe(self) -> pd.DataFrame:
+        """The acceleration samples as a table: device time (s), acceleration (m/s^2), the encoder's
+        crank angle at each (rad, unwrapped) and the crank cycle it falls in (from crank angle 0)."""
+        return pd.DataFrame({"time": self.acceleration["time"].to_numpy(float),
+                             "acceleration": self.acceleration["acc"].to_numpy(float),
+                             "crank_angle": self.crank_angle, "cycle": self.turns.cycle})
+
     @property
     def gaps(self) -> int:
         return int(self.gap_times.size)

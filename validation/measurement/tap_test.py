@@ -82,7 +82,7 @@ class TapTest:
         return (f"latency {self.latency * 1e3:.3f} ms ({self.coverage:.0%} interval {lo * 1e3:.3f} .. {hi * 1e3:.3f} ms) "
                 f"from {len(self.taps)} taps, fitted in {self.band[0]:g}-{self.band[1]:g} Hz")
 
-    def as_dict(self) -> dict:
+    def to_dict(self) -> dict:
         return {"source": self.source, "latency_s": self.latency, "interval_s": list(self.interval),
                 "coverage": self.coverage, "band_hz": list(self.band),
                 "taps": [{"number": t.number, "latch_s": t.latch, "shift_s": t.shift, "drift_s": t.drift,

@@ -70,6 +70,19 @@ class Assessment:
         """Whether the identification named a state (else the windows are shown, not a verdict)."""
         return self.identification.verdict in self.identification.posterior
 
+    def to_dict(self) -> dict:
+        """The identification, each state's window verdict and the estimate, as JSON-able data."""
+        return {**self.identification.to_dict(),
+                "windows": {state: w.summary() for state, w in self.windows.items()},
+                **({"estimate": self.estimate.to_dict()} if self.estimate else {})}
+
+    def row(self) -> dict:
+        """One table row: the identification's, and the estimate's columns when there is one."""
+        row = self.identification.row()
+        if self.estimate is not None:
+            row.update({k: v for k, v in self.estimate.row().items() if k not in ("session", "cycles")})
+        return row
+
 
 
 

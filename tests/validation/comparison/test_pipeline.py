@@ -165,7 +165,7 @@ def test_windows_with_dropped_samples_are_skipped_not_scored():
     c = compare_session(gappy, theory_table())
     assert [w.start_cycle for w in c.windows] == [0, 10]
     assert c.skipped == [(5, "dropped samples in the window")]
-    assert c.as_dict()["skipped"] == [{"start_cycle": 5, "reason": "dropped samples in the window"}]
+    assert c.to_dict()["skipped"] == [{"start_cycle": 5, "reason": "dropped samples in the window"}]
 
 
 def test_compare_sessions_api(tmp_path):

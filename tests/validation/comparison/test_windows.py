@@ -139,7 +139,7 @@ def test_a_stated_delay_with_its_drift_aligns_every_window(drifting):
     fit = sw.delay
     assert abs(fit.residual) <= 0.05e-3 and not fit.disagrees
     for w in sw.windows:  # scores.json: "stated X + fitted residual Y" per window
-        d = w.as_dict()
+        d = w.to_dict()
         assert d["delay_stated_s"] == pytest.approx(0.3e-3 + DRIFT * 0.5 * (w.t_start + w.t_end), abs=2e-6)
         assert d["delay_residual_s"] == pytest.approx(fit.residual)
     assert fit.describe().startswith("stated ") and "fitted residual" in fit.describe()

@@ -146,7 +146,7 @@ def test_joint_posterior_figure_and_json(model, tmp_path):
     e = estimate_features(session(np.random.default_rng(5), 0.4e-3, 2e5), model)
     path = posterior_figure(e, tmp_path / "p.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    d = json.loads(json.dumps(e.as_dict()))
+    d = json.loads(json.dumps(e.to_dict()))
     assert d["clearance"]["lo90"] <= d["clearance"]["median"] <= d["clearance"]["hi90"] and "posterior" not in d
 
 

@@ -104,7 +104,7 @@ def test_a_move_stored_beside_its_estimator_is_loaded_with_it_and_track_uses_it(
     assert plain.move is None and moved.move["lives"] == 12 and moved.move["file"] == str(move_path(path))
     said = lambda t: any("no measured move from new to worn" in note for note in t.notes)
     assert said(plain) and not said(moved)
-    assert json.loads(json.dumps(moved.as_dict()))["move"]["seeds"] == about["seeds"]
+    assert json.loads(json.dumps(moved.to_dict()))["move"]["seeds"] == about["seeds"]
     # an estimator without a file beside it, or without a move there, has none
     assert stored_move(model.estimator) is None
     save_estimator(model.estimator, tmp_path / "alone.npz")

@@ -157,7 +157,7 @@ def test_drawn_paths_cover_the_stated_spread_and_key_the_ensembles():
             for p in (None, spread, PathSpread(mode=(500.0, 3000.0)))}
     assert len(keys) == 3
     old = {k: v for k, v in vars(EnsembleSettings()).items() if k != "sensor_paths"}
-    old["features"] = SPEC.as_dict()
+    old["features"] = SPEC.to_dict()
     assert EnsembleSettings.from_dict(old).sensor_paths is None  # a file from before drawn paths
     with pytest.raises(ValueError, match="sensor paths"):
         PathSpread(mode=(3000.0, 300.0))
