@@ -196,7 +196,7 @@ def synthetic():
     from wearbench.validation.inference.estimate import Estimator, estimate_features, fit_estimator
     from wearbench.validation.inference.track import track_features
 
-    from .validation.test_estimate import DESIGN, OPTIONS, draw, session, true_mean
+    from .validation.inference.test_estimate import DESIGN, OPTIONS, draw, session, true_mean
 
     rng = np.random.default_rng(0)
     feats = np.stack([np.stack([draw(rng, true_mean(c, n), 16, 8) for n in DESIGN.cycles])
@@ -423,18 +423,22 @@ def test_a_stored_calibration_is_a_user_file(tmp_path):
     failure while writing keeps the stored calibration."""
     from types import SimpleNamespace
 
+    from wearbench.validation.inference.artefacts import About
     from wearbench.validation.inference.calibration import save_calibration
+
+    about = About("calibration", "k" * 64, "b", "", float("nan"), "calibrated")
 
     stored = tmp_path / f"{'k' * 64}.json"
     stored.write_bytes(OLD)
     with pytest.raises(FileExistsError, match="--force"):
-        save_calibration(SimpleNamespace(key="k" * 64, to_dict=dict), tmp_path)
+        save_calibration(SimpleNamespace(key="k" * 64, about=about, to_dict=dict), tmp_path)
 
     def cut():
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        save_calibration(SimpleNamespace(key="k" * 64, to_dict=cut), tmp_path, force=True)
+        save_calibration(SimpleNamespace(key="k" * 64, about=about, to_dict=cut), tmp_path, force=True)
     assert stored.read_bytes() == OLD and _left(tmp_path) == [stored.name]
-    assert save_calibration(SimpleNamespace(key="k" * 64, to_dict=lambda: {"new": 1}), tmp_path, force=True) == stored
-    assert json.loads(stored.read_text()) == {"new": 1}
+    assert save_calibration(SimpleNamespace(key="k" * 64, about=about, to_dict=lambda: {"new": 1}), tmp_path,
+                            force=True) == stored
+    assert json.loads(stored.read_text())["new"] == 1 and json.loads(stored.read_text())["about"]["kind"] == "calibration"

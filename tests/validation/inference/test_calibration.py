@@ -67,5 +67,5 @@ def test_fit_recovers_a_band_gain_and_the_store_keeps_it(exact_models, tmp_path)
         fit_calibration([CycleFeatures(SPEC, x, np.zeros(20))], exact_models, "nominal", key="k", bench="b",
                         labels=["s1"])
     (tmp_path / "bad.json").write_text("{}")
-    with pytest.raises(ValueError, match="not a wearbench calibration"):
+    with pytest.raises(ValueError, match="not a calibration"):
         load_calibration(tmp_path / "bad.json")

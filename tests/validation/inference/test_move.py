@@ -6,6 +6,7 @@ out low), refused with another estimator, and measured and stored end to end by
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from wearbench.validation.inference.move import (
 from wearbench.validation.inference.track import track_features
 from wearbench.validation.measurement.features import CycleFeatures
 
+from ...acquisition.conftest import FAST
 from ..workflows import test_track_sessions
 from . import test_estimate
 from .test_estimate import SB, SPEC, SW, P, true_mean
@@ -88,7 +90,8 @@ def test_a_move_stored_beside_its_estimator_is_loaded_with_it_and_track_uses_it(
     est = load_estimator(path)
     assert est.path == path
     stored = stored_move(est)
-    assert stored.estimator == est.key and stored.path == str(move_path(path)) and stored.about == {**about, "benches": 12}
+    assert stored.estimator == est.key and stored.path == str(move_path(path))
+    assert stored.about == {"bench": "synthetic", **about, "benches": 12}
     assert np.array_equal(stored.mean, measured.mean) and np.array_equal(stored.covariance, measured.covariance)
     assert stored.rows.shape == (12, P)
     assert "12 simulated lives (default path; seeds 500-511; wear factor 1.3" in stored.describe()
@@ -120,11 +123,14 @@ def test_a_move_measured_against_another_estimator_is_refused_naming_file_field_
     with pytest.raises(ValueError) as exc:
         stored_move(est)
     text = str(exc.value)
-    assert str(move_path(path)) in text and "field 'estimator' = '0123abcd'" in text and repr(est.key) in text
-    with pytest.raises(ValueError, match="field 'estimator' = '0123abcd'"):
+    assert str(move_path(path)) in text and "another estimator (key 0123abcd)" in text and f"key {est.key}" in text
+    with pytest.raises(ValueError, match=r"another estimator \(key 0123abcd\)"):
         load_move(move_path(path), est.key)
     np.savez(move_path(path), mean=other.mean)  # an .npz that is not a move
-    with pytest.raises(ValueError, match=r"bench.move.npz: not a move saved by .*no field 'format'"):
+    with pytest.raises(ValueError, match=r"bench.move.npz: not a move \('wearbench estimator --lives'\) \(no 'about'"):
+        stored_move(est)
+    save_estimator(est, move_path(path))  # another kind of artefact
+    with pytest.raises(ValueError, match=r"bench.move.npz is an estimator, not a move"):
         stored_move(est)
     with pytest.raises(ValueError, match="features"):  # a move of another feature set
         track_features(two_sessions(np.zeros(P)), [0.0, 2e5], model, coefficient=5.2e-14,
@@ -136,7 +142,8 @@ def test_track_uses_the_stored_move_unless_told_not_to(model, sessions, tmp_path
     --json), --no-move leaves it out and says so; a move of another estimator stops track with its error."""
     s0, s1, _ = sessions
     _, lives = planted(model, np.random.default_rng(15))
-    path = save_estimator(model.estimator, tmp_path / "bench.npz")
+    # the estimator at the sessions' speed: one of another speed is refused (below)
+    path = save_estimator(replace(model.estimator, speed=FAST), tmp_path / "bench.npz")
     save_move(life_move(model, lives, {"sensor_paths": ["default path"], "seeds": [1, 2], "factor": 1.3}),
               move_path(path))
     common = ["track", str(s0), str(s1), "--estimator", str(path), "--calibration", "none"]
@@ -154,7 +161,11 @@ def test_track_uses_the_stored_move_unless_told_not_to(model, sessions, tmp_path
     assert without["move"] is None and without["factor"] != with_move["factor"]
     save_move(Move(np.zeros(P), np.eye(P), "0123abcd", np.zeros((3, P))), move_path(path))
     assert main(common) == 2
-    assert "field 'estimator' = '0123abcd'" in capsys.readouterr().err
+    assert "another estimator (key 0123abcd)" in capsys.readouterr().err
+    slow = save_estimator(model.estimator, tmp_path / "slow.npz")  # built at 2 pi rad/s
+    assert main(["track", str(s0), str(s1), "--estimator", str(slow), "--calibration", "none"]) == 2
+    assert f"{slow}: an estimator built at 6.28319 rad/s; session s0 commanded at {FAST:.6g} rad/s" in \
+        capsys.readouterr().err
 
 
 @pytest.mark.slow

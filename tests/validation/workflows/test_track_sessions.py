@@ -10,7 +10,7 @@ from wearbench.bench.load import shipped_bench
 from wearbench.cli import main
 from wearbench.validation.measurement.features import FeatureSpec
 from wearbench.validation.measurement.session import load_session
-from wearbench.validation.workflows import measure
+from wearbench.validation.workflows import measure, session_set
 
 from ...acquisition.conftest import FAST, HARMONIC
 
@@ -42,6 +42,7 @@ def test_record_stores_the_cycles_run_and_track_reads_them(sessions, tmp_path, m
     class Fitted:  # what track needs of the estimator here: its feature spec, its file (none: no stored move)
         spec = FeatureSpec()
         path = None
+        about = None
 
     def fake_track(features, cycles_run, model, **kw):
         from wearbench.validation.inference.estimate import Interval
@@ -53,7 +54,7 @@ def test_record_stores_the_cycles_run_and_track_reads_them(sessions, tmp_path, m
                      factor=i, coefficient=i, cycles_to_limit=None, limit=None, beyond=0.0, notes=[])
 
     monkeypatch.setattr(measure, "track_features", fake_track)
-    monkeypatch.setattr(measure, "build_estimator", lambda *a, **k: Fitted())
+    monkeypatch.setattr(session_set, "build_estimator", lambda *a, **k: Fitted())
     monkeypatch.setattr(measure, "fit_estimator", lambda *a, **k: None)
     t = measure.track_sessions([s0, s1], calibration=None)
     assert seen[-1] == [0.0, 150_000.0] and t.notes == []
