@@ -223,3 +223,44 @@ def test_record_cycles_below_one_are_refused(tmp_path, capsys):
     with pytest.raises(SystemExit) as info:
         main([*RECORD, str(tmp_path / "s.mcap"), "--cycles", "1e-9"])
     assert info.value.code == 2 and "expected at least 1 crank cycle" in capsys.readouterr().err
+
+
+def test_record_refuses_a_crank_that_cannot_turn_before_the_emulator_simulates(tmp_path, capsys):
+    text = shipped_bench("fourbar").read_text()
+    for old, new in NOT_GRASHOF:
+        text = text.replace(old, new, 1)
+    path = tmp_path / "locked.toml"
+    path.write_text(text)
+    out = tmp_path / "s.mcap"
+    assert main(["record", str(path), "--backend", "sim", "--cycles", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and f"{path}: driver[0].joint = 'O': expected cranks that turn full revolutions" in err[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("option, labels, words", [
+    ("speedup=fast", [], ["[hardware.sim] speedup = 'fast': expected a positive number"]),
+    ("step=-1", [], ["[hardware.sim] step = -1: expected a positive number"]),
+    ("configg=x.json", [], ["unknown option(s) ['configg']", "expected speedup, step, config"]),
+    ("config=LIST", [], ["LIST: emulator = [1, 2]: expected a table"]),
+    ("config=NOT_JSON", [], ["config = ", "NOT_JSON", "expected a JSON file of the [emulator] table"]),
+    ("config=BAD_STATE", [], ["BAD_STATE: emulator.truth.state = '0.4 mm new': expected one of the bench's "
+                              "[[state]] names"]),
+    ("config=BAD_STATE", ["--wear", "R=new"], ["BAD_STATE: emulator.truth.state = '0.4 mm new'"]),
+    ("config=BAD_KEY", ["--clearance", "R=0.3mm"], ["BAD_KEY: emulator.acelerometer = {}: unknown key"]),
+])
+def test_the_emulators_configuration_is_checked_before_it_starts(option, labels, words, tmp_path, capsys):
+    """Issue 44: ``--option config=JSON`` (the [emulator] table as one JSON object) and the sim backend's
+    other options: a bad key or value is one line naming it, exit 2, no session file."""
+    files = {"LIST": "[1, 2]", "NOT_JSON": "truth = 1", "BAD_STATE": '{"truth": {"state": "0.4 mm new"}}',
+             "BAD_KEY": '{"acelerometer": {}}'}
+    for name, content in files.items():
+        (tmp_path / f"{name}.json").write_text(content)
+        option = option.replace(name, str(tmp_path / f"{name}.json"))
+        words = [w.replace(name, str(tmp_path / f"{name}.json")) for w in words]
+    out = tmp_path / "s.mcap"
+    assert main(["record", "fourbar", "--backend", "sim", "--cycles", "1", "--out", str(out), "--option", option,
+                 *labels]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and all(w in err[0] for w in words), err
+    assert not out.exists()
