@@ -144,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
         sweep_turns(bench)
         if clearances or worn:
             options["config"], truth_note = set_sim_truth(bench, {**bench.hardware.options.get("sim", {}), **options},
-                                                          clearances, worn)
+                                                          clearances, worn, from_command_line="config" in options)
     check_free_space(args.out)  # refuse before the rig starts
     live = None
     if args.live is not None:
@@ -206,8 +206,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def set_sim_truth(bench, options: dict, clearances: dict[str, float],
-                  worn: dict[str, Path | None]) -> tuple[dict, str]:
+def set_sim_truth(bench, options: dict, clearances: dict[str, float], worn: dict[str, Path | None], *,
+                  from_command_line: bool = True) -> tuple[dict, str]:
     """The sim backend's emulator config with its truth set from the session's labels (``--clearance``
     radial clearances m, ``--wear`` worn-surface files or None for new, by joint), and the sentence
     saying what it plays. The emulator runs in this process, so the labels are the bench it plays: a
@@ -224,11 +224,13 @@ def set_sim_truth(bench, options: dict, clearances: dict[str, float],
             table = json.loads(Path(raw).read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise ValueError(f"--option config={raw}: expected a JSON file of the [emulator] table ({exc})") from None
-        config, where = EmulatorConfig.from_table(table, bench=bench, source=raw), f"--option config={raw}"
+        config = EmulatorConfig.from_table(table, bench=bench, source=raw)
+        where = f"--option config={raw}" if from_command_line else f"[hardware.sim] config = {raw!r}"
     elif raw is not None:
         config, where = EmulatorConfig.from_table(raw, bench=bench), "the config option"
     else:
-        config, where = EmulatorConfig.from_bench(bench), "its [emulator.truth]"
+        config = EmulatorConfig.from_bench(bench)
+        where = "its [emulator.truth]" if "truth" in bench.emulator else "the bench file (no [emulator.truth])"
     truth = config.truth.labelled(bench, clearances, worn)
     if truth is config.truth:
         return config.to_table(), (f"the sim emulator plays what --clearance/--wear say, as {where} already "
