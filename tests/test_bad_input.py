@@ -244,8 +244,8 @@ def test_record_refuses_a_crank_that_cannot_turn_before_the_emulator_simulates(t
     ("configg=x.json", [], ["unknown option(s) ['configg']", "expected speedup, step, config"]),
     ("config=LIST", [], ["LIST: emulator = [1, 2]: expected a table"]),
     ("config=NOT_JSON", [], ["config = ", "NOT_JSON", "expected a JSON file of the [emulator] table"]),
-    ("config=BAD_STATE", [], ["BAD_STATE: emulator.truth.state = '0.4 mm new': expected one of the bench's "
-                              "[[state]] names"]),
+    ("config=BAD_STATE", [], [("BAD_STATE: emulator.truth.state = '0.4 mm new': expected one of the bench's "
+                               "[[state]] names")]),
     ("config=BAD_STATE", ["--wear", "R=new"], ["BAD_STATE: emulator.truth.state = '0.4 mm new'"]),
     ("config=BAD_KEY", ["--clearance", "R=0.3mm"], ["BAD_KEY: emulator.acelerometer = {}: unknown key"]),
 ])

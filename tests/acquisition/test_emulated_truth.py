@@ -79,8 +79,8 @@ def test_a_worn_label_really_wears_the_sim_emulator(fourbar, worn, tmp_path, cap
         said = [x for x in capsys.readouterr().out.splitlines() if x.startswith("wearbench record:")]
         sessions[label] = read_session(out), said
     (new, said_new), (worn_session, said_worn) = sessions["new"], sessions[str(worn)]
-    assert said_new == ["wearbench record: the sim emulator plays what --clearance/--wear say, as --option "
-                        f"config={config} already had it: R 0.3 mm new; the model's twin"]
+    assert said_new == [("wearbench record: the sim emulator plays what --clearance/--wear say, as --option "
+                         f"config={config} already had it: R 0.3 mm new; the model's twin")]
     assert len(said_worn) == 1 and "truth set from --clearance/--wear: it plays R 0.3 mm worn (worn-R.npz)" in \
         said_worn[0] and "instead of --option config" in said_worn[0]
     # the recorded truth marks: the clearance's the same, the wear's not, and both are what the labels claim
@@ -115,10 +115,11 @@ def serial_fourbar():
 
 
 @pytest.mark.parametrize("labels, refused", [
-    (["--wear", "R=WORN"], "--wear R=WORN: refused: the emulated bench behind the serial backend "
-                           "(wearbench emulator fourbar) has another wear at R"),
-    (["--clearance", "R=0.6mm", "--wear", "R=new"], "--clearance R=0.6mm: refused: the emulated bench behind the "
-                                                    "serial backend (wearbench emulator fourbar) has another clearance"),
+    (["--wear", "R=WORN"], ("--wear R=WORN: refused: the emulated bench behind the serial backend "
+                            "(wearbench emulator fourbar) has another wear at R")),
+    (["--clearance", "R=0.6mm", "--wear", "R=new"], ("--clearance R=0.6mm: refused: the emulated bench behind "
+                                                     "the serial backend (wearbench emulator fourbar) has another "
+                                                     "clearance")),
 ])
 def test_a_serial_emulator_refuses_a_label_it_does_not_play(labels, refused, serial_fourbar, worn, tmp_path, capsys):
     port = serial_fourbar()
