@@ -187,7 +187,7 @@ class MotorDrive(abc.ABC):
             timer.start()
 
     def tap(self, after: float = 0.01, width: float = 2e-4, peak: float = 1000.0) -> None:
-        """Fire the tapper on the slider ``after`` s from now: a half-sine pulse of ``width`` s peaking
+        """Fire the tapper on the accelerometer's body ``after`` s from now: a half-sine pulse of ``width`` s peaking
         at ``peak`` m/s^2. The drive latches its trigger on the encoder's clock and reports it as an
         event of kind ``"tap"`` from the sources (hardware/protocol/taps.py names its message)."""
         raise DriverError(f"{self.name}: this drive has no tapper on its touch probe (tap test not supported)")

@@ -293,6 +293,37 @@ def _sensor(r: _Reader, i: int, data: dict, bodies: dict[str, Body], joints: dic
     )
 
 
+def _sensors(r: _Reader, raw: Any, bodies: dict[str, Body], joints: dict[str, Joint],
+             drivers: tuple[Driver, ...]) -> tuple[Sensor, ...]:
+    """``[[sensor]]`` tables: every sensor is one wearbench uses, or it is refused here (never ignored).
+
+    wearbench records and analyses one accelerometer and one encoder, and the encoder counts the turns
+    of a driven crank (what the recorder, the emulator and the analysis read as the crank angle)."""
+    if not isinstance(raw, list):
+        raise r.fail("sensor", raw, "expected an array of tables [[sensor]]")
+    sensors: list[Sensor] = []
+    driven = [d.joint for d in drivers]
+    for i, item in enumerate(raw):
+        s = _sensor(r, i, item, bodies, joints)
+        key = f"sensor[{i}] ({s.name})"
+        if any(o.name == s.name for o in sensors):
+            raise r.fail(f"{key}.name", s.name, "expected a unique sensor name")
+        first = next((k for k, o in enumerate(sensors) if o.kind == s.kind), None)
+        if first is not None:
+            used = f"sensor[{first}] ({sensors[first].name})"
+            what = ("one acceleration stream is recorded and analysed" if s.kind == "accelerometer"
+                    else "one encoder gives the crank angle")
+            raise r.fail(f"{key}.kind", s.kind, f"expected one {s.kind} per bench: {used} is the one wearbench "
+                         f"uses ({what}) and it cannot use a second; remove this one, or describe it in a copy "
+                         "of the bench file")
+        if s.kind == "encoder" and s.joint not in driven:
+            raise r.fail(f"{key}.joint", s.joint, f"expected a driven joint, one of the [[driver]] joints {driven}: "
+                         "the encoder gives the driven crank's angle (the recorder counts cycles by it, the "
+                         "analysis addresses the signal by it)")
+        sensors.append(s)
+    return tuple(sensors)
+
+
 def _either(r: _Reader, data: dict, key: str, stated: str, parts: tuple[str, ...]) -> None:
     """A chain stage is stated either by its response (``parts``) or by its delay (``stated``)."""
     if stated in data and any(p in data for p in parts):
@@ -503,7 +534,7 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
             raise r.fail(f"assembly.{jname}", raw, f"expected a joint name: {sorted(joints)}")
         assembly[jname] = r.point(raw, f"assembly.{jname}")
 
-    sensors = tuple(_sensor(r, i, raw, bodies, joints) for i, raw in enumerate(data.get("sensor", [])))
+    sensors = _sensors(r, data.get("sensor", []), bodies, joints, tuple(drivers))
     hardware = _hardware(r, data.get("hardware", {"backend": "sim"}))
     emulator = r.table(data.get("emulator", {}), "emulator")
     tolerances = _tolerances(r, r.table(data.get("tolerances", {}), "tolerances"))

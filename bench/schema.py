@@ -239,7 +239,8 @@ class Bench:
         raise KeyError(name)
 
     def sensor(self, kind: str) -> Sensor:
-        """The first sensor of ``kind`` ("accelerometer" or "encoder")."""
+        """The sensor of ``kind`` ("accelerometer" or "encoder"): a bench has at most one of each (the
+        loader refuses a second)."""
         for s in self.sensors:
             if s.kind == kind:
                 return s
@@ -247,7 +248,8 @@ class Bench:
 
     @property
     def encoder_driver(self) -> Driver:
-        """The driver whose crank the encoder reads (the first driver when no encoder names one)."""
+        """The driver whose crank the encoder reads (the loader refuses an encoder on any other joint);
+        the first driver on a bench without an encoder."""
         joint = next((s.joint for s in self.sensors if s.kind == "encoder" and s.joint), None)
         return next((d for d in self.drivers if d.joint == joint), self.drivers[0])
 

@@ -21,11 +21,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "bench",
         help="list, check or show bench definition files",
         description="Bench files (TOML) describe a test bed: mechanism, clearance joints, drivers, "
-        "sensors and hardware backend. 'check' validates every key and that the mechanism assembles.",
+        "sensors and hardware backend. 'check' validates every key, that the mechanism assembles, that "
+        "its cranks turn full revolutions (a kinematic sweep, seconds), that the accelerometer's range is "
+        "above what the motion alone gives it, and the [emulator] table.",
     )
     verbs = p.add_subparsers(dest="verb", metavar="VERB", required=True)
     verbs.add_parser("list", help="list the bench files shipped with wearbench").set_defaults(func=_list)
-    c = verbs.add_parser("check", help="validate bench files and assemble their mechanisms")
+    c = verbs.add_parser("check", help="validate bench files: keys, assembly, full crank turns, sensor range, "
+                         "[emulator]")
     c.add_argument("files", nargs="+", metavar="BENCH.toml")
     c.set_defaults(func=_check)
     s = verbs.add_parser("show", help="print bodies, joints, clearances, drivers and sensors")
@@ -49,15 +52,18 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _check(args: argparse.Namespace) -> int:
+    from wearbench.cli.bench_checks import check_bench
+    from wearbench.model import build_scene  # the model owns the kinematics of assembly
+
     for file in args.files:
         bench = load_bench(resolve_bench(file))
-        from wearbench.model import build_scene  # the model owns the kinematics of assembly
-
         scene = build_scene(bench)
+        notes = check_bench(bench)  # kinematic sweep, sensor range against the motion, [emulator]
         missing = [k for k in ("encoder", "accelerometer") if k not in {s.kind for s in bench.sensors}]
-        can = f"; simulate only, cannot record: no {' or '.join(missing)} sensor" if missing else ""
+        if missing:
+            notes.append(f"simulate only, cannot record: no {' or '.join(missing)} sensor")
         print(f"{file}: ok ({bench.name}: {len(bench.bodies)} bodies, {len(bench.joints)} joints, "
-              f"{scene.dof} degrees of freedom with the drivers applied: {scene.description}{can})")
+              f"{scene.dof} degrees of freedom with the drivers applied: {scene.description}; {'; '.join(notes)})")
     return 0
 
 

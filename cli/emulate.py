@@ -1,8 +1,9 @@
 """`wearbench emulate BENCH.toml --serial`: run the bench emulator on a pseudo-terminal.
 
 Prints the port path on the first line and serves until Ctrl-C/SIGTERM. The ``[emulator]`` table of
-the bench file configures imperfections, truth and faults; ``--config FILE.json`` replaces it;
-``--state``, ``--seed`` and ``--twin`` set its truth (``emulator_config``).
+the bench file configures imperfections, truth and faults; ``--config FILE.json`` replaces it (one JSON
+object of the table's keys); ``--state``, ``--seed`` and ``--twin`` set its truth (``emulator_config``),
+whose marks its INFO name carries (``hardware/protocol/truth.py``) for a host to check its labels by.
 """
 
 from __future__ import annotations
@@ -17,11 +18,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("emulate", help="run an emulated bench device (serial protocol on a pty)",
                        description="Run the emulated bench device of BENCH.toml: the serial protocol on a new "
                        "pseudo-terminal. Prints the port path on the first line and serves until Ctrl-C. "
-                       "The bench file's [emulator] table sets imperfections, hidden truth and faults.")
+                       "The bench file's [emulator] table sets imperfections, hidden truth and faults. The truth "
+                       "is set here: 'wearbench record --clearance/--wear' against this emulator is refused "
+                       "where it disagrees with it (the device name carries marks of the truth, not the truth).")
     p.add_argument("bench", help="bench file (TOML), or the name of a shipped bench")
     p.add_argument("--serial", action="store_true", required=True,
                    help="serve the serial protocol on a new pseudo-terminal and print its path")
-    p.add_argument("--config", type=Path, help="JSON file replacing the bench's [emulator] table")
+    p.add_argument("--config", type=Path, help="JSON file replacing the bench's [emulator] table: one object of "
+                   "the same keys, values with units as strings, e.g. {\"truth\": {\"state\": \"0.6 mm new\", "
+                   "\"seed\": 3}, \"accelerometer\": {\"noise\": \"0.1 m/s^2\"}} (reference: "
+                   "hardware/emulators/config.py)")
     p.add_argument("--sent-log", type=Path, help="append every byte sent to the host to this file (never to a "
                    "recorded session)")
     p.add_argument("--state", help="the true state: a [[state]] name of the bench (default: the table's truth)")
@@ -46,7 +52,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             table = json.loads(args.config.read_text(encoding="utf-8"))
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"{args.config}: not JSON ({exc})") from None
+            raise ValueError(f"--config {args.config}: not JSON ({exc}); expected one JSON object of the "
+                             "[emulator] table's keys") from None
         config = EmulatorConfig.from_table(table, bench=bench, source=args.config)
     else:
         config = EmulatorConfig.from_bench(bench)

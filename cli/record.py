@@ -22,7 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "record", help="record a bench session (motor, encoder, accelerometer) to MCAP",
         description="Warm up to speed, record a number of crank cycles or a duration, ramp down, and "
         "write everything to an MCAP file that stays readable whatever happens (Ctrl-C, a lost device, "
-        "a full disk).",
+        "a full disk). On an emulated bench the labels are checked: the sim backend's emulator plays what "
+        "--clearance/--wear say (its truth is set from them), a serial emulator, whose truth is set where it "
+        "runs, refuses labels it does not play; the command says which.",
         epilog="example: wearbench record ninebar-testbed.toml --speed 2pi --cycles 20 --out s.mcap "
         "--clearance A=0.3mm,B=0.3mm --wear A=new,B=new --operator ana")
     p.add_argument("bench", help="bench file (TOML), or the name of a shipped bench")
@@ -41,9 +43,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="backend option overriding the bench file's [hardware.<backend>] table "
                    "(e.g. port=/dev/ttyACM0, interface=socketcan, channel=can0; sim: speedup=inf runs "
-                   "as fast as the host can, config=EMULATOR.json); repeatable")
-    p.add_argument("--clearance", default="", help="mounted radial clearances, e.g. A=0.3mm,B=0.3mm")
-    p.add_argument("--wear", default="", help="wear state per joint, e.g. A=new,B=stage2.npz")
+                   "as fast as the host can, config=EMULATOR.json replaces the bench's [emulator] table with "
+                   "one JSON object of the same keys, values with units as strings, e.g. "
+                   "{\"truth\": {\"state\": \"0.6 mm new\", \"seed\": 3}}: reference "
+                   "hardware/emulators/config.py); repeatable")
+    p.add_argument("--clearance", default="", help="mounted radial clearances, e.g. A=0.3mm,B=0.3mm; on the sim "
+                   "backend's emulator they set its truth (it says so), a serial emulator refuses what it does "
+                   "not play")
+    p.add_argument("--wear", default="", help="wear state per joint, e.g. A=new,B=stage2.npz; on an emulated bench "
+                   "as --clearance")
     p.add_argument("--operator", default="", help="who ran the session")
     p.add_argument("--cycles-run", metavar="N", help="cycles the bench had run before this session (e.g. 200000), "
                    "stored in the session; 'wearbench track' reads it")
@@ -77,6 +85,7 @@ def backend_options(items: list[str]) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from wearbench.acquisition.backends import open_rig
+    from wearbench.acquisition.emulated_truth import check_labels
     from wearbench.acquisition.recorder import Recorder
     from wearbench.acquisition.session import SessionPlan
     from wearbench.acquisition.session_writer import (
@@ -105,12 +114,14 @@ def run(args: argparse.Namespace) -> int:
              if args.speed else bench.speed)
     clearances = parse_clearances(args.clearance, bench)
     wear = joint_values(args.wear, "--wear", [j.name for j in bench.clearance_joints])
+    worn: dict[str, Path | None] = {}  # the wear labels: a worn-surface file, None for new
     for joint, state in wear.items():  # what the analysis reads back: 'new' or a file (it travels in the session)
         from wearbench.model.surfaces import JointSurfaces
         from wearbench.validation.comparison.theory import UNWORN
 
         expected = "expected 'new' or a worn-surface .npz file (written by 'wearbench wear')"
         if state.lower() in UNWORN:
+            worn[joint] = None
             continue
         if Path(state).suffix != ".npz":
             raise ValueError(f"--wear {joint}={state}: neither 'new' nor a worn-surface file; {expected}")
@@ -118,12 +129,22 @@ def run(args: argparse.Namespace) -> int:
             JointSurfaces.load(state)
         except (OSError, ValueError) as exc:
             raise ValueError(f"--wear {joint}={state}: {exc}; {expected}") from None
+        worn[joint] = Path(state)
     plan = SessionPlan(
         speed=speed, cycles=args.cycles,
         duration=positive_quantity(args.duration, "time", "--duration", bare_unit="s") if args.duration else None,
         clearances=clearances, wear=wear, operator=args.operator, cycles_run=cycles_run_value(args.cycles_run),
         settle=positive_quantity(args.settle, "time", "--settle", bare_unit="s", allow_zero=True))
     options = backend_options(args.option)
+    backend = args.backend or bench.hardware.backend
+    truth_note = None
+    if backend == "sim":  # the emulator simulates the bench: refuse a bench it cannot turn before it starts
+        from wearbench.cli.bench_checks import sweep_turns
+
+        sweep_turns(bench)
+        if clearances or worn:
+            options["config"], truth_note = set_sim_truth(bench, {**bench.hardware.options.get("sim", {}), **options},
+                                                          clearances, worn, from_command_line="config" in options)
     check_free_space(args.out)  # refuse before the rig starts
     live = None
     if args.live is not None:
@@ -132,11 +153,21 @@ def run(args: argparse.Namespace) -> int:
         live = LiveView(*parse_address(args.live), name=f"wearbench {bench.name}")
         print(f"live view: {live.url} (Foxglove: Open connection, Foxglove WebSocket)", flush=True)
     try:
-        rig = open_rig(bench.with_clearances(clearances) if clearances else bench, args.backend, options)
+        # the sim emulator plays the truth set above; another backend's bench is what is wired to it
+        rig = open_rig(bench.with_clearances(clearances) if clearances and backend != "sim" else bench, backend,
+                       options)
+        try:
+            checked = check_labels(rig, bench, clearances, worn)  # sim: agrees with the truth just set
+            truth_note = truth_note or checked
+        except BaseException:
+            rig.close()
+            raise
     except BaseException:
         if live is not None:
             live.close()
         raise
+    if truth_note:
+        print(f"wearbench record: {truth_note}", flush=True)
     unit = "cycles" if plan.cycles is not None else "s"
     with progress() as bar:
         task = bar.add_task(f"record {bench.name}", total=plan.cycles or plan.duration, info="")
@@ -173,6 +204,40 @@ def run(args: argparse.Namespace) -> int:
               "that point)", file=sys.stderr)
         return 130 if result.reason.startswith("interrupted") else 1
     return 0
+
+
+def set_sim_truth(bench, options: dict, clearances: dict[str, float], worn: dict[str, Path | None], *,
+                  from_command_line: bool = True) -> tuple[dict, str]:
+    """The sim backend's emulator config with its truth set from the session's labels (``--clearance``
+    radial clearances m, ``--wear`` worn-surface files or None for new, by joint), and the sentence
+    saying what it plays. The emulator runs in this process, so the labels are the bench it plays: a
+    joint not labelled keeps the truth's (its ``config`` option's, else the bench file's
+    ``[emulator.truth]``), and so do its seed and delay."""
+    import json
+    from dataclasses import replace
+
+    from wearbench.hardware.emulators.config import EmulatorConfig
+
+    raw = options.get("config")
+    if isinstance(raw, str):  # a JSON file replacing the bench's [emulator] table
+        try:
+            table = json.loads(Path(raw).read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"--option config={raw}: expected a JSON file of the [emulator] table ({exc})") from None
+        config = EmulatorConfig.from_table(table, bench=bench, source=raw)
+        where = f"--option config={raw}" if from_command_line else f"[hardware.sim] config = {raw!r}"
+    elif raw is not None:
+        config, where = EmulatorConfig.from_table(raw, bench=bench), "the config option"
+    else:
+        config = EmulatorConfig.from_bench(bench)
+        where = "its [emulator.truth]" if "truth" in bench.emulator else "the bench file (no [emulator.truth])"
+    truth = config.truth.labelled(bench, clearances, worn)
+    if truth is config.truth:
+        return config.to_table(), (f"the sim emulator plays what --clearance/--wear say, as {where} already "
+                                   f"had it: {truth.describe(bench)}")
+    return replace(config, truth=truth).to_table(), (
+        f"the sim emulator's truth set from --clearance/--wear: it plays {truth.describe(bench)} "
+        f"(instead of {where}: {config.truth.describe(bench)})")
 
 
 def cycles_run_value(text: str | None) -> float | None:

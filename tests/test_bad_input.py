@@ -53,7 +53,10 @@ def test_simulate_takes_negative_speed_through_the_command_line():
 
 
 def test_a_bench_that_cannot_record(tmp_path, capsys):
-    fourbar = shipped_bench("fourbar")
+    text = shipped_bench("fourbar").read_text()
+    encoder = text[text.index('[[sensor]]\nname = "crank_encoder"'):text.index("[hardware]")]
+    fourbar = tmp_path / "no-encoder.toml"
+    fourbar.write_text(text.replace(encoder, ""))
     assert main(["bench", "check", str(fourbar)]) == 0
     assert "cannot record: no encoder" in capsys.readouterr().out
     out = tmp_path / "s.mcap"
@@ -61,6 +64,77 @@ def test_a_bench_that_cannot_record(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(fourbar) in err and "encoder" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("path", sorted(BENCH_DIR.glob("*.toml")), ids=lambda p: p.stem)
+def test_every_shipped_bench_checks_and_can_record(path, capsys):
+    """Issue 44: the shipped benches are lab-ready: they pass every check, their cranks turn, their
+    accelerometer's range is above the motion alone, and they have both sensors a session records."""
+    assert main(["bench", "check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "full revolutions" in out and "% of its" in out and "cannot record" not in out, out
+
+
+ENCODER_ON_Q = """[[sensor]]
+name = "rocker_encoder"
+kind = "encoder"
+joint = "Q"
+counts_per_rev = 4000
+sample_rate = "1 kHz"
+
+"""
+COUPLER_ACC = """[[sensor]]
+name = "coupler_acc"
+kind = "accelerometer"
+body = "coupler"
+point = "end"
+axis = "0 deg"
+range = "500 g"
+sample_rate = "10 kHz"
+
+"""
+NOT_GRASHOF = (('length = "0.10 m"\nmass = "0.2355 kg"', 'length = "0.28 m"\nmass = "0.2355 kg"'),
+               ('P = ["0 m", "0.10 m"]', 'P = ["0 m", "0.28 m"]'))
+
+# issue 44: what 'bench check' used to pass -> (replacements of the shipped fourbar, the start of the
+# one line: file, key and value, and what it expected)
+CHECK_REFUSALS = {
+    "crank that cannot turn (not Grashof)": (NOT_GRASHOF, "driver[0].joint = 'O': ",
+                                             "expected cranks that turn full revolutions"),
+    "encoder on a joint not driven": ((('joint = "O"                       # on', 'joint = "Q"  # on'),),
+                                      "sensor[1] (crank_encoder).joint = 'Q': ",
+                                      "expected a driven joint, one of the [[driver]] joints ['O']"),
+    "second encoder": ((("[hardware]", ENCODER_ON_Q + "[hardware]"),), "sensor[2] (rocker_encoder).kind = 'encoder': ",
+                       "expected one encoder per bench"),
+    "second accelerometer": ((("[hardware]", COUPLER_ACC + "[hardware]"),),
+                             "sensor[2] (coupler_acc).kind = 'accelerometer': ",
+                             "expected one accelerometer per bench: sensor[0] (rocker_acc) is the one wearbench uses"),
+    "range below the motion alone": ((('range = "500 g"', 'range = "0.5 g"'),), "sensor[0] (rocker_acc).range = '0.5 g': ",
+                                     "expected a range above the 0.689 g"),
+    "emulator truth names no state": ((('state = "0.3 mm new"              #', 'state = "0.4 mm new"  #'),),
+                                      "emulator.truth.state = '0.4 mm new': ",
+                                      "expected one of the bench's [[state]] names: ['0.3 mm new', '0.6 mm new']"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CHECK_REFUSALS))
+def test_bench_check_refuses_what_it_used_to_pass(case, tmp_path, capsys, monkeypatch):
+    """One line naming file, key, value and expectation, exit 2, in seconds: no simulation runs."""
+    import wearbench.model
+    from wearbench.model import simulation
+
+    replacements, start, expected = CHECK_REFUSALS[case]
+    text = shipped_bench("fourbar").read_text()
+    for old, new in replacements:
+        assert old in text, old
+        text = text.replace(old, new, 1)
+    path = tmp_path / "mybench.toml"
+    path.write_text(text)
+    for module in (wearbench.model, simulation):
+        monkeypatch.setattr(module, "simulate", lambda *a, **k: pytest.fail("bench check simulated"))
+    assert main(["bench", "check", str(path)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and f"{path}: {start}" in err[0] and expected in err[0], err
 
 
 def test_resolve_bench(tmp_path, monkeypatch):
@@ -149,3 +223,44 @@ def test_record_cycles_below_one_are_refused(tmp_path, capsys):
     with pytest.raises(SystemExit) as info:
         main([*RECORD, str(tmp_path / "s.mcap"), "--cycles", "1e-9"])
     assert info.value.code == 2 and "expected at least 1 crank cycle" in capsys.readouterr().err
+
+
+def test_record_refuses_a_crank_that_cannot_turn_before_the_emulator_simulates(tmp_path, capsys):
+    text = shipped_bench("fourbar").read_text()
+    for old, new in NOT_GRASHOF:
+        text = text.replace(old, new, 1)
+    path = tmp_path / "locked.toml"
+    path.write_text(text)
+    out = tmp_path / "s.mcap"
+    assert main(["record", str(path), "--backend", "sim", "--cycles", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and f"{path}: driver[0].joint = 'O': expected cranks that turn full revolutions" in err[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("option, labels, words", [
+    ("speedup=fast", [], ["[hardware.sim] speedup = 'fast': expected a positive number"]),
+    ("step=-1", [], ["[hardware.sim] step = -1: expected a positive number"]),
+    ("configg=x.json", [], ["unknown option(s) ['configg']", "expected speedup, step, config"]),
+    ("config=LIST", [], ["LIST: emulator = [1, 2]: expected a table"]),
+    ("config=NOT_JSON", [], ["config = ", "NOT_JSON", "expected a JSON file of the [emulator] table"]),
+    ("config=BAD_STATE", [], [("BAD_STATE: emulator.truth.state = '0.4 mm new': expected one of the bench's "
+                               "[[state]] names")]),
+    ("config=BAD_STATE", ["--wear", "R=new"], ["BAD_STATE: emulator.truth.state = '0.4 mm new'"]),
+    ("config=BAD_KEY", ["--clearance", "R=0.3mm"], ["BAD_KEY: emulator.acelerometer = {}: unknown key"]),
+])
+def test_the_emulators_configuration_is_checked_before_it_starts(option, labels, words, tmp_path, capsys):
+    """Issue 44: ``--option config=JSON`` (the [emulator] table as one JSON object) and the sim backend's
+    other options: a bad key or value is one line naming it, exit 2, no session file."""
+    files = {"LIST": "[1, 2]", "NOT_JSON": "truth = 1", "BAD_STATE": '{"truth": {"state": "0.4 mm new"}}',
+             "BAD_KEY": '{"acelerometer": {}}'}
+    for name, content in files.items():
+        (tmp_path / f"{name}.json").write_text(content)
+        option = option.replace(name, str(tmp_path / f"{name}.json"))
+        words = [w.replace(name, str(tmp_path / f"{name}.json")) for w in words]
+    out = tmp_path / "s.mcap"
+    assert main(["record", "fourbar", "--backend", "sim", "--cycles", "1", "--out", str(out), "--option", option,
+                 *labels]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and all(w in err[0] for w in words), err
+    assert not out.exists()

@@ -56,6 +56,25 @@ def _broken(old: str, new: str, count: int = 1) -> str:
     return text.replace(old, new, count)
 
 
+SECOND_ACCELEROMETER = """[[sensor]]
+name = "rod_acc"
+kind = "accelerometer"
+body = "rod2"
+point = "end"
+axis = "0 deg"
+range = "50 g"
+sample_rate = "10 kHz"
+
+"""
+SECOND_ENCODER = """[[sensor]]
+name = "rocker_encoder"
+kind = "encoder"
+joint = "O4"
+counts_per_rev = 1000
+sample_rate = "1 kHz"
+
+"""
+
 # (replacement old, new) -> (key fragment, value fragment, expectation fragment)
 MISTAKES = {
     "typo key": (('mass = "0.942 kg"', 'masss = "0.942 kg"'), "masss", "0.942 kg", "unknown key"),
@@ -88,6 +107,15 @@ MISTAKES = {
     "sensor body": (('body = "slider"\npoint', 'body = "carriage"\npoint'), "sensor[0].body", "carriage",
                     "expected one of"),
     "unknown backend": (('backend = "sim"', 'backend = "usb"'), "hardware.backend", "usb", "expected one of"),
+    # issue 44: sensors wearbench would have ignored or silently replaced are refused
+    "encoder on a joint not driven": (('joint = "O1"\ncounts_per_rev', 'joint = "H"\ncounts_per_rev'),
+                                      "sensor[1] (crank_encoder).joint", "H", "expected a driven joint"),
+    "second accelerometer": (("[hardware]", SECOND_ACCELEROMETER + "[hardware]"), "sensor[2] (rod_acc).kind",
+                             "accelerometer", "expected one accelerometer per bench: sensor[0] (slider_acc)"),
+    "second encoder": (("[hardware]", SECOND_ENCODER + "[hardware]"), "sensor[2] (rocker_encoder).kind",
+                       "encoder", "expected one encoder per bench: sensor[1] (crank_encoder)"),
+    "sensor name twice": (('name = "crank_encoder"', 'name = "slider_acc"'), "sensor[1] (slider_acc).name",
+                          "slider_acc", "unique sensor name"),
 }
 
 

@@ -4,7 +4,11 @@ The device runs on a :class:`SimClock`: real time (``speedup = 1``, the default)
 stepped by the recorder's own waits (``speedup = inf``: as fast as the host can, for tests and
 benchmarks). Options (``[hardware.sim]`` or ``--option``): ``speedup``, ``step`` (s of device
 time between reads in real-time mode, default 0.02), ``config`` (a JSON file replacing the
-bench's ``[emulator]`` table, as for ``wearbench emulate --config``). Imports the emulator; no other backend.
+bench's ``[emulator]`` table, as for ``wearbench emulate --config``: one object with the table's
+keys and values, units in strings, e.g. ``{"truth": {"state": "0.6 mm new", "seed": 3}}``; the
+reference is ``hardware/emulators/config.py``). The rig's ``truth`` entry holds the marks of the
+device's truth (``hardware/protocol/truth.py``), which a host checks its labels against
+(``acquisition/emulated_truth.py``). Imports the emulator; no other backend.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from wearbench.acquisition.drivers import (
 from wearbench.bench.schema import Bench
 from wearbench.hardware.emulators.config import EmulatorConfig
 from wearbench.hardware.emulators.device import BenchDevice, DeviceError
+from wearbench.hardware.protocol.truth import announce
 
 __all__ = ["SimClock", "SimDrive", "SimSource", "blocks_from_device", "open_rig"]
 
@@ -216,30 +221,44 @@ class SimSource(AccelerationSource):
         self.clock.forget(self)
 
 
+def _positive(options: Mapping[str, Any], name: str, default: float) -> float:
+    raw = options.get(name, default)
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not value > 0:  # inf is allowed (speedup: as fast as the host can)
+        raise ValueError(f"[hardware.sim] {name} = {raw!r}: expected a positive number"
+                         + (" (inf: as fast as the host can)" if name == "speedup" else " (s of device time)"))
+    return value
+
+
 def open_rig(bench: Bench, options: Mapping[str, Any]) -> Rig:
     """A sim rig: the emulator device on a :class:`SimClock`. ``options['device']`` may pass a ready
     device built on ``options['clock']`` (tests use it to keep a handle on the emulator)."""
     unknown = set(options) - {"speedup", "step", "device", "clock", "config"}
     if unknown:
         raise ValueError(f"[hardware.sim]: unknown option(s) {sorted(unknown)}; expected speedup, step, config")
-    speedup = float(options.get("speedup", 1.0))
-    step = float(options.get("step", 0.02))
-    if not speedup > 0 or not step > 0:
-        raise ValueError(f"[hardware.sim]: speedup = {speedup}, step = {step}: expected positive numbers")
+    speedup, step = (_positive(options, name, default) for name, default in (("speedup", 1.0), ("step", 0.02)))
     clock = options.get("clock") or SimClock(speedup)
     device = options.get("device")
     if device is None:
         config = options.get("config")
         if isinstance(config, str):  # a JSON file replacing the bench's [emulator] table
             try:
-                table = json.loads(Path(config).read_text())
-            except (OSError, json.JSONDecodeError) as exc:
-                raise ValueError(f"[hardware.sim] config = {config!r}: expected a JSON file ({exc})") from None
+                table = json.loads(Path(config).read_text(encoding="utf-8"))
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise ValueError(f"[hardware.sim] config = {config!r}: expected a JSON file of the [emulator] "
+                                 f"table ({exc})") from None
             config = EmulatorConfig.from_table(table, bench=bench, source=config)
         elif isinstance(config, Mapping):
             config = EmulatorConfig.from_table(config, bench=bench)
+        elif config is not None and not isinstance(config, EmulatorConfig):
+            raise ValueError(f"[hardware.sim] config = {config!r}: expected the path of a JSON file of the "
+                             "[emulator] table (or, from Python, the table itself)")
         device = BenchDevice(bench, config=config, clock=clock)
     lock = threading.Lock()
     source = SimSource(device, lock, clock, bench, step=step)
     return Rig("sim", SimDrive(device, lock), [source], clock,
-               info={"device": "wearbench BenchDevice (in-process emulator)", "speedup": repr(speedup)})
+               info={"device": "wearbench BenchDevice (in-process emulator)", "speedup": repr(speedup),
+                     "truth": announce(device.bench.name, device.config.truth.marks(device.bench))})

@@ -18,7 +18,7 @@ Example::
     clipping = true             # clip at the configured full-scale range
     adc_bits = 16               # 0 = no quantisation (float samples)
     drift = "40 ppm"            # sample clock runs fast by this much
-    resonance = "1.5 kHz"       # mounting transfer: slider structural resonance (second order)
+    resonance = "1.5 kHz"       # mounting transfer: structural resonance of the mount (second order)
     damping = 0.05
     aa_filter = "butterworth"   # anti-alias low-pass before sampling: "butterworth" | "bessel" | "none"
     aa_order = 8
@@ -61,6 +61,21 @@ Example::
     garbage_bytes = 256         # ... this many bytes
     freeze_at = "2 s"           # the device firmware hangs: no data, no replies, the link stays open
     index_lost_at = "2 s"       # the encoder's index pulse stops (broken index line); counts go on
+
+The same table as JSON (``wearbench emulate --config FILE.json``, ``wearbench record --option
+config=FILE.json`` on the ``sim`` backend, the ``sim`` backend's ``config`` option): one object of the
+same keys, its sub-tables as objects, values with units as strings, e.g.
+``{"truth": {"state": "0.6 mm new", "seed": 3}, "accelerometer": {"noise": "0.1 m/s^2"}}``. It replaces
+the bench file's table as a whole (keys left out take the defaults above, not the bench file's).
+Every key is checked, in JSON as in TOML: an unknown key or a bad value raises BenchError naming the
+file, the key (``emulator.truth.state``), the value and what was expected.
+
+The truth and a session's labels (``wearbench record --clearance/--wear``): the ``sim`` backend's
+emulator, run by the recorder itself, plays what the labels say (:meth:`Truth.labelled`: the labelled
+joints' clearances and wear set, the rest of the truth kept, its seed and delay too) and the command
+says so; a serial emulator's truth is set where it runs (this table, ``wearbench emulate --state``) and
+its INFO name carries the marks of it (:meth:`Truth.marks`, ``hardware/protocol/truth.py``), so the
+recorder refuses a label it does not play (``acquisition/emulated_truth.py``).
 """
 
 from __future__ import annotations
@@ -71,9 +86,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from wearbench.bench.content import file_digest
 from wearbench.bench.load import _Reader
 from wearbench.bench.schema import Bench, WearState
 from wearbench.hardware.emulators.carriage import carriage
+from wearbench.hardware.protocol.truth import clearance_mark, wear_mark
 
 __all__ = [
     "AA_FILTERS",
@@ -189,6 +206,58 @@ class Truth:
         """The truth's clearances and wear as a candidate state (named by its wear stage)."""
         return WearState(self.wear_stage or "truth", dict(self.clearances), dict(self.wear))
 
+    def joints(self, bench: Bench) -> dict[str, tuple[float, Path | None]]:
+        """What the device plays at each clearance joint of ``bench``: (radial clearance m, worn-surface
+        file or None for new). A joint the truth leaves out keeps the bench file's clearance; a truth
+        without wear keeps the surfaces the bench file's joints name (as a [[state]] does)."""
+        out = {}
+        for j in bench.clearance_joints:
+            worn = self.wear.get(j.name) if self.wear else j.clearance.surfaces
+            out[j.name] = (float(self.clearances.get(j.name, j.clearance.radial_clearance)),
+                           None if worn is None else Path(worn))
+        return out
+
+    def marks(self, bench: Bench) -> dict[str, tuple[str, str]]:
+        """The marks of the truth by joint (hardware/protocol/truth.py): a host checks a claim by them."""
+        return {j: (clearance_mark(bench.name, j, c), wear_mark(bench.name, j, None if w is None else file_digest(w)))
+                for j, (c, w) in self.joints(bench).items()}
+
+    def describe(self, bench: Bench) -> str:
+        """The truth in words, e.g. ``A 0.3 mm worn (A_200k.npz), B 0.3 mm new; drawn with seed 1``."""
+        joints = ", ".join(f"{j} {c * 1e3:.4g} mm " + ("new" if w is None else f"worn ({Path(w).name})")
+                           for j, (c, w) in self.joints(bench).items())
+        return f"{joints}; " + ("the model's twin" if self.twin else f"drawn with seed {self.seed}")
+
+    def labelled(self, bench: Bench, clearances: Mapping[str, float], wear: Mapping[str, Path | None]) -> Truth:
+        """This truth with the clearances (m) and wear (a worn-surface file, None for new) of the joints
+        given set, the rest kept (its seed and delay too); itself when nothing changes. The stage is
+        the name of the bench's [[state]] it then equals, else "as recorded". ValueError where it cannot
+        be set: a joint made new whose bench file names worn surfaces for it."""
+        now = self.joints(bench)
+        unknown = sorted((set(clearances) | set(wear)) - set(now))
+        if unknown:
+            raise ValueError(f"{bench.name}: no clearance joint {unknown}; joints with clearance: {sorted(now)}")
+        new = {j: (float(clearances.get(j, c)), wear.get(j, w)) for j, (c, w) in now.items()}
+        if _same(bench, new, now):
+            return self
+        worn = {j: Path(w).resolve() for j, (c, w) in new.items() if w is not None}
+        if not worn:
+            kept = [j.name for j in bench.clearance_joints if j.clearance.surfaces is not None]
+            if kept:
+                raise ValueError(f"{bench.path or bench.name}: joint {kept[0]} is worn by the bench file's "
+                                 "[joint.clearance] surfaces; the emulator's truth cannot make every joint new")
+        stage = next((s.name for s in bench.states if _same(bench, new, Truth(s.clearances, s.surfaces).joints(bench))),
+                     "as recorded")
+        return replace(self, clearances={j: c for j, (c, w) in new.items()}, wear=worn, wear_stage=stage)
+
+
+def _same(bench: Bench, a: Mapping[str, tuple[float, Path | None]], b: Mapping[str, tuple[float, Path | None]]) -> bool:
+    """Whether two truths' joints play the same (clearances to 0.1 um, worn surfaces by content)."""
+    def key(j: str, c: float, w: Path | None) -> tuple[str, str]:
+        return clearance_mark(bench.name, j, c), wear_mark(bench.name, j, None if w is None else file_digest(w))
+
+    return set(a) == set(b) and all(key(j, *a[j]) == key(j, *b[j]) for j in a)
+
 
 @dataclass(frozen=True)
 class Faults:
@@ -271,7 +340,7 @@ class EmulatorConfig:
         """Validate a raw ``[emulator]`` table (as parsed from TOML or JSON)."""
         src = source or (bench.path if bench is not None and bench.path else getattr(bench, "name", "<emulator>"))
         r = _Reader(src)
-        data = r.table(dict(table), "emulator")
+        data = r.table(dict(table) if isinstance(table, Mapping) else table, "emulator")
         sections = {"accelerometer", "motor", "encoder", "truth", "faults"}
         r.keys(data, "emulator", set(), {"seed", "signal", "revolutions", "settle", "accel_block",
                                          "encoder_block", "buffer", "cache"} | sections)

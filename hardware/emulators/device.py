@@ -1,4 +1,4 @@
-"""The emulated bench: motor drive with encoder, and the slider accelerometer (the device contract).
+"""The emulated bench: motor drive with encoder, and the accelerometer (the device contract).
 
 :class:`BenchDevice` is transport-free: the serial and CAN emulators wrap it, the ``sim`` backend
 uses it directly. Time comes from ``clock`` (seconds, monotonic); :meth:`BenchDevice.read` returns
@@ -21,7 +21,7 @@ cross-axis on, the model table's lateral force is played at the same instants (z
 signals). The sample clock runs
 at ``rate (1 + drift)`` while blocks are stamped at the nominal rate. Clipped samples are counted
 (:attr:`BenchDevice.clipped_samples`) and reported as INFO events, at most one a second.
-Taps (:meth:`BenchDevice.tap`, the tap test): a half-sine pulse added to the slider's acceleration
+Taps (:meth:`BenchDevice.tap`, the tap test): a half-sine pulse added to the sensor body's acceleration
 before the same sensor chain and delay as the mechanism's signal, its trigger edge latched on the
 encoder's clock (to 1 us, jittered within it) and reported as a TAP event (hardware/protocol/taps.py).
 Faults of the device itself: dropped blocks, a stalled motor, a hung firmware (``freeze_at``: no
@@ -136,7 +136,7 @@ class _Segment:
 
 @dataclass(frozen=True)
 class Tap:
-    """A tap on the slider: a half-sine acceleration pulse of ``width`` s peaking at ``peak`` m/s^2
+    """A tap on the accelerometer's body: a half-sine acceleration pulse of ``width`` s peaking at ``peak`` m/s^2
     that starts at device time ``time`` (the trigger edge); ``latch`` is that edge as the drive's
     touch probe stamps it (``LATCH_RESOLUTION`` steps of the encoder's clock)."""
 
@@ -289,7 +289,7 @@ class BenchDevice:
 
     def tap(self, after: float = 0.01, width: float = 2e-4, peak: float = 1000.0) -> Tap:
         """Fire the tapper ``after`` s from now (plus a jitter below the latch step): a half-sine
-        pulse of ``width`` s peaking at ``peak`` m/s^2 on the slider. Its latch is reported as a TAP
+        pulse of ``width`` s peaking at ``peak`` m/s^2 on the accelerometer's body. Its latch is reported as a TAP
         event once the device's clock passes the trigger."""
         now = self._catch_up()
         if not (math.isfinite(after) and 0 <= after <= 10):

@@ -1,4 +1,4 @@
-"""The accelerometer's sensor chain, applied after the physics: what turns the slider's acceleration
+"""The accelerometer's sensor chain, applied after the physics: what turns the acceleration of the sensor's point
 into the numbers a DAQ delivers.
 
 Order (each stage can be off): mounting resonance (second-order low-pass at ``resonance`` Hz with

@@ -41,6 +41,7 @@ from wearbench.hardware.emulators.device import (
 )
 from wearbench.hardware.protocol import messages as m
 from wearbench.hardware.protocol.frames import FrameParser
+from wearbench.hardware.protocol.truth import announce
 
 __all__ = ["DISCONNECT_EXIT", "EmulatorProcess", "SerialEmulator", "serve", "start_serial_emulator"]
 
@@ -60,6 +61,8 @@ class SerialEmulator:
         self._rng = np.random.default_rng([cfg.seed, 3])
         self.disconnected = False
         self._garbage_sent = False
+        # INFO's device name: the marks of the truth, so a host can check its labels (protocol/truth.py)
+        self.name = announce(device.bench.name, device.config.truth.marks(device.bench))
 
     def _frame(self, msg: m.Message, corruptible: bool = True) -> bytes:
         data = msg.frame(self._seq)
@@ -99,7 +102,7 @@ class SerialEmulator:
         try:
             if isinstance(msg, m.GetInfo):
                 replies.append(m.Info(m.PROTOCOL_VERSION, d.counts_per_rev, d.config.accel_block,
-                                      d.config.encoder_block, f"wearbench emulator {d.bench.name}"))
+                                      d.config.encoder_block, self.name))
             elif isinstance(msg, m.Enable):
                 d.enable()
             elif isinstance(msg, m.Disable):

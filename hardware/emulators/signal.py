@@ -1,4 +1,4 @@
-"""The accelerometer's physics: slider acceleration versus motor angle, one table per crank speed.
+"""The accelerometer's physics: its acceleration versus motor angle, one table per crank speed.
 
 Two kinds of model table, both from :func:`wearbench.model.realisation.simulate_state` with the
 device's TRUE state (clearances and worn surfaces of ``[emulator.truth]``):
@@ -53,7 +53,7 @@ _COLUMNS = ("acc", "lateral")  # what a model table holds (part of its key)
 
 @dataclass(frozen=True, eq=False)
 class SignalTable:
-    """Slider acceleration (m/s^2) at motor progress ``period i / n`` (i < n) for steady commanded
+    """The accelerometer's acceleration (m/s^2, along its axis) at motor progress ``period i / n`` (i < n) for steady commanded
     ``speed`` (rad/s). Progress is ``direction x motor angle`` modulo ``period`` (2 pi: one looped
     revolution; a long run: its whole revolutions). ``lateral``: the lateral force on the sensor's body
     over its mass (m/s^2) on the same grid (module docstring; None: a table without it)."""
@@ -101,6 +101,11 @@ def harmonic_table(speed: float, points: int = 4096) -> SignalTable:
     theta = np.arange(points) * (TWO_PI / points)
     acc = -0.05 * speed**2 * (np.cos(theta) + 0.25 * np.cos(2 * theta))
     return SignalTable(speed, acc, "harmonic test pattern")
+
+
+def _sensor_name(bench: Bench) -> str:
+    """The accelerometer's name in the bench file (what messages call it)."""
+    return next((s.name for s in bench.sensors if s.kind == "accelerometer"), "the accelerometer")
 
 
 def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolutions: int, settle: float,
@@ -158,7 +163,8 @@ def model_table(bench: Bench, truth: Truth, speed: float, *, settle: float = 2.0
 
     run = simulate_state(bench, twin.state(), None, revolutions=1.0, settle=settle, speed=speed, output_rate=rate)
     if not np.all(np.isfinite(run.acc)):
-        raise RuntimeError(f"{bench.name}: model slider acceleration is not finite at speed {speed} rad/s")
+        raise RuntimeError(f"{bench.name}: model acceleration of {_sensor_name(bench)} is not finite at speed "
+                           f"{speed} rad/s")
     rel = np.abs(run.motor_angle - run.motor_angle[0])
     if run.t.size < 16 or rel[-1] < TWO_PI * (1 - 2 / run.t.size):
         raise RuntimeError(f"{bench.name}: model returned too short a revolution for a table ({run.t.size} samples)")
@@ -198,7 +204,8 @@ def run_table(bench: Bench, truth: Truth, speed: float, *, revolutions: int = 40
     run = simulate_state(bench, truth.state(), truth.seed, revolutions=n_rev + 2.0, settle=settle, speed=speed,
                          output_rate=rate)
     if not np.all(np.isfinite(run.acc)):
-        raise RuntimeError(f"{bench.name}: model slider acceleration is not finite at speed {speed} rad/s")
+        raise RuntimeError(f"{bench.name}: model acceleration of {_sensor_name(bench)} is not finite at speed "
+                           f"{speed} rad/s")
     direction = 1 if speed > 0 else -1
     progress = direction * run.motor_angle
     if np.any(np.diff(progress) <= 0):

@@ -108,3 +108,27 @@ def test_a_sensor_spread_draws_one_path_per_truth_seed(testbed):
     assert EmulatorConfig.from_table(again.to_table(), bench=testbed) == again
     twin = emulator_config(testbed, "0.3 mm new", None, accelerometer=spread).accelerometer
     assert twin.resonance == 25e3 and twin.sensitivity == 1.0
+
+
+def test_a_config_that_is_not_a_table_is_one_clear_error(testbed):
+    """A JSON file of the [emulator] table holding a list (wearbench emulate --config, --option config=)."""
+    with pytest.raises(BenchError) as e:
+        EmulatorConfig.from_table([1, 2], bench=testbed, source="cfg.json")
+    assert str(e.value) == "cfg.json: emulator = [1, 2]: expected a table"
+
+
+def test_the_serial_emulators_name_carries_the_marks_of_its_truth_not_the_truth(testbed):
+    """Issue 44: what lets a host refuse labels the emulator does not play (hardware/protocol/truth.py)."""
+    from wearbench.hardware.emulators.device import BenchDevice, ManualClock
+    from wearbench.hardware.emulators.serial_server import SerialEmulator
+    from wearbench.hardware.protocol.truth import read_marks
+
+    names = {}
+    for state in ("0.3 mm new", "0.6 mm new", "0.3 mm first wear"):
+        cfg = emulator_config(testbed, state, None, signal="none")
+        names[state] = SerialEmulator(BenchDevice(testbed, cfg, ManualClock())).name
+        assert read_marks(names[state]) == cfg.truth.marks(testbed)
+        assert names[state].startswith("wearbench emulator ninebar-testbed truth A=") and "mm" not in names[state]
+    new, wide, worn = (read_marks(names[s]) for s in names)
+    assert all(new[j][0] != wide[j][0] and new[j][1] == wide[j][1] for j in "AB")  # clearance differs, wear not
+    assert all(new[j][0] == worn[j][0] and new[j][1] != worn[j][1] for j in "AB")  # wear differs, clearance not
