@@ -7,9 +7,10 @@ the bytes and the CPU time of encoding + writing. Figures are per hour of record
 
 Candidates: ``protobuf`` (the session layout, ``acquisition.layout``), ``json`` (the same fields as
 JSON numeric arrays, what a JSON-schema layout a viewer can plot would hold), ``json-base64``
-(layout 1: base64 float32 inside JSON, which no viewer plots). Prints a table.
+(layout 1: base64 float32 inside JSON, which no viewer plots). Prints a table; with ``--json PATH``
+also writes it as a result for the documentation (``result_json``, ``docs/results/data/``).
 
-    python benchmarks/session_format.py [--seconds 60] [--rate 20kHz]
+    python benchmarks/session_format.py [--seconds 60] [--rate 20kHz] [--json PATH]
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import time
 
 import numpy as np
 from mcap.writer import CompressionType, IndexType, Writer
+from result_json import Run, column, table, write_result  # benchmarks/ on sys.path
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.backends.sim import blocks_from_device
 from wearbench.acquisition.drivers import ACCELERATION, Block
@@ -98,7 +100,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--rate", default="20kHz", help="accelerometer sample rate")
+    ap.add_argument("--json", metavar="PATH", help="also write the result as JSON (docs/results/data/ for the docs)")
     args = ap.parse_args()
+    run = Run()
     rate = parse_quantity(args.rate, "frequency")
     blocks = capture(rate, args.seconds)
     span = blocks[-1].device_time - blocks[0].device_time
@@ -119,7 +123,40 @@ def main() -> int:
     pb, js = best["protobuf"], best["json"]
     print(f"protobuf vs JSON arrays (zstd, 1 MiB chunks): {js[3] / pb[3]:.1f}x smaller, "
           f"{js[4] / pb[4]:.1f}x less write CPU")
+    if args.json:
+        write_json(args.json, rows, rate=rate, span=span, n_acc=n_acc, run=run)
     return 0
+
+
+def write_json(path: str, rows: list[tuple], *, rate: float, span: float, n_acc: int, run: Run) -> None:
+    """The table as a result of the documentation (schema wearbench-result/1)."""
+    best = {r[0]: r for r in rows if r[1] == "zstd" and r[2] == 1 << 20}
+    pb, js, b64 = best["protobuf"], best["json"], best["json-base64"]
+    plain = {r[0]: r for r in rows if r[1] == "none" and r[2] == 1 << 20}
+    findings = [
+        (f"protobuf with zstd chunks (the session layout) takes {pb[3]:.0f} MB per hour of recording at "
+        f"{100 * pb[4]:.2f} % of a core to encode and write, against {js[3]:.0f} MB and {100 * js[4]:.2f} % for "
+        f"the same fields as JSON numeric arrays ({js[3] / pb[3]:.2f}x the size, {js[4] / pb[4]:.1f}x the CPU)."),
+        (f"Uncompressed, protobuf is {plain['protobuf'][3]:.0f} MB per hour and JSON arrays {plain['json'][3]:.0f} MB: "
+        f"zstd shrinks protobuf {plain['protobuf'][3] / pb[3]:.1f}x."),
+        f"Layout 1 (base64 float32 inside JSON, which no viewer plots) takes {b64[3]:.0f} MB per hour with zstd.",
+    ]
+    write_result(
+        path, question="How large is a session file per hour, and what does writing it cost?",
+        script=__file__, run=run, seeds={"emulator noise (the [emulator] seed, default)": 0},
+        findings=findings,
+        tables=[table(
+            "Size and write cost per hour of recording, by encoding, compression and chunk size",
+            [column("encoding"), column("compression"), column("chunk", "KiB", "d"),
+             column("size", "MB/h", ".0f", "file size per hour of recording"),
+             column("write CPU", "% of a core", ".2f", "encoding and writing, CPU time over the data's span")],
+            [(e, c, chunk >> 10, mb, 100 * cpu) for e, c, chunk, mb, cpu in rows],
+            description=f"{span:.1f} s of emulated data ({n_acc:,} acceleration samples at {rate / 1e3:g} kHz with "
+            "noise, the encoder at 1 kHz; the sim backend on a stepped clock, harmonic test signal), written to an "
+            "in-memory MCAP file once per candidate with message indexes and data CRCs on, a chunk closed every "
+            "0.5 s of data as the recorder's flush does; figures scaled to one hour.")],
+        notes=[("Sizes are exact for this signal; the CPU shares are one run's process time and move with the "
+               "machine's load.")])
 
 
 if __name__ == "__main__":
