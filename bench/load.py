@@ -38,13 +38,13 @@ from wearbench.bench.schema import (
 )
 from wearbench.bench.units import QuantityError, parse_quantity
 
-__all__ = ["BENCH_DIR", "load_bench", "load_states", "parse_bench", "resolve_bench", "shipped_bench"]
+__all__ = ["BENCH_DIR", "TomlReader", "load_bench", "load_states", "parse_bench", "resolve_bench", "shipped_bench"]
 
 # wearbench/bench/load.py -> wearbench/hardware/benches, installed or editable (folders = subpackages)
 BENCH_DIR = Path(__file__).resolve().parents[1] / "hardware" / "benches"
 
 
-class _Reader:
+class TomlReader:
     """Walks the parsed TOML with the file name at hand, so every error can name file and key."""
 
     def __init__(self, path: str | Path):
@@ -133,7 +133,7 @@ class _Reader:
         return tuple(raw)
 
 
-def _contact(r: _Reader, data: dict, key: str, base: ContactLaw) -> ContactLaw:
+def _contact(r: TomlReader, data: dict, key: str, base: ContactLaw) -> ContactLaw:
     fields = {"law", "stiffness", "restitution", "exponent", "friction_coefficient", "friction_v0", "friction_vm"}
     r.keys(data, key, set(), fields)
     v0 = r.quantity(data, key, "friction_v0", "speed", positive=True, default=base.friction_v0)
@@ -152,7 +152,7 @@ def _contact(r: _Reader, data: dict, key: str, base: ContactLaw) -> ContactLaw:
     )
 
 
-def _material(r: _Reader, name: str, data: dict) -> Material:
+def _material(r: TomlReader, name: str, data: dict) -> Material:
     key = f"materials.{name}"
     r.table(data, key)
     r.keys(data, key, {"youngs_modulus", "poisson_ratio", "hardness"}, {"density"})
@@ -165,7 +165,7 @@ def _material(r: _Reader, name: str, data: dict) -> Material:
     )
 
 
-def _body(r: _Reader, i: int, data: dict) -> Body:
+def _body(r: TomlReader, i: int, data: dict) -> Body:
     key = f"body[{i}]"
     r.table(data, key)
     name = r.text(data, key, "name")
@@ -192,7 +192,7 @@ def _body(r: _Reader, i: int, data: dict) -> Body:
     )
 
 
-def _clearance(r: _Reader, key: str, data: dict, bodies: tuple[str, ...], materials: dict[str, Material],
+def _clearance(r: TomlReader, key: str, data: dict, bodies: tuple[str, ...], materials: dict[str, Material],
                contact: ContactLaw, base_dir: Path | None) -> Clearance:
     r.table(data, key)
     r.keys(data, key, {"bearing_body", "bearing_radius", "journal_radius", "bearing_material",
@@ -231,7 +231,7 @@ def _clearance(r: _Reader, key: str, data: dict, bodies: tuple[str, ...], materi
     )
 
 
-def _joint(r: _Reader, i: int, data: dict, bodies: dict[str, Body], ground: dict, materials: dict,
+def _joint(r: TomlReader, i: int, data: dict, bodies: dict[str, Body], ground: dict, materials: dict,
            contact: ContactLaw, base_dir: Path | None) -> Joint:
     key = f"joint[{i}]"
     r.table(data, key)
@@ -267,7 +267,7 @@ def _joint(r: _Reader, i: int, data: dict, bodies: dict[str, Body], ground: dict
     return Joint(name=name, kind=kind, bodies=names, points=pts, axis=axis, clearance=clearance)
 
 
-def _sensor(r: _Reader, i: int, data: dict, bodies: dict[str, Body], joints: dict[str, Joint]) -> Sensor:
+def _sensor(r: TomlReader, i: int, data: dict, bodies: dict[str, Body], joints: dict[str, Joint]) -> Sensor:
     key = f"sensor[{i}]"
     r.table(data, key)
     kind = r.text(data, key, "kind", choices=("accelerometer", "encoder"))
@@ -293,7 +293,7 @@ def _sensor(r: _Reader, i: int, data: dict, bodies: dict[str, Body], joints: dic
     )
 
 
-def _sensors(r: _Reader, raw: Any, bodies: dict[str, Body], joints: dict[str, Joint],
+def _sensors(r: TomlReader, raw: Any, bodies: dict[str, Body], joints: dict[str, Joint],
              drivers: tuple[Driver, ...]) -> tuple[Sensor, ...]:
     """``[[sensor]]`` tables: every sensor is one wearbench uses, or it is refused here (never ignored).
 
@@ -324,14 +324,14 @@ def _sensors(r: _Reader, raw: Any, bodies: dict[str, Body], joints: dict[str, Jo
     return tuple(sensors)
 
 
-def _either(r: _Reader, data: dict, key: str, stated: str, parts: tuple[str, ...]) -> None:
+def _either(r: TomlReader, data: dict, key: str, stated: str, parts: tuple[str, ...]) -> None:
     """A chain stage is stated either by its response (``parts``) or by its delay (``stated``)."""
     if stated in data and any(p in data for p in parts):
         raise r.fail(f"{key}.{stated}", data[stated], f"expected either {stated} or {'/'.join(parts)}, not both "
                      "(the stage's stated delay, or its response from which the host computes the delay)")
 
 
-def _chain(r: _Reader, key: str, data: Any) -> SensorChainStatement:
+def _chain(r: TomlReader, key: str, data: Any) -> SensorChainStatement:
     """``[sensor.chain]``: what the lab states of the accelerometer's chain (bench.schema.SensorChainStatement)."""
     r.table(data, key)
     r.keys(data, key, {"uncertainty"}, {"filter", "filter_order", "filter_cutoff", "filter_delay", "resonance",
@@ -362,7 +362,7 @@ def _chain(r: _Reader, key: str, data: Any) -> SensorChainStatement:
         uncertainty=r.quantity(data, key, "uncertainty", "time", nonnegative=True))
 
 
-def _hardware(r: _Reader, data: dict) -> Hardware:
+def _hardware(r: TomlReader, data: dict) -> Hardware:
     r.table(data, "hardware")
     r.keys(data, "hardware", {"backend"}, set(BACKENDS))
     backend = r.text(data, "hardware", "backend", choices=BACKENDS)
@@ -376,7 +376,7 @@ _TOP = {"bench", "operating", "motor", "materials", "contact", "wear", "frame", 
 _RELATIVE = {"mass", "inertia", "friction", "restitution", "exponent", "speed", "ripple", "start"}
 
 
-def _tolerances(r: _Reader, data: dict) -> Tolerances:
+def _tolerances(r: TomlReader, data: dict) -> Tolerances:
     key = "tolerances"
     r.keys(data, key, set(), _RELATIVE | {"length", "ground"})
     d = Tolerances()
@@ -387,7 +387,7 @@ def _tolerances(r: _Reader, data: dict) -> Tolerances:
     return Tolerances(**values)
 
 
-def _compute(r: _Reader, data: dict) -> str | None:
+def _compute(r: TomlReader, data: dict) -> str | None:
     """``[compute] scheduler``: "local" or a Dask scheduler address ("tcp://10.0.0.5:8786")."""
     r.keys(data, "compute", set(), {"scheduler"})
     if "scheduler" not in data:
@@ -399,7 +399,7 @@ def _compute(r: _Reader, data: dict) -> str | None:
     return value.strip()
 
 
-def _states(r: _Reader, raw: Any, joints: Mapping[str, Joint], base_dir: Path | None,
+def _states(r: TomlReader, raw: Any, joints: Mapping[str, Joint], base_dir: Path | None,
                 key: str = "state") -> tuple[WearState, ...]:
     """Parse ``[[state]]`` tables: name, clearances {joint = length}, wear {joint = "new" | file.npz}."""
     if not isinstance(raw, list):
@@ -440,7 +440,7 @@ def _states(r: _Reader, raw: Any, joints: Mapping[str, Joint], base_dir: Path | 
 
 def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
     """Read a bench from TOML ``text``; ``path`` names it in errors and anchors relative file names."""
-    r = _Reader(path)
+    r = TomlReader(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -570,7 +570,7 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
 def load_states(path: str | Path, bench: Bench) -> tuple[WearState, ...]:
     """Candidate states from a TOML file of ``[[state]]`` tables (as in a bench file) for ``bench``."""
     path = Path(path)
-    r = _Reader(path)
+    r = TomlReader(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:

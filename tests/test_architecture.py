@@ -339,6 +339,7 @@ PROCESS_LAUNCHES: dict[str, str] = {
     "benchmarks.scale_out": "a process pool timed against the cluster",
     "benchmarks.trajectory_identity": "a fresh interpreter per model source, for bit identity",
     "benchmarks.profile_revolution": "a fresh interpreter, so compilation is not timed",
+    "benchmarks.result_json": "git, for the commit a result was measured on",
 }
 # module -> its calls that start a process
 _PROCESS_CALLS = {

@@ -87,7 +87,7 @@ from typing import Any
 
 import numpy as np
 from wearbench.bench.content import file_digest
-from wearbench.bench.load import _Reader
+from wearbench.bench.load import TomlReader
 from wearbench.bench.schema import Bench, WearState
 from wearbench.hardware.emulators.carriage import carriage
 from wearbench.hardware.protocol.truth import clearance_mark, wear_mark
@@ -339,7 +339,7 @@ class EmulatorConfig:
                    source: str | Path | None = None) -> EmulatorConfig:
         """Validate a raw ``[emulator]`` table (as parsed from TOML or JSON)."""
         src = source or (bench.path if bench is not None and bench.path else getattr(bench, "name", "<emulator>"))
-        r = _Reader(src)
+        r = TomlReader(src)
         data = r.table(dict(table) if isinstance(table, Mapping) else table, "emulator")
         sections = {"accelerometer", "motor", "encoder", "truth", "faults"}
         r.keys(data, "emulator", set(), {"seed", "signal", "revolutions", "settle", "accel_block",
@@ -375,14 +375,14 @@ class EmulatorConfig:
         )
 
 
-def _flag(r: _Reader, data: dict, key: str, name: str, default: bool) -> bool:
+def _flag(r: TomlReader, data: dict, key: str, name: str, default: bool) -> bool:
     raw = data.get(name, default)
     if not isinstance(raw, bool):
         raise r.fail(f"{key}.{name}", raw, "expected true or false")
     return raw
 
 
-def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
+def _accelerometer(r: TomlReader, d: dict) -> Accelerometer:
     k = "emulator.accelerometer"
     r.keys(d, k, set(), {"noise", "bias", "clipping", "adc_bits", "drift", "resonance", "damping", "white_level",
                          "aa_filter", "aa_order", "aa_cutoff", "sensitivity", "cross_axis", "lateral_mode",
@@ -419,7 +419,7 @@ def _accelerometer(r: _Reader, d: dict) -> Accelerometer:
     )
 
 
-def _spread(r: _Reader, d: Any) -> SensorSpread:
+def _spread(r: TomlReader, d: Any) -> SensorSpread:
     k = "emulator.accelerometer.spread"
     r.keys(r.table(d, k), k, set(), {"mode", "damping", "sensitivity", "cross_axis", "lateral_mode",
                                      "lateral_damping"})
@@ -448,7 +448,7 @@ def _spread(r: _Reader, d: Any) -> SensorSpread:
                         cross, lateral, lateral_damping)
 
 
-def _check_carriage(r: _Reader, d: dict, acc: Accelerometer, bench: Bench | None) -> None:
+def _check_carriage(r: TomlReader, d: dict, acc: Accelerometer, bench: Bench | None) -> None:
     """A cross-axis signal needs the lateral force on the sensor's body (``signal.lateral_force``)."""
     if not acc.lateral or bench is None:
         return
@@ -460,7 +460,7 @@ def _check_carriage(r: _Reader, d: dict, acc: Accelerometer, bench: Bench | None
                      "on a body sliding on a prismatic guide fixed to the frame and joined to the rest by ideal pins")
 
 
-def _motor(r: _Reader, d: dict) -> MotorImperfections:
+def _motor(r: TomlReader, d: dict) -> MotorImperfections:
     k = "emulator.motor"
     r.keys(d, k, set(), {"ripple", "ripple_harmonic"})
     return MotorImperfections(
@@ -469,14 +469,14 @@ def _motor(r: _Reader, d: dict) -> MotorImperfections:
     )
 
 
-def _encoder(r: _Reader, d: dict) -> EncoderImperfections:
+def _encoder(r: TomlReader, d: dict) -> EncoderImperfections:
     k = "emulator.encoder"
     r.keys(d, k, set(), {"index", "index_angle"})
     return EncoderImperfections(index=_flag(r, d, k, "index", True),
                                 index_angle=r.quantity(d, k, "index_angle", "angle", default=0.0))
 
 
-def _truth(r: _Reader, d: dict, bench: Bench | None) -> Truth:
+def _truth(r: TomlReader, d: dict, bench: Bench | None) -> Truth:
     k = "emulator.truth"
     r.keys(d, k, set(), {"clearances", "wear", "wear_stage", "accel_delay", "seed", "twin", "state"})
     joints = {j.name: j for j in bench.clearance_joints} if bench is not None else None
@@ -518,7 +518,7 @@ def _truth(r: _Reader, d: dict, bench: Bench | None) -> Truth:
                  seed)
 
 
-def _named_state(r: _Reader, d: dict, k: str, bench: Bench | None) -> WearState:
+def _named_state(r: TomlReader, d: dict, k: str, bench: Bench | None) -> WearState:
     """The bench's ``[[state]]`` named by ``truth.state`` (then clearances and wear come from it)."""
     raw = d["state"]
     if bench is None:
@@ -535,7 +535,7 @@ def _named_state(r: _Reader, d: dict, k: str, bench: Bench | None) -> WearState:
     return next(s for s in bench.states if s.name == raw)
 
 
-def _faults(r: _Reader, d: dict) -> Faults:
+def _faults(r: TomlReader, d: dict) -> Faults:
     k = "emulator.faults"
     r.keys(d, k, set(), {"drop_rate", "corrupt_rate", "disconnect_after", "stall_at", "bus_off_at",
                          "bus_off_duration", "reply_delay", "garbage_at", "garbage_bytes", "freeze_at",

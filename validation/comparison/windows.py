@@ -203,7 +203,7 @@ class _Reference:
 
 def _lowpass(x: np.ndarray, fs: float, cutoff: float) -> np.ndarray:
     sos = signal.butter(4, min(cutoff, 0.4 * fs), fs=fs, output="sos")
-    return signal.sosfiltfilt(sos, x, padtype="odd", padlen=min(x.size - 1, int(3 * fs / cutoff)))
+    return signal.sosfiltfilt(sos, x, padtype="odd", padlen=min(x.shape[-1] - 1, int(3 * fs / cutoff)))
 
 
 def _iso(x: np.ndarray, y: np.ndarray, grid: int):
