@@ -60,7 +60,25 @@ def check_output(path: str | Path, *, force: bool = False, option: str = "--out"
     if not folder and path.exists() and not force:
         raise FileExistsError(f"{option} {path}: a file already exists there; choose another name, "
                               "or pass --force to replace it (the old file is kept until the new one is complete)")
+    _check_writable(path, option, folder)
     return path
+
+
+def _check_writable(path: Path, option: str, folder: bool) -> None:
+    """Refuse, before any work, a place the output cannot be written: the nearest existing folder of
+    ``path`` (where its temporary name goes) and, for an existing output folder, the folder itself;
+    tried by writing a probe file, so a read-only mount is refused for every user, root included."""
+    places = [next(q for q in (path.parent, *path.parent.parents) if q.exists())]
+    if folder and path.is_dir():
+        places.append(path)
+    for place in places:
+        probe = place / f".wearbench-probe-{os.getpid()}"
+        try:
+            probe.touch(exist_ok=False)
+            probe.unlink()
+        except OSError as exc:
+            raise PermissionError(f"{option} {path}: cannot write in {place} ({exc.strerror}); choose another "
+                                  "place") from None
 
 
 def _temporary(path: Path) -> Path:

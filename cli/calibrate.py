@@ -42,7 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ensembles", metavar="FILE.npz", help="ensembles saved by 'wearbench ensemble' (no simulation)")
     p.add_argument("--dir", metavar="DIR", help="where calibrations live (default $WEARBENCH_CALIBRATIONS or "
                    "~/.local/share/wearbench/calibrations)")
-    add_force_argument(p)  # a stored calibration of this bench, sensor and mount is replaced only with --force
+    add_force_argument(p, "replace a stored calibration of this bench, sensor and mount, and store one the sessions "
+                       "doubt (far from --state, or identified as another state)")
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
@@ -56,15 +57,13 @@ def run(args: argparse.Namespace) -> int:
 
     cal = calibrate_sessions(args.sessions, args.state, candidates=args.candidates, ensembles=args.ensembles,
                              mount=args.mount, before=lambda key: check_calibration_output(key, args.dir, force=args.force),
-                             compute=compute_options(args))
+                             compute=compute_options(args), force=args.force)
     path = save_calibration(cal, args.dir, force=args.force)
     print(cal.describe())
     sd = cal.path.theta_cov.diagonal() ** 0.5
     print(f"uncertainty (1 sd): gain {sd[0]:.3f}, bands " + ", ".join(f"{10 * v:.1f} dB" for v in sd[1:]))
-    print(f"bench offsets: the mean features of {cal.cycles} cycles are stored too (validation.calibrated)")
-    if cal.p_value < 0.001:
-        print(f"warning: with the fitted band gains the sessions are still far from {args.state!r} "
-              f"(p {cal.p_value:.2g}): is the bench really in that state? (A mount mode inside an impact band "
-              "or a bench at the edge of its tolerances does this too.)")
+    print(f"bench offsets: the mean features of {cal.cycles} cycles are stored too")
+    for doubt in cal.doubts:
+        print(f"warning: {doubt} (stored with --force; the doubt is stored with it)")
     print(f"calibration: {path}")
     return 0

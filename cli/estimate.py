@@ -27,8 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_calibration_arguments(p)
     p.add_argument("--json", metavar="FILE", help="write every estimate as JSON (never over an existing file "
                    "unless --force)")
-    p.add_argument("--out", metavar="DIR", help="write each session's joint posterior figure, posterior_N.png, "
-                   "and its posterior predictive band against the measured cycles, predictive_N.png, here (a folder "
+    p.add_argument("--out", metavar="DIR", help="write each session's joint posterior figure, posterior_SESSION.png, "
+                   "and its posterior predictive band against the measured cycles, predictive_SESSION.png, here (a folder "
                    "with files in it only with --force)")
     add_force_argument(p)
     add_compute_arguments(p)
@@ -65,9 +65,13 @@ def run(args: argparse.Namespace) -> int:
             json.dump([e.to_dict() for e in results], f, indent=1)
         print(f"results: {args.json}")
     if args.out:
+        from wearbench.reports.comparison import slug
         from wearbench.reports.estimate import posterior_figure, predictive_figure
 
-        names = [f"{kind}_{k + 1}.png" for k in range(len(results)) for kind in ("posterior", "predictive")]
+        stems = [slug(e.session) for e in results]  # the same recording given twice: numbered
+        stems = [s if stems.count(s) == 1 or stems[:k].count(s) == 0 else f"{s}_{stems[:k].count(s) + 1}"
+                 for k, s in enumerate(stems)]
+        names = [f"{kind}_{stem}.png" for stem in stems for kind in ("posterior", "predictive")]
         with output_folder(args.out, force=args.force) as tmp:
             for k, e in enumerate(results):
                 posterior_figure(e, tmp / names[2 * k])

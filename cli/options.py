@@ -16,6 +16,7 @@ from wearbench.bench.units import QuantityError, parse_quantity
 __all__ = [
     "add_force_argument",
     "check_clearances",
+    "check_figure_name",
     "check_motor_speed",
     "check_realisations",
     "check_wear_coefficient",
@@ -31,11 +32,25 @@ __all__ = [
 ]
 
 
-def add_force_argument(p: argparse.ArgumentParser) -> None:
-    """``--force``: the one switch of the output-file policy (``wearbench.bench.output_file``)."""
+def check_figure_name(path: str, option: str) -> None:
+    """Refuse, before any work, a figure name whose suffix matplotlib cannot write (``--figure x.txt``)."""
+    from pathlib import Path
+
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    known = FigureCanvasBase.get_supported_filetypes()
+    suffix = Path(path).suffix.lstrip(".").lower()
+    if suffix not in known:
+        raise ValueError(f"{option} {path}: a figure needs one of the suffixes {', '.join(sorted(known))}; got "
+                         f"{'.' + suffix if suffix else 'none'}")
+
+
+def add_force_argument(p: argparse.ArgumentParser, help: str | None = None) -> None:
+    """``--force``: the one switch of the output-file policy (``wearbench.bench.output_file``); ``help``
+    says what else it allows, where a command has more."""
     p.add_argument("--force", action="store_true",
-                   help="replace existing output files (never a recorded session); the old ones stay as they "
-                   "were until the new ones are complete")
+                   help=help or "replace existing output files (never a recorded session); the old ones stay as "
+                   "they were until the new ones are complete")
 
 
 def _number(text: str) -> float:

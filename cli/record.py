@@ -240,8 +240,8 @@ def set_sim_truth(bench, options: dict, clearances: dict[str, float], worn: dict
         f"(instead of {where}: {config.truth.describe(bench)})")
 
 
-def cycles_run_value(text: str | None) -> float | None:
-    """``--cycles-run``: a whole number of cycles >= 0 (``200000``, ``2e5``, ``200_000``), or None."""
+def cycles_run_value(text: str | None, option: str = "--cycles-run") -> float | None:
+    """``--cycles-run``: a number of cycles >= 0 (``200000``, ``2e5``, ``200_000``), or None."""
     if text is None:
         return None
     try:
@@ -249,6 +249,6 @@ def cycles_run_value(text: str | None) -> float | None:
     except ValueError:
         value = math.nan
     if not (math.isfinite(value) and value >= 0):
-        raise ValueError(f"--cycles-run {text!r}: expected the cycles the bench had run before this session, "
-                         "a number >= 0 (e.g. 200000)")
+        raise ValueError(f"{option} {text!r}: expected the cycles the bench had run before the session, "
+                         "a finite number >= 0 (e.g. 200000)")
     return value

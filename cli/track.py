@@ -45,25 +45,35 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from wearbench.bench.output_file import check_output, output_file
-    from wearbench.bench.units import parse_quantity
+    from wearbench.cli.options import check_figure_name, positive_quantity
+    from wearbench.cli.record import cycles_run_value
     from wearbench.reports.track import track_figure
     from wearbench.validation.workflows.measure import track_sessions
 
     runs = None
     if args.cycles_run is not None:
-        try:
-            runs = [float(v) for v in args.cycles_run.split(",")]
-        except ValueError:
-            raise ValueError(f"--cycles-run {args.cycles_run!r}: expected numbers separated by commas") from None
+        runs = [cycles_run_value(v, option="--cycles-run") for v in args.cycles_run.split(",")]
         if len(runs) != len(args.sessions):
             raise ValueError(f"--cycles-run {args.cycles_run!r}: {len(runs)} values for {len(args.sessions)} "
                              "sessions; expected one per session")
     for option, path in (("--json", args.json), ("--figure", args.figure)):
         if path:  # refused before the estimator is built
             check_output(path, force=args.force, option=option)
-    limit = parse_quantity(args.limit, "length", bare_unit="mm") if args.limit else None
+    if args.figure:
+        check_figure_name(args.figure, "--figure")
+    limit = positive_quantity(args.limit, "length", "--limit", bare_unit="mm") if args.limit else None
     t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=args.estimator,
                        move=not args.no_move, **calibration_options(args), compute=compute_options(args))
+    if not t.explains:
+        print(t.verdict)
+        for note in t.notes:
+            print(note)
+        if args.json:
+            with output_file(args.json, force=args.force, option="--json") as tmp, \
+                    open(tmp, "w", encoding="utf-8") as f:
+                json.dump(t.to_dict(), f, indent=1)
+            print(f"results: {args.json}")
+        return 1
     for label, n, d in zip(t.sessions, t.cycles_run, t.depth, strict=True):
         print(f"{label}: {n:,.0f} cycles run, wear depth {d.median * 1e6:.1f} um (90 % {d.lo90 * 1e6:.1f}-"
               f"{d.hi90 * 1e6:.1f})")

@@ -34,7 +34,7 @@ from wearbench.validation.comparison.metrics import grade
 from wearbench.validation.measurement.cycles import crank_turns
 from wearbench.validation.measurement.session import MeasuredSession
 
-__all__ = ["ComparisonReport", "compare_sessions", "write_report"]
+__all__ = ["ComparisonReport", "compare_sessions", "slug", "write_report"]
 
 TEST_STYLE = {"color": "black", "lw": 0.8, "label": "test"}
 THEORY_STYLE = {"color": "tab:red", "lw": 0.8, "label": "theory", "alpha": 0.85}
@@ -87,7 +87,8 @@ class ComparisonReport:
                                 [move(f) for f in self.figures])
 
 
-def _slug(text: str) -> str:
+def slug(text: str) -> str:
+    """A session or state label as a file name (``dA/s`` -> ``dA_s``)."""
     return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "session"
 
 
@@ -346,7 +347,7 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
     figures: dict[int | str, list[Path]] = {}  # per comparison (index), "sessions", "ranking"
     used: set[str] = set()
     for i, c in enumerate(comparisons):
-        slug = _slug(c.label)
+        slug = slug(c.label)
         while slug in used:
             slug += "_"
         used.add(slug)
@@ -359,7 +360,7 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
         figures["ranking"] = [_ranking(rankings, out / "ranking.png")]
     section, rows = "", []
     if identified:
-        section, files, rows = identification_section(identified, out, _slug, _save, _img, threshold)
+        section, files, rows = identification_section(identified, out, slug, _save, _img, threshold)
         figures["identification"] = files
     options = dict(options) if options is not None else comparisons[0].options.to_dict()
     scores = {"generated": datetime.now(UTC).isoformat(timespec="seconds"), "title": title,

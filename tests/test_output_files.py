@@ -256,7 +256,7 @@ def test_an_existing_result_is_refused_before_the_work(recorded, tmp_path, capsy
     old.write_bytes(OLD)
     folder = tmp_path / "figures"
     folder.mkdir()
-    (folder / "posterior_1.png").write_bytes(OLD)
+    (folder / "posterior_session.png").write_bytes(OLD)
     calibrations = tmp_path / "calibrations"
     calibrations.mkdir()
     stored = calibrations / f"{_calibration_key(recorded)}.json"
@@ -275,7 +275,7 @@ def test_an_existing_result_is_refused_before_the_work(recorded, tmp_path, capsy
         assert main(args) == 2, args
         err = _one_line(capsys)
         assert message in err and "--force" in err, (args, err)
-    assert old.read_bytes() == OLD and (folder / "posterior_1.png").read_bytes() == OLD
+    assert old.read_bytes() == OLD and (folder / "posterior_session.png").read_bytes() == OLD
     assert stored.read_bytes() == OLD and sorted(p.name for p in calibrations.iterdir()) == [stored.name]
     assert _left(tmp_path) == ["calibrations", "figures", "old.json"]
 
@@ -294,7 +294,7 @@ def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(r
     monkeypatch.setattr(measure, "track_sessions", lambda *a, **k: track)
     old, figure, folder = tmp_path / "e.json", tmp_path / "life.png", tmp_path / "posterior"
     folder.mkdir()
-    for p in (old, figure, folder / "posterior_1.png", folder / "mine.txt"):
+    for p in (old, figure, folder / "posterior_session.png", folder / "mine.txt"):
         p.write_bytes(OLD)
     real_as_dict, real_figure = type(estimates[0]).to_dict, estimate_figure.posterior_figure
 
@@ -314,16 +314,16 @@ def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(r
         assert main(["estimate", s, s, "--json", str(old), "--force"]) == 130
         assert main(["estimate", s, s, "--out", str(folder), "--force"]) == 130
         assert main(["track", s, s, "--cycles-run", "0,300000", "--figure", str(figure), "--force"]) == 130
-    for p in (old, figure, folder / "posterior_1.png", folder / "mine.txt"):
+    for p in (old, figure, folder / "posterior_session.png", folder / "mine.txt"):
         assert p.read_bytes() == OLD, p
     assert _left(tmp_path) == ["e.json", "life.png", "posterior"]
-    assert sorted(p.name for p in folder.iterdir()) == ["mine.txt", "posterior_1.png"]
+    assert sorted(p.name for p in folder.iterdir()) == ["mine.txt", "posterior_session.png"]
     capsys.readouterr()
     assert main(["estimate", s, s, "--json", str(old), "--out", str(folder), "--force"]) == 0
     rows = json.loads(old.read_text())
     assert [r["clearance"]["median"] for r in rows] == [e.clearance.median for e in estimates]
-    assert (folder / "posterior_2.png").read_bytes()[:4] == b"\x89PNG" and (folder / "mine.txt").read_bytes() == OLD
-    assert f"figure: {folder / 'posterior_1.png'}" in capsys.readouterr().out
+    assert (folder / "posterior_session_2.png").read_bytes()[:4] == b"\x89PNG" and (folder / "mine.txt").read_bytes() == OLD
+    assert f"figure: {folder / 'posterior_session.png'}" in capsys.readouterr().out
     assert main(["track", s, s, "--cycles-run", "0,300000", "--json", str(old), "--figure", str(figure),
                  "--force"]) == 0
     assert json.loads(old.read_text())["factor"] and figure.read_bytes()[:4] == b"\x89PNG"
@@ -442,3 +442,38 @@ def test_a_stored_calibration_is_a_user_file(tmp_path):
     assert save_calibration(SimpleNamespace(key="k" * 64, about=about, to_dict=lambda: {"new": 1}), tmp_path,
                             force=True) == stored
     assert json.loads(stored.read_text())["new"] == 1 and json.loads(stored.read_text())["about"]["kind"] == "calibration"
+
+
+@pytest.fixture
+def read_only(tmp_path):
+    """A folder nothing can be written in, root included: a read-only tmpfs (root), else mode 555."""
+    import os
+    import subprocess
+
+    folder = tmp_path / "read-only"
+    folder.mkdir()
+    if os.geteuid() == 0:
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(folder)], capture_output=True,
+                              check=False)
+        if done.returncode:
+            pytest.skip(f"cannot mount a read-only tmpfs: {done.stderr.decode().strip()}")
+        yield folder
+        subprocess.run(["umount", str(folder)], check=False)
+    else:
+        folder.chmod(0o555)
+        yield folder
+        folder.chmod(0o755)
+
+
+@pytest.mark.parametrize("option, name", [("--json", "e.json"), ("--out", "figures")])
+def test_a_place_that_cannot_be_written_is_refused_before_any_work(recorded, read_only, monkeypatch, capsys, option,
+                                                                    name):
+    """`estimate --json/--out` into a read-only folder: one line naming the option, the path and the
+    folder, exit 2, before the estimator is built (it failed after the work, naming a temporary file)."""
+    from wearbench.validation.workflows import session_set
+
+    monkeypatch.setattr(session_set, "build_estimator", lambda *a, **k: pytest.fail("built an estimator"))
+    target = read_only / name
+    assert main(["estimate", str(recorded), option, str(target)]) == 2
+    err = _one_line(capsys)
+    assert f"{option} {target}: cannot write in {read_only}" in err and ".partial" not in err

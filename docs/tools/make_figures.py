@@ -25,7 +25,7 @@ ROOT = DOCS.parent
 FIGURES = DOCS / "figures"
 TUTORIAL = DOCS / "tutorial" / "first-week.md"
 FROM_TUTORIAL = {  # figure here: file the tutorial writes
-    "tutorial-posterior.png": "wednesday-posterior/posterior_1.png",
+    "tutorial-posterior.png": "wednesday-posterior/posterior_wednesday.png",
     "tutorial-life.png": "life.png",
     "tutorial-band.png": "report/band_wednesday.png",
     "tutorial-posteriors.png": "report/posteriors.png",

@@ -74,6 +74,7 @@ class Calibration:
     created: str
     features: tuple[float, ...] = ()  # the sessions' mean cycle features (the spec's, all): ``relative_states.py``
     bench_key: str = ""  # the bench's physics and tolerances (``bench.content.bench_key``)
+    doubts: tuple[str, ...] = ()  # why the sessions doubt the known state (stored with ``--force``)
 
     @property
     def about(self) -> artefacts.About:
@@ -91,13 +92,14 @@ class Calibration:
     def to_dict(self) -> dict:
         return {"key": self.key, "bench": self.bench, "state": self.state, "sessions": list(self.sessions),
                 "cycles": self.cycles, "mount": self.mount, "path": self.path.to_dict(), "p_value": self.p_value,
-                "created": self.created, "features": list(self.features), "bench_key": self.bench_key}
+                "created": self.created, "features": list(self.features), "bench_key": self.bench_key,
+                "doubts": list(self.doubts)}
 
     @classmethod
     def from_dict(cls, d: dict) -> Calibration:
         return cls(d["key"], d["bench"], d["state"], tuple(d["sessions"]), int(d["cycles"]), d.get("mount", ""),
                    SensorPath.from_dict(d["path"]), float(d["p_value"]), d["created"],
-                   tuple(float(v) for v in d.get("features", ())), d.get("bench_key", ""))
+                   tuple(float(v) for v in d.get("features", ())), d.get("bench_key", ""), tuple(d.get("doubts", ())))
 
 
 def fit_calibration(features: Sequence[CycleFeatures], models_exact, state: str, *, key: str, bench: str,

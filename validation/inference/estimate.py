@@ -72,6 +72,7 @@ __all__ = ["Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interv
            "save_estimator"]
 
 NO_VALUE = "no parameter value explains it"
+SHORT_SESSION = 5  # complete crank cycles below which an estimate says the session is short (a window's length)
 
 
 @dataclass(frozen=True)
@@ -526,6 +527,9 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     edge = post[0].sum() + post[-1].sum() + post[:, -1].sum()
     if explains and edge > 0.2:
         notes.append("much of the posterior lies at the edge of the estimator's range: the truth may lie beyond it")
+    if n < SHORT_SESSION:
+        notes.append(f"only {n} complete crank cycle{'s' if n > 1 else ''}: the estimator's statistics hold for "
+                     f"sessions of {SHORT_SESSION} or more; record longer for intervals to trust")
     clipped = int(features.clipped.sum())
     if clipped:
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")

@@ -94,14 +94,14 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, special
+from scipy import linalg, special, stats
 from wearbench.validation.inference.estimate import EstimatorModel, Interval
 from wearbench.validation.inference.move import Move, Rate
 from wearbench.validation.inference.statistics import nearest_psd, shrunk_covariance
 from wearbench.validation.measurement.features import CycleFeatures
 
-__all__ = ["Track", "joint_log_likelihood", "life_rate", "session_covariances", "track_features",
-           "wear_drift"]
+__all__ = ["CONSISTENCY", "NO_LIFE", "Track", "depth_curve", "joint_log_likelihood", "life_consistency", "life_rate",
+           "session_covariances", "track_features", "wear_drift"]
 
 K_RANGE = (0.2, 5.0)
 RATE_SPREAD = 0.2  # lognormal sd of the features' rate along a life (module docstring)
@@ -125,9 +125,26 @@ class Track:
     move: dict | None = None  # the measured move from new to worn used (Move.to_dict), None: none used
     rate_spread: float | None = 0.0  # lognormal sd of the features' rate along the life marginalised (0: none;
     # None: the move's rate against clearance, ``move['rate']``)
+    p_value: float = 1.0  # consistency of the sessions, jointly, with one bench at the best (c, k)
+    session_p: list[float] = field(default_factory=list)  # each session's own consistency (any c, N)
+
+    @property
+    def explains(self) -> bool:
+        """Whether some (c, k) explains the sessions as one bench's life (and each session alone)."""
+        return self.p_value >= CONSISTENCY and all(p >= CONSISTENCY for p in self.session_p)
+
+    @property
+    def verdict(self) -> str:
+        if self.explains:
+            return (f"initial clearance {self.clearance.median * 1e3:.3f} mm, wear coefficient "
+                    f"{self.factor.median:.2f} x the bench file's")
+        alone = [s for s, p in zip(self.sessions, self.session_p, strict=True) if p < CONSISTENCY]
+        if alone:
+            return f"{NO_LIFE}: no parameter value explains {', '.join(alone)} even alone"
+        return f"{NO_LIFE} as one bench's life (p {self.p_value:.2g})"
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return {**asdict(self), "explains": self.explains, "verdict": self.verdict}
 
     def to_dataframe(self) -> pd.DataFrame:
         """One row per session: its cycles run and its wear depth (m), median and 90 % interval."""
@@ -135,6 +152,26 @@ class Track:
                              "wear_depth_m": [d.median for d in self.depth],
                              "wear_depth_m_lo90": [d.lo90 for d in self.depth],
                              "wear_depth_m_hi90": [d.hi90 for d in self.depth]}).set_index("session")
+
+
+NO_LIFE = "no (c, k) explains these sessions"
+CONSISTENCY = 0.001  # p below which a life, or a session in it, is not explained (as estimate's default)
+
+
+def life_consistency(model: EstimatorModel, xbars: np.ndarray, cycles: Sequence[int], means: np.ndarray,
+                     worn: np.ndarray | None, drift: np.ndarray | None) -> tuple[float, list[float]]:
+    """The sessions' joint consistency with one bench at the best parameter value, and each session's
+    own. Jointly: the stacked sessions' squared distance ``Q`` (the life's likelihood's quadratic form)
+    at ``means`` (S, p: the posterior's mode), against the sum of the sessions' nulls (each a single
+    session's smallest distance over the design, ``model.null``: a gamma, so their sum is one of
+    S times the shape); alone: each session's smallest distance over the grid against ``model.null``.
+    A session that no (c, N) explains, and sessions that cannot be one bench (two clearances, one
+    recording twice with another, a session at another speed) get small p."""
+    shape, scale = model.null
+    q = float(joint_log_likelihood(model, xbars, cycles, means, worn, drift, quadratic=True))
+    alone = [float(stats.gamma.sf(float(model.distances(x, n).min()), shape, scale=scale))
+             for x, n in zip(xbars, cycles, strict=True)]
+    return float(stats.gamma.sf(q, len(cycles) * shape, scale=scale)), alone
 
 
 def depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
@@ -178,13 +215,15 @@ def _sqrt_psd(a: np.ndarray) -> np.ndarray:
 
 def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Sequence[float],
                          means: np.ndarray, worn: np.ndarray | None = None,
-                         drift: np.ndarray | None = None) -> np.ndarray:
+                         drift: np.ndarray | None = None, *, quadratic: bool = False) -> np.ndarray:
     """Untempered log likelihood of one bench's session means ``xbars`` (S, p) over ``cycles`` (S,)
     cycles each, at parameter values whose emulated means are ``means`` (..., S, p): the sessions
     share the bench and its sensor path (see the module docstring). ``worn`` (..., S) in [0, 1]: how
     far each session's bench offset has moved along its new-to-worn change (covariance ``drift``,
     :func:`wear_drift`); then the log density with its determinant (it changes with ``worn``), up to
-    ``-S p log(2 pi) / 2``. Without ``worn``: the quadratic form only (the determinant is constant)."""
+    ``-S p log(2 pi) / 2``. Without ``worn``: the quadratic form only (the determinant is constant).
+    ``quadratic``: the quadratic form ``Q`` itself (the squared Mahalanobis distance of the stacked
+    sessions, what the life's consistency test reads), not the log density."""
     st = model.stats[model.reference]
     shared, estimator = session_covariances(model)
     r = np.asarray(xbars, float) - means  # (..., S, p)
@@ -202,7 +241,8 @@ def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Seque
     u = wr.sum(axis=1)
     if worn is None:
         g = linalg.cho_factor(linalg.inv(shared + 1e-12 * np.eye(p)) + sum(inverses), lower=True)
-        return (-0.5 * (own - np.sum(u * linalg.cho_solve(g, u.T).T, axis=1))).reshape(r.shape[:-2])
+        q = own - np.sum(u * linalg.cho_solve(g, u.T).T, axis=1)
+        return (q if quadratic else -0.5 * q).reshape(r.shape[:-2])
     # shared latent (bench offset b, drift d): x_i = mean_i + b + worn_i d + w_i; with A = P^(1/2),
     # Q = sum r_i' W_i^-1 r_i - v' M^-1 v, M = I + A' L' W^-1 L A, v = A' L' W^-1 r, log|cov| = log|W| + log|M|
     a_s, a_d = _sqrt_psd(shared), _sqrt_psd(drift)
@@ -218,7 +258,7 @@ def joint_log_likelihood(model: EstimatorModel, xbars: np.ndarray, cycles: Seque
         m = np.eye(2 * p) + np.block([[ss, cross], [cross.T, np.tensordot(g * g, dd, axes=1)]])
         mc = linalg.cho_factor(m, lower=True)
         q = own[sel] - np.sum(v[sel] * linalg.cho_solve(mc, v[sel].T).T, axis=1)
-        out[sel] = -0.5 * (q + logdet + 2.0 * np.log(np.diag(mc[0])).sum())
+        out[sel] = q if quadratic else -0.5 * (q + logdet + 2.0 * np.log(np.diag(mc[0])).sum())
     return out.reshape(r.shape[:-2])
 
 
@@ -320,6 +360,12 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
         raise ValueError(f"track: cycles run {list(cycles_run)}: expected values >= 0, at least two different")
     if any(f.cycles < 1 for f in features):
         raise ValueError("track: a session holds no complete crank cycle")
+    first_stage = model.estimator.design.cycles[1]
+    if max(cycles_run) * K_RANGE[1] < 0.05 * first_stage:
+        raise ValueError(f"track: cycles run {min(cycles_run):,.0f}-{max(cycles_run):,.0f}: at most "
+                         f"{max(cycles_run) * K_RANGE[1]:,.0f} cycles of the bench file's wear even at {K_RANGE[1]:g} x "
+                         f"its rate, under 5 % of the estimator's first wear stage ({first_stage:,.0f} cycles): no wear "
+                         "it can tell; expected whole cycles (were they typed in thousands?)")
     if move is not None and not drift:
         raise ValueError("track: a measured move (move=...) is part of the drift: drift=False leaves it nowhere")
     if not 0 <= depth_spread < 1:
@@ -339,6 +385,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     log_post = (_spread_rate(log_post, inside, step, rate_spread) if rate is None
                 else _spread_rate(log_post, inside, step, rate.at(gc)[1], rate.at(gc)[0]))
     post = np.exp(log_post - special.logsumexp(log_post))
+    p_life, p_alone = _consistency_at_mode(post, xbars, [f.cycles for f in features], runs, model, ks, drift, move)
     c_int = Interval.from_weights(gc, post.sum(axis=1))
     k_int = Interval.from_weights(np.log(ks), post.sum(axis=0))
     k_int = Interval(*(float(np.exp(v)) for v in asdict(k_int).values()))
@@ -381,7 +428,21 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
                      f"{min(K_RANGE[1], float(ks[inside][-1])):.3g} x the file's (the last session's cycles run times "
                      "the factor must lie within the estimator's range)")
     return Track(labels, [float(n) for n in cycles_run], c_int, k_int, coef, depth, limit, to_limit, beyond,
-                 prediction, notes, move.to_dict() if move is not None else None, rate_spread)
+                 prediction, notes, move.to_dict() if move is not None else None, rate_spread, p_life, p_alone)
+
+
+def _consistency_at_mode(post: np.ndarray, xbars: np.ndarray, cycles: Sequence[int], runs: np.ndarray,
+                         model: EstimatorModel, ks: np.ndarray, drift: bool, move: Move | None
+                         ) -> tuple[float, list[float]]:
+    """:func:`life_consistency` at the posterior's mode (c, k) with the likelihood's drift and move."""
+    i, j = np.unravel_index(int(np.argmax(post)), post.shape)
+    means = model.mean(np.full(runs.shape, model.grid_c[i]), ks[j] * runs)
+    worn, cov = None, None
+    if drift:
+        worn, cov = (runs > 0).astype(float), wear_drift(model)
+        if move is not None:
+            means, cov = means + (runs > 0)[:, None] * move.mean, cov + move.covariance
+    return life_consistency(model, xbars, cycles, means, worn, cov)
 
 
 def life_rate(model: EstimatorModel, lives: Sequence[tuple[np.ndarray, Sequence[float], float, float]],

@@ -5,6 +5,7 @@ loads and groups them and finds their theory; ``inference`` estimates, tracks an
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -22,46 +23,74 @@ from wearbench.validation.inference.estimate import (
     estimate_features,
     fit_estimator,
 )
-from wearbench.validation.inference.identify import IdentifyOptions, fit_states
+from wearbench.validation.inference.identify import IdentifyOptions, fit_states, identify_features
 from wearbench.validation.inference.move import Move, stored_move
 from wearbench.validation.inference.track import Track, track_features
 from wearbench.validation.measurement.session import MeasuredSession
 from wearbench.validation.workflows.assess import Assessment
-from wearbench.validation.workflows.session_set import SessionSet
+from wearbench.validation.workflows.session_set import SessionSet, candidate_states
 
 Sessions = SessionSet | Sequence[str | Path | MeasuredSession]
 EstimatorGiven = Estimator | str | Path | None
 
-__all__ = ["calibrate_sessions", "estimate_assessed", "estimate_sessions", "named_outside", "recorded_cycles_run",
-           "track_sessions"]
+__all__ = [
+    "calibrate_sessions",
+    "check_life_order",
+    "estimate_assessed",
+    "estimate_sessions",
+    "named_outside",
+    "recorded_cycles_run",
+    "track_sessions",
+]
 
 
 def calibrate_sessions(sessions: Sessions, state: str, *,
                        candidates: str | Path | Sequence[WearState] | None = None,
                        settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
                        ensembles: Mapping[str, Ensemble] | str | Path | None = None, mount: str = "",
-                       compute: Compute | None = None,
-                       before: Callable[[str], object] | None = None) -> Calibration:
+                       compute: Compute | None = None, before: Callable[[str], object] | None = None,
+                       force: bool = False) -> Calibration:
     """The sensor-path calibration of one bench from ``sessions`` recorded in the known ``state``
     (a ``[[state]]`` name of the bench or of ``candidates``); see ``calibration.py``. Not saved.
     ``before`` is called with the calibration's key once the sessions are read, before any ensemble
-    is built (``wearbench calibrate`` refuses an existing calibration there, not minutes later)."""
+    is built (``wearbench calibrate`` refuses an existing calibration there, not minutes later).
+
+    A calibration the sessions doubt is refused (ValueError naming why) unless ``force``: the sessions
+    stay far from ``state`` with the fitted sensor path (p below ``options.consistency``), or a session
+    is identified as another candidate state (with the unmeasured mount's prior) at the options'
+    threshold. With ``force`` it is returned with its ``doubts``."""
     options = options or IdentifyOptions()
     sessions = SessionSet.of(sessions, calibration=None, mount=mount)
     group = sessions.one_bench("calibration", sensor=True)
+    sessions.refuse_duplicates("calibration")
     first = group.first
+    names = [st.name for st in candidate_states(first.bench, candidates)]
+    if state not in names:
+        raise ValueError(f"calibrate: --state {state!r}: expected one of the bench's states {names}")
     ready = sessions.ensembles(group, candidates=candidates, ensembles=ensembles) if ensembles is not None else None
     spec = next(iter(ready.values())).settings.features if ready else (settings or EnsembleSettings()).features
     if before is not None:
         before(calibration_key(first.bench, first.metadata, spec, mount))
     ens = ready or sessions.ensembles(group, candidates=candidates, settings=settings, compute=compute)
-    if state not in ens:
-        raise ValueError(f"calibrate: --state {state!r}: expected one of the bench's states {list(ens)}")
     spec = next(iter(ens.values())).settings.features
+    features = [sessions.features(s, spec) for s in sessions]
     exact = fit_states(ens, replace(options, sensor_path="none"))
-    return fit_calibration([sessions.features(s, spec) for s in sessions], exact, state,
-                           key=calibration_key(first.bench, first.metadata, spec, mount), bench=first.bench.name,
-                           bench_key=bench_key(first.bench), labels=sessions.labels, mount=mount)
+    cal = fit_calibration(features, exact, state, key=calibration_key(first.bench, first.metadata, spec, mount),
+                          bench=first.bench.name, bench_key=bench_key(first.bench), labels=sessions.labels, mount=mount)
+    doubts = []
+    if cal.p_value < options.consistency:
+        doubts.append(f"with the fitted sensor path the sessions are still far from {state!r} (p {cal.p_value:.2g})")
+    models = fit_states(ens, options)
+    for s, f in zip(sessions, features, strict=True):
+        found = identify_features(f, models, label=s.label)
+        if found.verdict in ens and found.verdict != state:
+            doubts.append(f"session {s.label} is identified as {found.verdict!r} (p {found.posterior[found.verdict]:.3f}), "
+                          f"{state!r} p {found.posterior[state]:.3f}")
+    if doubts and not force:
+        raise ValueError(f"calibrate: {'; '.join(doubts)}: is the bench really in {state!r}? (a mount mode inside an "
+                         "impact band or a bench at the edge of its tolerances can do this too: --force stores the "
+                         "calibration anyway)")
+    return replace(cal, doubts=tuple(doubts))
 
 
 def estimate_sessions(sessions: Sessions, *, design: EstimatorDesign | None = None, estimator: EstimatorGiven = None,
@@ -158,6 +187,26 @@ def _cycles_run(loaded: Sequence[MeasuredSession], given: Sequence[float] | None
     return [float(g) for g in given], notes
 
 
+def check_life_order(loaded: Sequence[MeasuredSession], cycles_run: Sequence[float]) -> None:
+    """Refuse cycles run that go back in time: a session recorded after another (its recorded start)
+    with fewer cycles run than it (a bench does not unwear)."""
+    from datetime import datetime
+
+    dated = []
+    for s, n in zip(loaded, cycles_run, strict=True):
+        text = s.metadata.get("session", {}).get("started_at")
+        try:
+            dated.append((datetime.fromisoformat(text), n, s.label))
+        except (TypeError, ValueError):
+            return  # not every session says when it was recorded: nothing to check against
+    dated.sort()
+    for (t0, n0, a), (t1, n1, b) in itertools.pairwise(dated):
+        if n1 < n0:
+            raise ValueError(f"session {b}: recorded after {a} ({t1:%Y-%m-%d %H:%M} after {t0:%Y-%m-%d %H:%M}) with "
+                             f"fewer cycles run ({n1:,.0f} < {n0:,.0f}); a bench does not unwear: check --cycles-run or "
+                             "the sessions' order")
+
+
 def track_sessions(sessions: Sessions, cycles_run: Sequence[float] | None = None, *,
                    limit: float | None = None, design: EstimatorDesign | None = None, estimator: EstimatorGiven = None,
                    options: IdentifyOptions | None = None, calibration: str | Path | None = "auto", mount: str = "",
@@ -170,7 +219,9 @@ def track_sessions(sessions: Sessions, cycles_run: Sequence[float] | None = None
     options = options or IdentifyOptions()
     sessions = SessionSet.of(sessions, calibration=calibration, mount=mount)
     group = sessions.one_bench("tracking")
+    sessions.refuse_duplicates("tracking")
     cycles_run, differ = _cycles_run(sessions.sessions, cycles_run)
+    check_life_order(sessions.sessions, cycles_run)
     if estimator is not None and not isinstance(estimator, Estimator):
         from wearbench.validation.inference.estimate import load_estimator
 

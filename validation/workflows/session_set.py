@@ -12,10 +12,12 @@ and cycle features, computed once (:meth:`SessionSet.calibration`, :meth:`Sessio
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from wearbench.bench.content import file_digest
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import Bench, WearState
 from wearbench.compute.options import Compute
@@ -52,13 +54,18 @@ def distinct_labels(paths: Sequence[Path | None], labels: Sequence[str]) -> list
     for label in {x for x in labels if labels.count(x) > 1}:
         idx = [i for i, x in enumerate(labels) if x == label and paths[i] is not None]
         parts = {i: Path(paths[i]).resolve().with_suffix("").parts for i in idx}
+        tails = {i: label for i in idx}  # one file given twice: no path tells them apart (numbered below)
         for depth in range(2, max(len(p) for p in parts.values()) + 1):
-            tails = {i: "/".join(p[-depth:]) for i, p in parts.items()}
-            if len(set(tails.values())) == len(tails):
+            trial = {i: "/".join(p[-depth:]) for i, p in parts.items()}
+            if len(set(trial.values())) == len(trial):
+                tails = trial
                 break
-        suffix = {i: label.removeprefix(Path(paths[i]).stem) for i in idx}  # " (unfinished)"
+        suffix = {i: label.removeprefix(Path(paths[i]).stem) if tails[i] != label else "" for i in idx}
         for i in idx:
-            out[i] = tails[i] + suffix[i]
+            out[i] = tails[i] + suffix[i]  # " (unfinished)" kept
+    for label in {x for x in out if out.count(x) > 1}:  # one file given twice: numbered from the second
+        for k, i in enumerate([i for i, x in enumerate(out) if x == label][1:], start=2):
+            out[i] = f"{label} #{k}"
     return out
 
 
@@ -131,6 +138,18 @@ class SessionSet:
             if s.bench is None:
                 why = next((p for p in (s.problem or "").split("; ") if "bench" in p), "no bench file recorded in it")
                 raise ValueError(f"session {s.label}: {why}; {needs}")
+
+    def refuse_duplicates(self, noun: str) -> None:
+        """Refuse (ValueError) one recording given twice (the same file, or a copy of it, under any name):
+        ``noun`` would count it as two sessions of the bench."""
+        seen: dict[str, str] = {}
+        for s in self.sessions:
+            digest = (file_digest(s.path) if s.path is not None
+                      else hashlib.sha256(s.acceleration[["time", "acc"]].to_numpy().tobytes()).hexdigest())
+            if digest in seen:
+                raise ValueError(f"session {s.label}: the same recording as {seen[digest]}; {noun} takes each "
+                                 "session once")
+            seen[digest] = s.label
 
     def groups(self) -> list[SessionGroup]:
         """The sessions grouped by bench file and commanded speed, in order of first appearance."""

@@ -294,3 +294,12 @@ def test_the_wear_drift_is_measured_from_the_designs_shared_benches_and_enters_t
         expected = -0.5 * (r @ np.linalg.solve(dense, r) + np.linalg.slogdet(dense)[1])
         got = joint_log_likelihood(fitted, xbars, ns, means[g], worn, drift)
         assert got == pytest.approx(expected, rel=1e-8)
+
+
+def test_a_short_session_is_said_to_be_short(model):
+    """A session of fewer complete cycles than a window gets its intervals with a note that says so
+    (a 1.65-cycle session got full intervals and no word)."""
+    rng = np.random.default_rng(8)
+    short = estimate_features(session(rng, 0.4e-3, 2e5, cycles=2), model, label="short")
+    assert any("only 2 complete crank cycles" in n for n in short.notes)
+    assert not any("complete crank cycle" in n for n in estimate_features(session(rng, 0.4e-3, 2e5), model).notes)

@@ -58,3 +58,25 @@ def test_a_mount_inside_the_drawn_paths_is_named_uncalibrated_and_calibrated(ses
     row = json.loads(cal.read_text())[0]
     assert row["posterior"]["0.6 mm new"] >= 0.99 and row["p_value"]["0.6 mm new"] > 0.01, row
     assert row["sensor_path"].startswith("calibration") and any("sensor path: calibration" in n for n in row["notes"])
+
+
+def test_a_calibration_its_sessions_doubt_is_stored_only_with_force(sessions, tmp_path, capsys):
+    """A 0.6 mm session given as the known state 0.3 mm new: identification (the unmeasured mount's
+    prior) names 0.6 mm new, so calibrate refuses, saying why, before storing anything; --force stores
+    it with the doubt said and kept in the file. The same recording given twice is refused too."""
+    paths, saved = sessions
+    store = tmp_path / "calibrations"
+    wrong = ["calibrate", str(paths["0.6 mm new"]), "--state", "0.3 mm new", "--ensembles", str(saved),
+             "--dir", str(store)]
+    assert main(wrong) == 2
+    err = capsys.readouterr().err
+    assert "is identified as '0.6 mm new'" in err and "is the bench really in '0.3 mm new'?" in err and "--force" in err
+    assert not store.exists()
+    assert main([*wrong, "--force"]) == 0
+    assert "warning: session 0p6_mm_new is identified as '0.6 mm new'" in capsys.readouterr().out
+    (stored,) = store.glob("*.json")
+    assert any("identified as '0.6 mm new'" in d for d in json.loads(stored.read_text())["doubts"])
+    twice = ["calibrate", str(paths["0.3 mm new"]), str(paths["0.3 mm new"]), "--state", "0.3 mm new",
+             "--ensembles", str(saved), "--dir", str(tmp_path / "twice")]
+    assert main(twice) == 2
+    assert "the same recording as 0p3_mm_new" in capsys.readouterr().err

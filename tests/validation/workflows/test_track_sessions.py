@@ -74,4 +74,40 @@ def test_a_nonsense_cycles_run_is_refused_before_recording(tmp_path, capsys, val
     assert main(["record", "ninebar-testbed", "--backend", "sim", "--cycles", "2", "--out", str(out),
                  "--cycles-run", value]) == 2
     err = capsys.readouterr().err
-    assert f"--cycles-run {value!r}" in err and "a number >= 0" in err and not out.exists()
+    assert f"--cycles-run {value!r}" in err and "a finite number >= 0" in err and not out.exists()
+
+
+@pytest.mark.parametrize("extra, says", [
+    (["--cycles-run", "0,nan"], ("--cycles-run 'nan': expected the cycles the bench had run before the session, "
+                                 "a finite number >= 0")),
+    (["--cycles-run", "0,-5"], "--cycles-run '-5'"),
+    (["--limit", "0"], "--limit '0': expected a finite length > 0"),
+    (["--limit", "-1mm"], "--limit '-1mm': expected a finite length > 0"),
+    (["--figure", "life.txt"], "--figure life.txt: a figure needs one of the suffixes"),
+])
+def test_track_refuses_bad_values_before_any_work(sessions, tmp_path, monkeypatch, capsys, extra, says):
+    """Each bad value is one line naming the option and value, exit 2, before the estimator is built."""
+    s0, s1, _ = sessions
+    monkeypatch.setattr(session_set, "build_estimator", lambda *a, **k: pytest.fail("built an estimator"))
+    monkeypatch.chdir(tmp_path)
+    assert main(["track", str(s0), str(s1), "--calibration", "none", *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert says in err and len(err.splitlines()) == 1, err
+
+
+def test_track_takes_each_recording_once_and_never_back_in_time(sessions, monkeypatch, capsys):
+    """The same file twice is one session, not a life; cycles run that go back in time against the
+    sessions' recorded starts are refused, naming both sessions."""
+    s0, s1, _ = sessions
+    monkeypatch.setattr(session_set, "build_estimator", lambda *a, **k: pytest.fail("built an estimator"))
+    assert main(["track", str(s0), str(s0), "--cycles-run", "0,200000", "--calibration", "none"]) == 2
+    assert "session s0 #2: the same recording as s0; tracking takes each session once" in capsys.readouterr().err
+    a, b = load_session(s0), load_session(s1)
+    a.metadata["session"]["started_at"], b.metadata["session"]["started_at"] = "2026-11-02T09:00:00Z", \
+        "2026-11-09T09:00:00Z"
+    measure.check_life_order([a, b], [0.0, 2e5])  # in order
+    with pytest.raises(ValueError, match=r"session s1: recorded after s0 \(2026-11-09 09:00 after 2026-11-02 "
+                                         r"09:00\) with fewer cycles run \(0 < 200,000\); a bench does not unwear"):
+        measure.check_life_order([a, b], [2e5, 0.0])
+    b.metadata["session"].pop("started_at")
+    measure.check_life_order([a, b], [2e5, 0.0])  # a session that does not say when: nothing to check against
