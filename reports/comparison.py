@@ -347,12 +347,12 @@ def write_report(comparisons: Sequence[SessionComparison], out_dir: str | Path, 
     figures: dict[int | str, list[Path]] = {}  # per comparison (index), "sessions", "ranking"
     used: set[str] = set()
     for i, c in enumerate(comparisons):
-        slug = slug(c.label)
-        while slug in used:
-            slug += "_"
-        used.add(slug)
-        figures[i] = [_overlay(c, out / f"overlay_{slug}.png"), _by_angle(c, out / f"angle_{slug}.png"),
-                      _spectrum(c, out / f"spectrum_{slug}.png")]
+        name = slug(c.label)
+        while name in used:
+            name += "_"
+        used.add(name)
+        figures[i] = [_overlay(c, out / f"overlay_{name}.png"), _by_angle(c, out / f"angle_{name}.png"),
+                      _spectrum(c, out / f"spectrum_{name}.png")]
     if len(comparisons) > 1:
         figures["sessions"] = [_side_by_side(comparisons, out / "sessions_measured.png", with_theory=False),
                                _side_by_side(comparisons, out / "sessions_comparison.png", with_theory=True)]
