@@ -4,7 +4,7 @@
 
 - ``slider-acceleration.png``: the shipped test bed's slider acceleration over one crank revolution
   (the second of two, from rest), with ideal joints and with 0.3 mm and 0.6 mm radial clearance at A
-  and B, through ``import wearbench`` (load_bench, build_scene, simulate).
+  and B, through ``import wearbench`` (load_bench, simulate).
 - ``tutorial-*.png``: figures the tutorial itself writes. The tutorial's blocks are run in a scratch
   folder (``tutorial.run``, as the test does), then its figures are copied here, so each figure on a
   page is what the page's own commands produce.
@@ -46,8 +46,7 @@ def slider_acceleration(path: Path) -> None:
              ("0.6 mm clearance", 0.6e-3, "tab:red", 0.8)]
     fig, ax = plt.subplots(figsize=(8, 3.6), dpi=100)
     for label, clearance, color, width in cases:
-        scene = wearbench.build_scene(bench, clearances={j: clearance for j in ("A", "B")})
-        table = wearbench.simulate(scene, revolutions=2).table
+        table = wearbench.simulate(bench, clearances={j: clearance for j in ("A", "B")}, revolutions=2).table
         second = table[table.t >= table.t.iloc[-1] / 2]
         angle = np.degrees(np.unwrap(second.theta_O1.to_numpy()) - second.theta_O1.iloc[0])
         ax.plot(angle, second.slider_acc, color=color, lw=width, label=label, zorder=3 if clearance is None else 2)
