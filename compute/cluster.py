@@ -5,6 +5,10 @@ Scheduler, first that is set (:func:`resolve_scheduler`): the ``scheduler`` argu
 ``[compute] scheduler`` in the user config (``$WEARBENCH_CONFIG``, default
 ``~/.config/wearbench/config.toml``); "local" or nothing set: a LocalCluster.
 
+A LocalCluster starts shielded from Ctrl-C (:mod:`~wearbench.compute.interrupts`): the program hears
+it at once, its workers never; after a Ctrl-C the cluster is closed within ``CLOSE_INTERRUPTED`` s and
+what is left of its workers is killed.
+
 Imports the standard library and ``dask.distributed`` (lazily), and the model only in the worker
 warm-up; no CLI code.
 """
@@ -14,13 +18,14 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import os
-import signal
 import threading
 import tomllib
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from wearbench.compute.interrupts import end_processes, running_processes, start_shielded
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -115,22 +120,6 @@ _LEAN_LOCAL = {"distributed.admin.tick.interval": "1s", "distributed.worker.memo
                "distributed.scheduler.work-stealing": False, "distributed.scheduler.worker-saturation": 1.0}
 
 
-@contextlib.contextmanager
-def _children_ignore_ctrl_c() -> Iterator[None]:
-    """Processes started in this block ignore SIGINT (inherited across exec; Python installs its
-    KeyboardInterrupt handler only over the default): a Ctrl-C at the terminal reaches the whole
-    process group, and only this process should act on it, closing the cluster; workers that take it
-    too print tracebacks and leave semaphores behind."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 @dataclass
 class ActiveClient:
     """The client of the innermost :func:`compute_client` block."""
@@ -164,40 +153,97 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
         finally:
             _ACTIVE.reset(token)
         return
+    address = resolve_scheduler(scheduler)
+    before = running_processes(_WORKER)
+    # started shielded: a Ctrl-C meanwhile is heard at once (the workers spawned so far are killed,
+    # so the start-up gives up at once) and its workers never take one
+    client = start_shielded(lambda: _local(workers) if address is None else _connect(address),
+                            close=lambda c: _shut_down(c, before, CLOSE_INTERRUPTED), name="cluster start-up",
+                            abort=lambda: end_processes(before, name=_WORKER))
+    within = CLOSE_INTERRUPTED
+    try:
+        token = _ACTIVE.set(ActiveClient(client))
+        try:
+            yield client
+            within = CLOSE_WITHIN
+        finally:
+            _ACTIVE.reset(token)
+    finally:
+        _shut_down(client, before, within)
+
+
+_WORKER = "Dask Worker process"  # the name distributed's nannies give their worker processes
+CLOSE_WITHIN = 60.0  # s: a cluster's close after its work; then its workers are killed
+CLOSE_INTERRUPTED = 2.0  # s: the same after a Ctrl-C or an error
+
+
+def _local(workers: int | None) -> Client:
+    """A LocalCluster of ``workers`` single-threaded processes and its client, the model loaded on
+    every worker."""
     import logging
 
     import dask
     from distributed import Client, LocalCluster
 
-    address = resolve_scheduler(scheduler)
-    cluster = None
+    with dask.config.set(_LEAN_LOCAL):  # nannies pass the config on
+        cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
+                               # a worker's heartbeat racing the scheduler's close logs a traceback
+                               # at ERROR; task errors come back as TaskFailure, not through logs
+                               silence_logs=logging.CRITICAL,
+                               # dashboard off; the scheduler's health/metrics endpoint on a free
+                               # loopback port (its default 8787 clashes with other clusters)
+                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
     try:
-        if address is None:
-            with dask.config.set(_LEAN_LOCAL), _children_ignore_ctrl_c():  # nannies pass the config on
-                cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
-                                       # a worker's heartbeat racing the scheduler's close logs a traceback
-                                       # at ERROR; task errors come back as TaskFailure, not through logs
-                                       silence_logs=logging.CRITICAL,
-                                       # dashboard off; the scheduler's health/metrics endpoint on a free
-                                       # loopback port (its default 8787 clashes with other clusters)
-                                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
-            client = Client(cluster)
-        else:
-            try:
-                client = Client(address, timeout="10s")
-            except OSError as exc:
-                raise OSError(f"scheduler {address}: cannot connect ({exc}); start one with 'dask scheduler' "
-                              "or leave the scheduler unset for a local cluster") from None
+        client = Client(cluster)
+        client.register_plugin(_warm_up_plugin())
+    except BaseException:
+        cluster.close()
+        raise
+    return client
+
+
+def _connect(address: str) -> Client:
+    from distributed import Client
+
+    try:
+        client = Client(address, timeout="10s")
+    except OSError as exc:
+        raise OSError(f"scheduler {address}: cannot connect ({exc}); start one with 'dask scheduler' "
+                      "or leave the scheduler unset for a local cluster") from None
+    try:
+        client.register_plugin(_warm_up_plugin())
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
+def _shut_down(client: Client, before: Collection[int], within: float) -> None:
+    """Close ``client`` and the LocalCluster it owns (if any) within ``within`` s, in a helper thread;
+    when the time is up, or at a Ctrl-C meanwhile, kill the worker processes that are left (those
+    not running ``before``; their nannies told first not to start new ones) and let the close finish
+    in the background."""
+    cluster = getattr(client, "cluster", None)  # a LocalCluster started by _local; None: a running cluster's
+
+    closed = threading.Event()  # not Thread.join: interrupted, it takes the thread for ended (3.11)
+
+    def close() -> None:
         try:
-            client.register_plugin(_warm_up_plugin())
-            token = _ACTIVE.set(ActiveClient(client))
-            try:
-                yield client
-            finally:
-                _ACTIVE.reset(token)
+            client.close(timeout=within)
         finally:
-            client.close()
+            try:
+                if cluster is not None:
+                    cluster.close(timeout=within)
+            finally:
+                closed.set()
+
+    threading.Thread(target=close, name="wearbench cluster shutdown", daemon=True).start()
+    try:
+        closed.wait(within)
     finally:
-        if cluster is not None:
-            cluster.close()
+        if not closed.is_set():
+            for nanny in list(getattr(cluster, "workers", {}).values()):
+                with contextlib.suppress(Exception):  # a worker gone now is not restarted: the nanny closes
+                    nanny.close_gracefully(reason="wearbench: interrupted")
+            end_processes(before, name=_WORKER, wait=1.0)
