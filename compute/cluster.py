@@ -20,7 +20,7 @@ import contextvars
 import os
 import threading
 import tomllib
-from collections.abc import Collection, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -153,13 +153,8 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
         finally:
             _ACTIVE.reset(token)
         return
-    address = resolve_scheduler(scheduler)
-    before = running_processes(_WORKER)
-    # started shielded: a Ctrl-C meanwhile is heard at once (the workers spawned so far are killed,
-    # so the start-up gives up at once) and its workers never take one
-    client = start_shielded(lambda: _local(workers) if address is None else _connect(address),
-                            close=lambda c: _shut_down(c, before, CLOSE_INTERRUPTED), name="cluster start-up",
-                            abort=lambda: end_processes(before, name=_WORKER))
+    life = _Life(resolve_scheduler(scheduler), workers)
+    client = life.start()
     within = CLOSE_INTERRUPTED
     try:
         token = _ACTIVE.set(ActiveClient(client))
@@ -169,7 +164,7 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
         finally:
             _ACTIVE.reset(token)
     finally:
-        _shut_down(client, before, within)
+        life.shut_down(client, within)
 
 
 _WORKER = "Dask Worker process"  # the name distributed's nannies give their worker processes
@@ -177,73 +172,97 @@ CLOSE_WITHIN = 60.0  # s: a cluster's close after its work; then its workers are
 CLOSE_INTERRUPTED = 2.0  # s: the same after a Ctrl-C or an error
 
 
-def _local(workers: int | None) -> Client:
-    """A LocalCluster of ``workers`` single-threaded processes and its client, the model loaded on
-    every worker."""
-    import logging
+class _Life:
+    """The life cycle of one :func:`compute_client` block's cluster: a LocalCluster it starts
+    (``address`` None) or a running cluster it connects to, and their end."""
 
-    import dask
-    from distributed import Client, LocalCluster
+    def __init__(self, address: str | None, workers: int | None):
+        self.address, self.workers = address, workers
+        self.before = frozenset(running_processes(_WORKER))  # another block's workers: never killed here
+        self.stopping = threading.Event()  # set when the end is forced: what the cluster's loop reports
+        # then (a killed worker's closed connections) is not the user's
+        self.cluster: Any = None  # the LocalCluster, once it runs
 
-    with dask.config.set(_LEAN_LOCAL):  # nannies pass the config on
-        cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
-                               # a worker's heartbeat racing the scheduler's close logs a traceback
-                               # at ERROR; task errors come back as TaskFailure, not through logs
-                               silence_logs=logging.CRITICAL,
-                               # dashboard off; the scheduler's health/metrics endpoint on a free
-                               # loopback port (its default 8787 clashes with other clusters)
-                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
-    try:
-        client = Client(cluster)
-        client.register_plugin(_warm_up_plugin())
-    except BaseException:
-        cluster.close()
-        raise
-    return client
+    def start(self) -> Client:
+        """Start shielded (:func:`start_shielded`): a Ctrl-C meanwhile is heard at once, the workers
+        spawned so far are killed (the start-up then gives up at once), and the workers never take a
+        Ctrl-C themselves."""
+        return start_shielded(self._local if self.address is None else self._connect, name="cluster start-up",
+                              close=lambda client: self.shut_down(client, CLOSE_INTERRUPTED), abort=self._kill)
 
+    def _local(self) -> Client:
+        """A LocalCluster of ``workers`` single-threaded processes and its client, the model loaded on
+        every worker."""
+        import logging
 
-def _connect(address: str) -> Client:
-    from distributed import Client
+        import dask
+        from distributed import Client, LocalCluster
 
-    try:
-        client = Client(address, timeout="10s")
-    except OSError as exc:
-        raise OSError(f"scheduler {address}: cannot connect ({exc}); start one with 'dask scheduler' "
-                      "or leave the scheduler unset for a local cluster") from None
-    try:
-        client.register_plugin(_warm_up_plugin())
-    except BaseException:
-        client.close()
-        raise
-    return client
-
-
-def _shut_down(client: Client, before: Collection[int], within: float) -> None:
-    """Close ``client`` and the LocalCluster it owns (if any) within ``within`` s, in a helper thread;
-    when the time is up, or at a Ctrl-C meanwhile, kill the worker processes that are left (those
-    not running ``before``; their nannies told first not to start new ones) and let the close finish
-    in the background."""
-    cluster = getattr(client, "cluster", None)  # a LocalCluster started by _local; None: a running cluster's
-
-    closed = threading.Event()  # not Thread.join: interrupted, it takes the thread for ended (3.11)
-
-    def close() -> None:
+        with dask.config.set(_LEAN_LOCAL):  # nannies pass the config on
+            cluster = LocalCluster(n_workers=self.workers or usable_cores(), threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
+                                   # a worker's heartbeat racing the scheduler's close logs a traceback
+                                   # at ERROR; task errors come back as TaskFailure, not through logs
+                                   silence_logs=logging.CRITICAL,
+                                   # dashboard off; the scheduler's health/metrics endpoint on a free
+                                   # loopback port (its default 8787 clashes with other clusters)
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+        self.cluster = cluster
+        loop = cluster.loop.asyncio_loop
+        loop.set_exception_handler(lambda loop, context: None if self.stopping.is_set()
+                                   else loop.default_exception_handler(context))
         try:
-            client.close(timeout=within)
-        finally:
-            try:
-                if cluster is not None:
-                    cluster.close(timeout=within)
-            finally:
-                closed.set()
+            client = Client(cluster)
+            client.register_plugin(_warm_up_plugin())
+        except BaseException:
+            cluster.close()
+            raise
+        return client
 
-    threading.Thread(target=close, name="wearbench cluster shutdown", daemon=True).start()
-    try:
-        closed.wait(within)
-    finally:
-        if not closed.is_set():
-            for nanny in list(getattr(cluster, "workers", {}).values()):
-                with contextlib.suppress(Exception):  # a worker gone now is not restarted: the nanny closes
-                    nanny.close_gracefully(reason="wearbench: interrupted")
-            end_processes(before, name=_WORKER, wait=1.0)
+    def _connect(self) -> Client:
+        from distributed import Client
+
+        try:
+            client = Client(self.address, timeout="10s")
+        except OSError as exc:
+            raise OSError(f"scheduler {self.address}: cannot connect ({exc}); start one with 'dask scheduler' "
+                          "or leave the scheduler unset for a local cluster") from None
+        try:
+            client.register_plugin(_warm_up_plugin())
+        except BaseException:
+            client.close()
+            raise
+        return client
+
+    def _kill(self, wait: float = 0.0) -> None:
+        """Kill the workers this block started that still run, their nannies told first not to start
+        new ones (they close instead); wait up to ``wait`` s for them to be gone."""
+        self.stopping.set()
+        for nanny in list(getattr(self.cluster, "workers", {}).values()):
+            with contextlib.suppress(Exception):
+                nanny.close_gracefully(reason="wearbench: interrupted")
+        end_processes(self.before, name=_WORKER, wait=wait)
+
+    def shut_down(self, client: Client, within: float) -> None:
+        """Close ``client`` and the LocalCluster it owns (if any) within ``within`` s, in a helper
+        thread; when the time is up, or at a Ctrl-C meanwhile, kill the workers that are left and let
+        the close finish in the background."""
+        cluster = getattr(client, "cluster", None)  # a LocalCluster started here; None: a running cluster's
+        closed = threading.Event()  # not Thread.join: interrupted, it takes the thread for ended (3.11)
+
+        def close() -> None:
+            try:
+                client.close(timeout=within)
+            finally:
+                try:
+                    if cluster is not None:
+                        cluster.close(timeout=within)
+                finally:
+                    closed.set()
+
+        threading.Thread(target=close, name="wearbench cluster shutdown", daemon=True).start()
+        try:
+            closed.wait(within)
+        finally:
+            if not closed.is_set():
+                self._kill(wait=1.0)
