@@ -133,7 +133,10 @@ def main(argv: list[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         command = _Interrupt.command = f"wearbench {args.command}"
-        return int(args.func(args) or 0)
+        from wearbench.cli.progress import compile_note_on
+
+        with compile_note_on():  # any command may run the model: its first compile says so, whichever
+            return int(args.func(args) or 0)
     except BaseException as exc:
         if _interrupted(exc):  # Ctrl-C: one line, exit 130 (a recording has finished its file by now)
             if as_program:  # end here, as the watchdog does: nothing in the interpreter's shutdown can

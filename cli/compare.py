@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
     from wearbench.bench.units import parse_quantity
-    from wearbench.cli.progress import note_compiling, progress
+    from wearbench.cli.progress import progress
     from wearbench.validation.compare import CompareOptions, compare_session
     from wearbench.validation.cycles import parse_windows
     from wearbench.validation.filters import parse_filter
@@ -135,8 +135,6 @@ def run(args: argparse.Namespace) -> int:
     if args.label and len(args.label) != len(args.sessions):
         raise ValueError(f"--label given {len(args.label)} times for {len(args.sessions)} sessions")
     comparisons, failed = [], []
-    if not args.theory:  # the theory is simulated
-        note_compiling()
     with progress() as bar:
         task = bar.add_task("compare", total=len(args.sessions), info="")
         for i, (path, theory) in enumerate(zip(args.sessions, theories)):

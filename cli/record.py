@@ -133,6 +133,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"live view: {live.url} (Foxglove: Open connection, Foxglove WebSocket)", flush=True)
     try:
         rig = open_rig(bench.with_clearances(clearances) if clearances else bench, args.backend, options)
+        try:
+            _prepare_emulator(rig, plan.speed)
+        except BaseException:
+            rig.close()
+            raise
     except BaseException:
         if live is not None:
             live.close()
@@ -173,6 +178,17 @@ def run(args: argparse.Namespace) -> int:
               "that point)", file=sys.stderr)
         return 130 if result.reason.startswith("interrupted") else 1
     return 0
+
+
+def _prepare_emulator(rig, speed: float) -> None:
+    """The sim backend's in-process emulator computes its signal table now (compiling the model's
+    kernels on a first run, a minute or two, said by the compile note), before the session: in it,
+    the recorder takes Ctrl-C as a stop it checks between reads, and a Ctrl-C during the table was held
+    until the table was done. Here the command's own Ctrl-C handling ends it at once. Other backends:
+    nothing to do."""
+    device = getattr(rig.drive, "device", None)
+    if rig.backend == "sim" and device is not None:
+        device.prepare(speed)
 
 
 def cycles_run_value(text: str | None) -> float | None:

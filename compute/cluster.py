@@ -7,10 +7,11 @@ Scheduler, first that is set (:func:`resolve_scheduler`): the ``scheduler`` argu
 
 A LocalCluster starts shielded from Ctrl-C (:mod:`~wearbench.compute.interrupts`): the program hears
 it at once, its workers never; after a Ctrl-C the cluster is closed within ``CLOSE_INTERRUPTED`` s and
-what is left of its workers is killed.
+what is left of its workers is killed. On a cold kernel cache the model compiles in this process
+first, once, instead of in every worker at the same time.
 
-Imports the standard library and ``dask.distributed`` (lazily), and the model only in the worker
-warm-up; no CLI code.
+Imports the standard library, ``dask.distributed`` (lazily) and the model (lazily: the warm-up and
+its kernel cache); no CLI code.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ if TYPE_CHECKING:
     from distributed import Client
     from wearbench.bench.schema import Bench
 
-__all__ = ["ActiveClient", "active_client", "compute_client", "resolve_scheduler", "usable_cores", "warm_up"]
+__all__ = ["ActiveClient", "active_client", "compute_client", "kernels_compiled", "resolve_scheduler",
+           "usable_cores", "warm_up"]
 
 
 def usable_cores() -> int:
@@ -88,6 +90,14 @@ def warm_up() -> None:
 
     scene = build_scene(load_bench(shipped_bench("slider-crank")))
     simulate(scene, revolutions=0.05, output_rate=1000.0, method="dopri5", record_contacts=True)
+
+
+def kernels_compiled() -> bool:
+    """True if the model's numba kernels are in their on-disk cache (a warm-up loads them in about a
+    second; otherwise it compiles them, about a minute)."""
+    from wearbench.model import jit_cache
+
+    return any(jit_cache.numba_cache_dir().rglob("integrators.run_loop-*.nbi"))
 
 
 def _warm_up_plugin():
@@ -153,7 +163,10 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
         finally:
             _ACTIVE.reset(token)
         return
-    life = _Life(resolve_scheduler(scheduler), workers)
+    address = resolve_scheduler(scheduler)
+    if address is None and not kernels_compiled():
+        warm_up()  # compiled once, here (a program's compile note says so), not in every worker at once
+    life = _Life(address, workers)
     client = life.start()
     within = CLOSE_INTERRUPTED
     try:
