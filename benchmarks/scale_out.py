@@ -5,7 +5,7 @@ within its tolerances, 0.3 mm clearance, ``--revolutions`` motor revolutions eac
 theory ensembles and sweeps submit. Measured in one run:
 
 - wall time of the serial in-process loop (``workers=0``), of a 1-worker LocalCluster at Dask's
-  default settings and as wearbench configures it (``cluster._LEAN_LOCAL``: fewer timers), and of a
+  default settings and as wearbench configures it (``cluster.LEAN_LOCAL``: fewer timers), and of a
   2-worker LocalCluster (cluster start-up, which includes the numba warm-up on each worker, timed
   apart);
 - speed-up 2 vs 1 worker (target >= 1.7x on 2 cores) and overhead of the 1-worker cluster against
@@ -113,7 +113,7 @@ def main() -> None:
             out = run_tasks(tasks, workers=0, cache=False)
             t2, c1, w1 = time.perf_counter(), time.process_time(), 0.0
         else:
-            lean, cluster._LEAN_LOCAL = cluster._LEAN_LOCAL, ({} if dask_defaults else cluster._LEAN_LOCAL)
+            lean, cluster.LEAN_LOCAL = cluster.LEAN_LOCAL, ({} if dask_defaults else cluster.LEAN_LOCAL)
             try:
                 with compute_client(workers=workers) as client:
                     t1 = time.perf_counter()
@@ -130,7 +130,7 @@ def main() -> None:
                         per_task = (cluster_cpu(client) - a) / args.noops
                         breakdown.append((name, idle, per_task))
             finally:
-                cluster._LEAN_LOCAL = lean
+                cluster.LEAN_LOCAL = lean
         failed = [r for r in out if not isinstance(r, dict)]
         if failed:
             raise SystemExit(f"{name}: {len(failed)} tasks failed: {failed[0]}")

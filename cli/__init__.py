@@ -133,7 +133,10 @@ def main(argv: list[str] | None = None) -> int:
         parser = build_parser()
         args = parser.parse_args(argv)
         command = _Interrupt.command = f"wearbench {args.command}"
-        return int(args.func(args) or 0)
+        from wearbench.cli.progress import compile_note_on
+
+        with compile_note_on():  # any command may run the model: its first compile says so, whichever
+            return int(args.func(args) or 0)
     except BaseException as exc:
         if _interrupted(exc):  # Ctrl-C: one line, exit 130 (a recording has finished its file by now)
             if as_program:  # end here, as the watchdog does: nothing in the interpreter's shutdown can
@@ -155,9 +158,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _release_process_resources() -> None:
-    """Before ``os._exit``: run multiprocessing's exit finalizers (priority >= 0: they unlink the named
-    semaphores of a local cluster's process handles), which ``os._exit`` skips, so its resource
-    tracker has nothing left to warn about ("leaked semaphore objects")."""
+    """Before ``os._exit``, which skips multiprocessing's exit clean-up: kill the processes the command
+    started that still run (a local cluster's workers, an emulator; ``wearbench.compute.interrupts``,
+    loaded by whatever started them), then run multiprocessing's exit finalizers (priority >= 0: they
+    unlink the named semaphores of a local cluster's process handles), so its resource tracker has
+    nothing left to warn about ("leaked semaphore objects")."""
+    interrupts = sys.modules.get("wearbench.compute.interrupts")  # never imported here: main may hold
+    if interrupts is not None:  # the import lock when the watchdog runs
+        with contextlib.suppress(Exception):  # best effort on the way out
+            interrupts.end_processes()
     util = sys.modules.get("multiprocessing.util")
     if util is not None:
         with contextlib.suppress(Exception):  # best effort on the way out

@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
     from wearbench.bench.units import parse_quantity
-    from wearbench.cli.progress import note_compiling, progress
+    from wearbench.cli.progress import progress
     from wearbench.reports.comparison import write_report
     from wearbench.validation.comparison.compare import CompareOptions, compare_session
     from wearbench.validation.comparison.metrics import grade
@@ -136,8 +136,6 @@ def run(args: argparse.Namespace) -> int:
     if args.label and len(args.label) != len(args.sessions):
         raise ValueError(f"--label given {len(args.label)} times for {len(args.sessions)} sessions")
     comparisons, failed = [], []
-    if not args.theory:  # the theory is simulated
-        note_compiling()
     with progress() as bar:
         task = bar.add_task("compare", total=len(args.sessions), info="")
         for i, (path, theory) in enumerate(zip(args.sessions, theories)):

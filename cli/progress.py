@@ -37,12 +37,36 @@ def console() -> Console:
 COMPILING = "compiling the model's kernels (once per model version, about a minute)..."
 
 
-def note_compiling() -> bool:
-    """Say on stderr (one line) that the model's numba kernels are about to compile, if their on-disk
-    cache is cold (first run after installing or changing the model); True if it said so."""
-    from wearbench.model import jit_cache
+@contextmanager
+def compile_note_on() -> Iterator[None]:
+    """While the block runs, say :data:`COMPILING` on stderr (once) when the model's numba kernels
+    start to compile: the first run after installing or changing the model, minutes of silence
+    otherwise. ``wearbench.cli.main`` runs every command in one, so each command that compiles says
+    it, whichever and wherever (the sim backend's emulator, an ensemble, a study). A local cluster
+    compiles in this process first when the cache is cold (``wearbench.compute.cluster``), so what
+    its workers would have compiled is said too."""
+    from numba.core import event
 
-    if any(jit_cache.numba_cache_dir().rglob("integrators.run_loop-*.nbi")):
-        return False
-    print(COMPILING, file=sys.stderr, flush=True)
-    return True
+    with event.install_listener("numba:compile", compile_note()):
+        yield
+
+
+def compile_note():
+    """A numba event listener that prints :data:`COMPILING` on stderr the first time a kernel of
+    wearbench starts to compile. numba broadcasts "numba:compile" only when it compiles, never when
+    it loads a kernel from its on-disk cache, so a warm run says nothing."""
+    from numba.core import event
+
+    class CompileNote(event.Listener):
+        said = False
+
+        def on_start(self, ev: event.Event) -> None:
+            fn = getattr((ev.data or {}).get("dispatcher"), "py_func", None)
+            if not self.said and getattr(fn, "__module__", "").startswith("wearbench."):
+                self.said = True
+                print(COMPILING, file=sys.stderr, flush=True)
+
+        def on_end(self, ev: event.Event) -> None:
+            pass
+
+    return CompileNote()

@@ -159,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             checked = check_labels(rig, bench, clearances, worn)  # sim: agrees with the truth just set
             truth_note = truth_note or checked
+            _prepare_emulator(rig, plan.speed)
         except BaseException:
             rig.close()
             raise
@@ -238,6 +239,17 @@ def set_sim_truth(bench, options: dict, clearances: dict[str, float], worn: dict
     return replace(config, truth=truth).to_table(), (
         f"the sim emulator's truth set from --clearance/--wear: it plays {truth.describe(bench)} "
         f"(instead of {where}: {config.truth.describe(bench)})")
+
+
+def _prepare_emulator(rig, speed: float) -> None:
+    """The sim backend's in-process emulator computes its signal table now (compiling the model's
+    kernels on a first run, a minute or two, said by the compile note), before the session: in it,
+    the recorder takes Ctrl-C as a stop it checks between reads, and a Ctrl-C during the table was held
+    until the table was done. Here the command's own Ctrl-C handling ends it at once. Other backends:
+    nothing to do."""
+    device = getattr(rig.drive, "device", None)
+    if rig.backend == "sim" and device is not None:
+        device.prepare(speed)
 
 
 def cycles_run_value(text: str | None, option: str = "--cycles-run") -> float | None:

@@ -14,7 +14,6 @@ from wearbench.cli.options import (
     positive_number,
     positive_quantity,
 )
-from wearbench.cli.progress import note_compiling
 from wearbench.model.methods import METHODS
 
 
@@ -61,7 +60,6 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.model.surfaces import JointSurfaces
 
     bench = load_bench(resolve_bench(args.bench))
-    note_compiling()  # building the scene compiles already
     clearances = parse_clearances(args.clearance, bench, ideal=True)
     joints = [j.name for j in bench.clearance_joints]
     surfaces = {j: JointSurfaces.load(v) for j, v in joint_values(args.surfaces, "--surfaces", joints).items()} or None

@@ -51,11 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from wearbench.cli.progress import note_compiling
     from wearbench.studies.study import StudyConfig, run_study
 
     bench = load_bench(resolve_bench(args.bench))
-    note_compiling()
     if len(bench.clearance_joints) == 0:
         raise ValueError(f"{args.bench}: no clearance joints, nothing to study")
     if args.realisations is not None and args.realisations < 2:

@@ -57,11 +57,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.cli.progress import note_compiling
     from wearbench.studies.sweep import SweepSpec, axes_from, format_value, run_sweep, write_sweep
 
     bench = load_bench(resolve_bench(args.bench))
-    note_compiling()
     axes = axes_from(args.vary)
     clearance_names = [j.name for j in bench.clearance_joints]
     for a in axes:  # every value checked as the other commands check it, before any run

@@ -102,13 +102,12 @@ def _coefficient(text: str | None) -> float | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from wearbench.cli.progress import note_compiling, progress
+    from wearbench.cli.progress import progress
     from wearbench.model.surfaces import surfaces_from_bench
     from wearbench.model.wear_stages import run_stages
     from wearbench.studies.wear_report import convergence_markdown, run_summary, write_run
 
     bench = load_bench(resolve_bench(args.bench))
-    note_compiling()
     clearances = parse_clearances(args.clearance, bench) or None
     speed = parse_speed(args.speed)
     plan = plan_from_args(args, bench, args.stages)

@@ -5,8 +5,13 @@ Scheduler, first that is set (:func:`resolve_scheduler`): the ``scheduler`` argu
 ``[compute] scheduler`` in the user config (``$WEARBENCH_CONFIG``, default
 ``~/.config/wearbench/config.toml``); "local" or nothing set: a LocalCluster.
 
-Imports the standard library and ``dask.distributed`` (lazily), and the model only in the worker
-warm-up; no CLI code.
+A LocalCluster starts shielded from Ctrl-C (:mod:`~wearbench.compute.interrupts`): the program hears
+it at once, its workers never; after a Ctrl-C the cluster is closed within ``CLOSE_INTERRUPTED`` s and
+what is left of its workers is killed. On a cold kernel cache the model compiles in this process
+first, once, instead of in every worker at the same time.
+
+Imports the standard library, ``dask.distributed`` (lazily) and the model (lazily: the warm-up and
+its kernel cache); no CLI code.
 """
 
 from __future__ import annotations
@@ -14,7 +19,6 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import os
-import signal
 import threading
 import tomllib
 from collections.abc import Iterator
@@ -22,11 +26,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from wearbench.compute.interrupts import end_processes, running_processes, start_shielded
+
 if TYPE_CHECKING:
     from distributed import Client
     from wearbench.bench.schema import Bench
 
-__all__ = ["ActiveClient", "active_client", "compute_client", "resolve_scheduler", "usable_cores", "warm_up"]
+__all__ = ["LEAN_LOCAL", "ActiveClient", "active_client", "compute_client", "kernels_compiled", "resolve_scheduler",
+           "usable_cores", "warm_up"]
 
 
 def usable_cores() -> int:
@@ -85,6 +92,14 @@ def warm_up() -> None:
     simulate(scene, revolutions=0.05, output_rate=1000.0, method="dopri5", record_contacts=True)
 
 
+def kernels_compiled() -> bool:
+    """True if the model's numba kernels are in their on-disk cache (a warm-up loads them in about a
+    second; otherwise it compiles them, about a minute)."""
+    from wearbench.model import jit_cache
+
+    return any(jit_cache.numba_cache_dir().rglob("integrators.run_loop-*.nbi"))
+
+
 def _warm_up_plugin():
     from distributed import WorkerPlugin
 
@@ -110,25 +125,9 @@ def _warm_up_plugin():
 #   worker a task only when its thread is free, so there is nothing queued on a worker to steal
 #   and the tail of a batch balances itself.
 # Idle cluster of 1 worker: 0.69 -> 0.11 s CPU per 10 s (client + scheduler + nanny, worker).
-_LEAN_LOCAL = {"distributed.admin.tick.interval": "1s", "distributed.worker.memory.monitor-interval": "1s",
+LEAN_LOCAL = {"distributed.admin.tick.interval": "1s", "distributed.worker.memory.monitor-interval": "1s",
                "distributed.worker.profile.enabled": False, "distributed.admin.system-monitor.interval": "2s",
                "distributed.scheduler.work-stealing": False, "distributed.scheduler.worker-saturation": 1.0}
-
-
-@contextlib.contextmanager
-def _children_ignore_ctrl_c() -> Iterator[None]:
-    """Processes started in this block ignore SIGINT (inherited across exec; Python installs its
-    KeyboardInterrupt handler only over the default): a Ctrl-C at the terminal reaches the whole
-    process group, and only this process should act on it, closing the cluster; workers that take it
-    too print tracebacks and leave semaphores behind."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 @dataclass
@@ -164,40 +163,119 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
         finally:
             _ACTIVE.reset(token)
         return
-    import logging
-
-    import dask
-    from distributed import Client, LocalCluster
-
     address = resolve_scheduler(scheduler)
-    cluster = None
+    if address is None and not kernels_compiled():
+        warm_up()  # compiled once, here (a program's compile note says so), not in every worker at once
+    life = _Life(address, workers)
+    client = life.start()
+    within = CLOSE_INTERRUPTED
     try:
-        if address is None:
-            with dask.config.set(_LEAN_LOCAL), _children_ignore_ctrl_c():  # nannies pass the config on
-                cluster = LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
-                                       # a worker's heartbeat racing the scheduler's close logs a traceback
-                                       # at ERROR; task errors come back as TaskFailure, not through logs
-                                       silence_logs=logging.CRITICAL,
-                                       # dashboard off; the scheduler's health/metrics endpoint on a free
-                                       # loopback port (its default 8787 clashes with other clusters)
-                                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+        token = _ACTIVE.set(ActiveClient(client))
+        try:
+            yield client
+            within = CLOSE_WITHIN
+        finally:
+            _ACTIVE.reset(token)
+    finally:
+        life.shut_down(client, within)
+
+
+_WORKER = "Dask Worker process"  # the name distributed's nannies give their worker processes
+CLOSE_WITHIN = 60.0  # s: a cluster's close after its work; then its workers are killed
+CLOSE_INTERRUPTED = 2.0  # s: the same after a Ctrl-C or an error
+
+
+class _Life:
+    """The life cycle of one :func:`compute_client` block's cluster: a LocalCluster it starts
+    (``address`` None) or a running cluster it connects to, and their end."""
+
+    def __init__(self, address: str | None, workers: int | None):
+        self.address, self.workers = address, workers
+        self.before = frozenset(running_processes(_WORKER))  # another block's workers: never killed here
+        self.stopping = threading.Event()  # set when the end is forced: what the cluster's loop reports
+        # then (a killed worker's closed connections) is not the user's
+        self.cluster: Any = None  # the LocalCluster, once it runs
+
+    def start(self) -> Client:
+        """Start shielded (:func:`start_shielded`): a Ctrl-C meanwhile is heard at once, the workers
+        spawned so far are killed (the start-up then gives up at once), and the workers never take a
+        Ctrl-C themselves."""
+        return start_shielded(self._local if self.address is None else self._connect, name="cluster start-up",
+                              close=lambda client: self.shut_down(client, CLOSE_INTERRUPTED), abort=self._kill)
+
+    def _local(self) -> Client:
+        """A LocalCluster of ``workers`` single-threaded processes and its client, the model loaded on
+        every worker."""
+        import logging
+
+        import dask
+        from distributed import Client, LocalCluster
+
+        with dask.config.set(LEAN_LOCAL):  # nannies pass the config on
+            cluster = LocalCluster(n_workers=self.workers or usable_cores(), threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None, worker_dashboard_address=None,
+                                   # a worker's heartbeat racing the scheduler's close logs a traceback
+                                   # at ERROR; task errors come back as TaskFailure, not through logs
+                                   silence_logs=logging.CRITICAL,
+                                   # dashboard off; the scheduler's health/metrics endpoint on a free
+                                   # loopback port (its default 8787 clashes with other clusters)
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+        self.cluster = cluster
+        loop = cluster.loop.asyncio_loop
+        loop.set_exception_handler(lambda loop, context: None if self.stopping.is_set()
+                                   else loop.default_exception_handler(context))
+        try:
             client = Client(cluster)
-        else:
-            try:
-                client = Client(address, timeout="10s")
-            except OSError as exc:
-                raise OSError(f"scheduler {address}: cannot connect ({exc}); start one with 'dask scheduler' "
-                              "or leave the scheduler unset for a local cluster") from None
+            client.register_plugin(_warm_up_plugin())
+        except BaseException:
+            cluster.close()
+            raise
+        return client
+
+    def _connect(self) -> Client:
+        from distributed import Client
+
+        try:
+            client = Client(self.address, timeout="10s")
+        except OSError as exc:
+            raise OSError(f"scheduler {self.address}: cannot connect ({exc}); start one with 'dask scheduler' "
+                          "or leave the scheduler unset for a local cluster") from None
         try:
             client.register_plugin(_warm_up_plugin())
-            token = _ACTIVE.set(ActiveClient(client))
-            try:
-                yield client
-            finally:
-                _ACTIVE.reset(token)
-        finally:
+        except BaseException:
             client.close()
-    finally:
-        if cluster is not None:
-            cluster.close()
+            raise
+        return client
+
+    def _kill(self, wait: float = 0.0) -> None:
+        """Kill the workers this block started that still run, their nannies told first not to start
+        new ones (they close instead); wait up to ``wait`` s for them to be gone."""
+        self.stopping.set()
+        for nanny in list(getattr(self.cluster, "workers", {}).values()):
+            with contextlib.suppress(Exception):
+                nanny.close_gracefully(reason="wearbench: interrupted")
+        end_processes(self.before, name=_WORKER, wait=wait)
+
+    def shut_down(self, client: Client, within: float) -> None:
+        """Close ``client`` and the LocalCluster it owns (if any) within ``within`` s, in a helper
+        thread; when the time is up, or at a Ctrl-C meanwhile, kill the workers that are left and let
+        the close finish in the background."""
+        cluster = getattr(client, "cluster", None)  # a LocalCluster started here; None: a running cluster's
+        closed = threading.Event()  # not Thread.join: interrupted, it takes the thread for ended (3.11)
+
+        def close() -> None:
+            try:
+                client.close(timeout=within)
+            finally:
+                try:
+                    if cluster is not None:
+                        cluster.close(timeout=within)
+                finally:
+                    closed.set()
+
+        threading.Thread(target=close, name="wearbench cluster shutdown", daemon=True).start()
+        try:
+            closed.wait(within)
+        finally:
+            if not closed.is_set():
+                self._kill(wait=1.0)

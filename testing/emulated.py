@@ -6,15 +6,19 @@ open a rig with (:meth:`EmulatedBench.open_rig`, or hand ``backend`` and ``optio
 own code), the emulator's truth and faults, and what the emulator sent (:meth:`EmulatedBench.sent`).
 Every bench started is registered until :meth:`EmulatedBench.close`; :func:`close_all` closes what
 is left (the pytest plugin calls it after every test, at the end of the run and at exit), so no
-process, pty or bus outlives the test, also when it fails or is interrupted. Imports the bench, the
-emulators and the acquisition backends.
+process, pty or bus outlives the test, also when it fails or is interrupted. A serial emulator's
+process starts shielded from Ctrl-C (``wearbench.compute.interrupts``): a terminal's Ctrl-C is for the
+test run, which closes it. Imports the bench, the emulators, the acquisition backends and the
+compute layer's interrupt handling.
 """
 
 from __future__ import annotations
 
 import atexit
+import contextlib
 import itertools
 import os
+import shutil
 import tempfile
 import threading
 from collections.abc import Mapping
@@ -25,6 +29,7 @@ from typing import Any, Self
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.drivers import Rig
 from wearbench.bench.schema import Bench, WearState
+from wearbench.compute.interrupts import end_processes, running_processes, start_shielded
 from wearbench.hardware.emulators.config import EmulatorConfig, emulator_config
 from wearbench.testing.faults import FaultPlan
 from wearbench.testing.recording import Sent, sent_from_blocks, sent_from_serial_log
@@ -35,6 +40,7 @@ TRANSPORTS = ("serial", "can", "canopen")
 _OPEN: dict[int, EmulatedBench] = {}
 _LOCK = threading.Lock()
 _CHANNELS = itertools.count(1)
+_EMULATOR = "wearbench-emulator"  # serial emulator processes are named so (serial_server)
 
 
 @dataclass(eq=False)
@@ -99,7 +105,8 @@ class EmulatedBench:
             return None
 
     def close(self) -> None:
-        """Stop the emulator: the process (terminate, then kill) and its pty, or the bus. Idempotent."""
+        """Stop the emulator: the process (terminate, then kill) and its pty, or the bus. Idempotent;
+        a Ctrl-C while it waits for the process kills the process before it is raised."""
         if self.closed:
             return
         self.closed = True
@@ -107,21 +114,25 @@ class EmulatedBench:
             _OPEN.pop(id(self), None)
         try:
             if self._process is not None:
-                self._process.terminate()
+                ended = False
                 try:
+                    self._process.terminate()
                     self._process.wait(10)
+                    ended = True
                 except TimeoutError:
-                    self._process.kill()
-                    self._process.wait(10)
+                    pass
+                finally:
+                    if not ended:  # not in time, or interrupted while waiting
+                        self._process.kill()
+                        with contextlib.suppress(TimeoutError):
+                            self._process.wait(10)
             if self._emulator is not None:
                 self._emulator.stop()
         finally:
             if self._sent_log is not None and self._sent_log.exists():
                 self._sent = sent_from_serial_log(self._sent_log)
             if self._tmp is not None:
-                for p in self._tmp.iterdir():
-                    p.unlink(missing_ok=True)
-                self._tmp.rmdir()
+                shutil.rmtree(self._tmp, ignore_errors=True)
 
     def __enter__(self) -> Self:
         return self
@@ -174,15 +185,23 @@ def start_bench(bench: Bench, transport: str = "serial", *, state: WearState | s
     if transport == "serial":
         from wearbench.hardware.emulators.serial_server import start_serial_emulator
 
-        tmp = Path(tempfile.mkdtemp(prefix="wearbench-hil-"))
-        log = tmp / "sent.bin"
-        try:
-            process, port = start_serial_emulator(bench, config, sent_log=log, speedup=speedup)
-        except BaseException:
-            tmp.rmdir()
-            raise
-        return _register(EmulatedBench(bench, "serial", {"port": port}, speed, faults, config, speedup,
-                                       _process=process, _sent_log=log, _tmp=tmp))
+        def start() -> EmulatedBench:
+            tmp = Path(tempfile.mkdtemp(prefix="wearbench-hil-"))
+            log = tmp / "sent.bin"
+            try:
+                process, port = start_serial_emulator(bench, config, sent_log=log, speedup=speedup)
+            except BaseException:
+                shutil.rmtree(tmp, ignore_errors=True)
+                raise
+            return _register(EmulatedBench(bench, "serial", {"port": port}, speed, faults, config, speedup,
+                                           _process=process, _sent_log=log, _tmp=tmp))
+
+        # shielded: a terminal's Ctrl-C reaches the test run alone, never the emulator process (which
+        # would die and show the recorder a lost device); a Ctrl-C during the start ends the emulator
+        # being started, so the start gives up at once and leaves nothing behind
+        before = running_processes(_EMULATOR)
+        return start_shielded(start, close=EmulatedBench.close, name=f"serial emulator {bench.name}",
+                              abort=lambda: end_processes(before, name=_EMULATOR), grace=10.0)
     from wearbench.hardware.emulators.can_server import CanEmulator
     from wearbench.hardware.emulators.device import MonotonicClock
 
@@ -211,11 +230,17 @@ def open_benches() -> list[EmulatedBench]:
 
 
 def close_all() -> list[str]:
-    """Close every bench still open; returns a line per bench closed (empty: nothing was left)."""
-    closed = []
+    """Close every bench still open, each also when closing another was interrupted; returns a line
+    per bench closed (empty: nothing was left)."""
+    closed, stopped = [], None
     for handle in open_benches():
         closed.append(f"{handle.backend} bench {handle.port or handle.channel}")
-        handle.close()
+        try:
+            handle.close()
+        except BaseException as exc:  # noqa: BLE001 - a Ctrl-C here: the others are closed first
+            stopped = stopped or exc
+    if stopped is not None:
+        raise stopped
     return closed
 
 

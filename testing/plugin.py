@@ -5,13 +5,19 @@ Fixtures: ``wearbench_bench`` (the bench under test), ``serial_bench``, ``can_be
 ``record_session`` (records from a bench into a temporary MCAP file and reads it back).
 Options: ``--wearbench-bench``, ``--wearbench-speedup``, ``--wearbench-port``, ``--wearbench-can``.
 Marker: ``realtime(duration)``. Every bench a test started is closed at its teardown, whether it
-passed, failed or was interrupted, and again at the end of the run and at exit.
+passed, failed or was interrupted, and again at the end of the run and at exit. A Ctrl-C while a
+test with a bench runs stops the run as interrupted (exit code 2), also when the code under test took
+it (the recorder stops its session on it and returns); the emulators never take it themselves.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -59,15 +65,98 @@ _REALTIME = pytest.StashKey[list]()
 
 
 @pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
+    return (yield from _heard(item, "setup"))
+
+
+@pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
     marker = item.get_closest_marker("realtime")
     start = time.monotonic()
     try:
-        return (yield)
+        return (yield from _heard(item, "call"))
     finally:
         if marker is not None:
             duration = marker.kwargs.get("duration", marker.args[0] if marker.args else None)
             item.config.stash[_REALTIME].append((item.nodeid, duration, time.monotonic() - start))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item: pytest.Item) -> Iterator[None]:
+    return (yield from _heard(item, "teardown"))
+
+
+BENCH_FIXTURES = frozenset({"serial_bench", "can_bench", "canopen_bench", "record_session"})
+
+
+def _heard(item: pytest.Item, when: str) -> Iterator[None]:
+    """Run one phase of a test that uses a bench; a Ctrl-C that reached pytest meanwhile stops the run
+    as interrupted (KeyboardInterrupt: pytest's exit code 2), whatever the test made of it. The
+    wearbench recorder turns SIGINT into a clean stop of its session and returns (so that the file is
+    finished): a lab's recording script under test went on as if nothing had happened, and the run
+    ended with exit code 0 or a false failure ("not completed"). Tests without a bench: untouched."""
+    watch = _CtrlCWatch() if BENCH_FIXTURES.intersection(getattr(item, "fixturenames", ())) else None
+    try:
+        result = yield
+    except KeyboardInterrupt:
+        if watch is not None:
+            watch.stop()
+        raise
+    except BaseException:
+        if watch is not None and watch.stop():
+            raise KeyboardInterrupt(_taken(item, when)) from None
+        raise
+    if watch is not None and watch.stop():
+        raise KeyboardInterrupt(_taken(item, when))
+    return result
+
+
+def _taken(item: pytest.Item, when: str) -> str:
+    return (f"Ctrl-C during {item.nodeid} ({when}); the code under test took it (the recorder stops its "
+            "session on it) and went on: the run stops here")
+
+
+class _CtrlCWatch:
+    """Whether SIGINT reached this process from now until :meth:`stop`, whoever's handler took it:
+    CPython writes the number of every signal that a Python-level handler receives to the "wakeup
+    fd", pointed here at a pipe of this watch's own. In the main thread only, and only while no one
+    else (an event loop of the test's) uses the wakeup fd; otherwise it watches nothing."""
+
+    def __init__(self) -> None:
+        self.fds: tuple[int, int] | None = None
+        if threading.current_thread() is not threading.main_thread():
+            return
+        read, write = os.pipe()
+        os.set_blocking(read, False)
+        os.set_blocking(write, False)
+        try:
+            previous = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+        except (ValueError, OSError):
+            previous = None
+        if previous != -1:  # not set (not the main interpreter), or in use by someone else
+            if previous is not None:
+                signal.set_wakeup_fd(previous)
+            os.close(read)
+            os.close(write)
+            return
+        self.fds = (read, write)
+
+    def stop(self) -> bool:
+        """Stop watching; True if a SIGINT came."""
+        if self.fds is None:
+            return False
+        read, write = self.fds
+        self.fds = None
+        current = signal.set_wakeup_fd(-1)
+        if current != write:  # the test pointed it elsewhere and left it so: leave that as it was
+            signal.set_wakeup_fd(current)
+        came = b""
+        with contextlib.suppress(BlockingIOError):
+            while chunk := os.read(read, 512):
+                came += chunk
+        os.close(read)
+        os.close(write)
+        return signal.SIGINT in came
 
 
 def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:

@@ -4,15 +4,19 @@ when a test fails on purpose or the run is interrupted with Ctrl-C mid-session."
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
+import psutil
 import pytest
 from wearbench.acquisition.session_file import read_session
 from wearbench.hardware.emulators.config import EmulatorConfig
@@ -44,7 +48,10 @@ def test_interrupted(serial_bench, record_session, tmp_path):
 '''
 
 
-def _run_mini(tmp_path: Path, test: str, *, interrupt_when=None) -> tuple[subprocess.CompletedProcess, list[dict]]:
+def _run_mini(tmp_path: Path, test: str, *, interrupt_when=None, group: bool = False
+              ) -> tuple[subprocess.CompletedProcess, list[dict]]:
+    """Run one test of MINI in its own pytest; ``interrupt_when(notes)``: send SIGINT once it is true
+    (``group``: to the whole process group, as a terminal's Ctrl-C is, emulators included)."""
     suite = tmp_path / "lab"
     suite.mkdir(exist_ok=True)
     (suite / "pytest.ini").write_text("[pytest]\naddopts = -p no:cacheprovider\n")
@@ -53,12 +60,16 @@ def _run_mini(tmp_path: Path, test: str, *, interrupt_when=None) -> tuple[subpro
     env = {**os.environ, "HIL_NOTES": str(notes)}
     cmd = [sys.executable, "-m", "pytest", "-q", str(suite / "test_mini.py"), "-k", test,
            "--basetemp", str(tmp_path / f"base-{test}"), "--wearbench-speedup", "2"]
-    proc = subprocess.Popen(cmd, cwd=suite, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = subprocess.Popen(cmd, cwd=suite, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=group)
     if interrupt_when is not None:
         deadline = time.monotonic() + 120
         while not interrupt_when(notes) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.2)
-        proc.send_signal(signal.SIGINT)
+        if group:
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=120)
     lines = notes.read_text().splitlines() if notes.exists() else []
     return subprocess.CompletedProcess(cmd, proc.returncode, out), [json.loads(x) for x in lines]
@@ -106,14 +117,19 @@ def test_a_failing_test_leaves_nothing_behind(tmp_path):
     assert read_session(session).metadata["result"]["reason"] == "completed"
 
 
-def test_ctrl_c_mid_session_leaves_a_finished_file_and_nothing_else(tmp_path):
-    def recording(notes: Path) -> bool:  # the session file holds a few chunks
-        if not notes.exists() or not notes.read_text():
-            return False
-        session = Path(json.loads(notes.read_text().splitlines()[0])["tmp"]) / "session.mcap"
-        return session.exists() and session.stat().st_size > 100_000
+def _recording(notes: Path) -> bool:
+    """The interrupted test's session file holds a few chunks."""
+    if not notes.exists() or not notes.read_text():
+        return False
+    session = Path(json.loads(notes.read_text().splitlines()[0])["tmp"]) / "session.mcap"
+    return session.exists() and session.stat().st_size > 100_000
 
-    r, notes = _run_mini(tmp_path, "interrupted", interrupt_when=recording)
+
+@pytest.mark.parametrize("group", [False, True], ids=["sigint-to-pytest", "terminal-ctrl-c"])
+def test_ctrl_c_mid_session_leaves_a_finished_file_and_nothing_else(tmp_path, group):
+    """Also a terminal's Ctrl-C, which reaches the emulator's process too (issue 46): it took it, died,
+    and the recorder saw a lost device instead of the Ctrl-C; the run went on and ended with exit 0."""
+    r, notes = _run_mini(tmp_path, "interrupted", interrupt_when=_recording, group=group)
     assert r.returncode == 2 and "KeyboardInterrupt" in r.stdout, r.stdout  # pytest: interrupted
     assert len(notes) == 1
     _nothing_left(notes)
@@ -189,3 +205,78 @@ def test_a_non_twin_session_on_the_pty_identifies_as_its_state(serial_bench, rec
     assert r.verdict == "0.6 mm new"
     with pytest.raises(AssertionError, match=r"identifies as '0.3 mm new' with p 0\.\d+ < 0.5"):
         assert_identifies(rec, "0.3 mm new", p_min=0.5, ensembles=ensembles)
+
+
+# ----------------------------------------------------------------------------------------------
+# Issue 46: a terminal Ctrl-C in a lab's suite (examples/hil) let the run finish with exit code 0 or
+# failed a test falsely ("device disconnected"): the recorder in the lab's script took the Ctrl-C as
+# a clean stop and returned, and the emulator's process took it too and died. Now every moment ends
+# the run as interrupted, with nothing left behind.
+
+HIL = Path(__file__).resolve().parents[2] / "examples" / "hil"
+HIL_MOMENTS = {  # (base folder, the run's processes' command lines) -> now
+    # the first emulator starting: multiprocessing's fork server (its parent) is being started
+    "emulator-starting": lambda base, running: any("forkserver" in p for p in running),
+    # the lab's script recording: from a serial emulator, one that will drop its link, the CANopen drive
+    "lab-script-recording": lambda base, running: _size(base / "test_a_clean_run_is_usable0" / "run.mcap") > 20_000,
+    "link-about-to-drop": lambda base, running: _size(base / "test_lost_link0" / "run.mcap") > 0,
+    "canopen-drive-recording": lambda base, running: _size(base / "test_motor_fault0" / "run.mcap") > 0,
+}
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return -1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("moment", list(HIL_MOMENTS))
+def test_a_terminal_ctrl_c_in_a_lab_suite_stops_the_run_as_interrupted(moment, tmp_path):
+    suite, base, tmp = tmp_path / "hil", tmp_path / "base", tmp_path / "tmp"
+    shutil.copytree(HIL, suite)
+    tmp.mkdir()
+    env = {**os.environ, "TMPDIR": str(tmp)}  # the emulators' temporary folders: here, to be counted
+    proc = subprocess.Popen([sys.executable, "-m", "pytest", "--wearbench-speedup", "4", "--basetemp", str(base)],
+                            cwd=suite, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    out: list[str] = []
+    reader = threading.Thread(target=lambda: out.extend(proc.stdout), daemon=True)
+    reader.start()
+    watched, started, sent = psutil.Process(proc.pid), set(), None
+    try:
+        deadline = time.monotonic() + 240
+        while proc.poll() is None and time.monotonic() < deadline:
+            running = []
+            with contextlib.suppress(psutil.Error):
+                children = watched.children(recursive=True)
+                started |= {p.pid for p in children}
+                running = [" ".join(p.cmdline()) for p in children]
+            if HIL_MOMENTS[moment](base, running):
+                sent = time.monotonic()
+                os.killpg(proc.pid, signal.SIGINT)
+                break
+            time.sleep(0.02)
+        assert sent is not None, f"the run ended (exit {proc.returncode}) before {moment}: {''.join(out)}"
+        proc.wait(timeout=120)
+        took = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    reader.join(timeout=30)
+    text = "".join(out)
+    assert proc.returncode == 2 and "KeyboardInterrupt" in text, text  # pytest: interrupted
+    assert "failed" not in text.splitlines()[-1] and "FAILED" not in text and "ERROR" not in text, text
+    assert "device disconnected" not in text, text
+    assert took < 30, took  # the interrupted test ends its own way (a recorder finishes its file), no more
+    left = started
+    for _ in range(50):  # an emulator is killed at once; multiprocessing's fork server ends with pytest,
+        # in its own time (its interpreter's exit: up to a second or two on a loaded machine)
+        left = [p for p in left if psutil.pid_exists(p) and psutil.Process(p).status() != psutil.STATUS_ZOMBIE]
+        if not left:
+            break
+        time.sleep(0.1)
+    assert not left, [" ".join(psutil.Process(p).cmdline()) for p in left]
+    assert sorted(p.name for p in tmp.iterdir() if p.name.startswith("wearbench-")) == []

@@ -1,0 +1,132 @@
+"""Ctrl-C and the processes a program starts: one handling for the local cluster
+(:func:`~wearbench.compute.cluster.compute_client`), the emulated benches of the pytest plugin
+(``wearbench.testing.emulated``) and the command line's exit (``wearbench.cli``).
+
+A terminal's Ctrl-C is a SIGINT to every process of the foreground group. Only the program may act
+on it: a cluster worker or an emulator that takes it dies mid-task, prints a traceback or looks like
+a broken device ("device disconnected"). And the program must hear every one: ignoring SIGINT while
+a start-up spawns processes (SIG_IGN, the disposition children inherit) loses the Ctrl-Cs typed
+meanwhile, and a start-up that takes the KeyboardInterrupt half-way loses what it started.
+
+- :func:`start_shielded` runs a start-up in a helper thread with SIGINT *blocked*: a thread's signal
+  mask passes to the threads it starts and to the processes they spawn, across exec, so nothing
+  started there ever sees the terminal's Ctrl-C. The calling thread waits and takes the
+  KeyboardInterrupt within :data:`POLL` s; what the start-up made is closed once it exists.
+- :func:`running_processes` and :func:`end_processes`: the processes this program started through
+  multiprocessing that still run, and SIGKILL for them (what a shutdown does when its time is up, and
+  the command line before its ``os._exit(130)``, which skips multiprocessing's own exit clean-up).
+
+Imports the standard library only.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Collection
+from typing import Any, TypeVar
+
+__all__ = ["POLL", "end_processes", "running_processes", "start_shielded"]
+
+T = TypeVar("T")
+
+POLL = 0.1  # s: a waiting thread looks this often for a Ctrl-C that the kernel gave another thread
+_NOTHING = object()
+
+
+def start_shielded(start: Callable[[], T], *, close: Callable[[T], Any], name: str, grace: float = 3.0,
+                   abort: Callable[[], Any] | None = None) -> T:
+    """``start()`` run so that this program hears a Ctrl-C at once and what ``start`` spawns never does.
+
+    ``start`` runs in a helper thread with SIGINT blocked; this thread waits. A KeyboardInterrupt (or
+    any exception) while it waits is raised again after at most ``grace`` s: meanwhile ``abort()``
+    (if given) is called every :data:`POLL` s until the start-up has ended (it ends what the start-up
+    has begun, so that it gives up), and whatever the start-up returns is closed with
+    ``close(result)``, here or in the helper thread, whichever has it. An exception of ``start``
+    itself is raised here.
+    """
+    from multiprocessing import resource_tracker
+
+    # launched from here: launching it from the helper thread would unblock SIGINT there (the
+    # tracker's start-up blocks and then unblocks it in the calling thread)
+    resource_tracker.ensure_running()
+    lock = threading.Lock()
+    done = threading.Event()
+    box: dict[str, Any] = {}
+
+    def run() -> None:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            value = start()
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread
+            box["error"] = exc
+            done.set()
+            return
+        with lock:
+            box["value"] = value
+            abandoned = box.get("abandoned", False)
+        try:
+            if abandoned:  # the caller was interrupted meanwhile: nobody else will close it
+                close(value)
+        finally:
+            done.set()
+
+    helper = threading.Thread(target=run, name=f"wearbench {name}", daemon=True)
+    try:
+        helper.start()  # inside: a Ctrl-C while it starts may come when start() runs already
+        while not done.wait(POLL):
+            pass
+    except BaseException:
+        if helper.ident is None:  # never started: nothing to close
+            raise
+        with lock:
+            box["abandoned"] = True
+            value = box.get("value", _NOTHING)
+        if value is not _NOTHING:
+            close(value)
+        else:
+            deadline = time.monotonic() + grace
+            while not done.is_set() and time.monotonic() < deadline:
+                if abort is not None:
+                    abort()
+                done.wait(min(POLL, max(0.0, deadline - time.monotonic())))
+        raise
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def running_processes(name: str = "") -> dict[int, Any]:
+    """The processes this program started through multiprocessing that still run, by pid (those
+    whose name starts with ``name``)."""
+    active = getattr(sys.modules.get("multiprocessing"), "active_children", None)
+    if active is None:  # not imported (nothing was started through it), or being imported now
+        return {}
+    return {p.pid: p for p in active() if p.name.startswith(name) and p.pid is not None}
+
+
+def end_processes(keep: Collection[int] = (), *, name: str = "", wait: float = 0.0) -> list[int]:
+    """SIGKILL the processes :func:`running_processes` lists (``name``), except the pids in ``keep``;
+    wait up to ``wait`` s for them to be gone. Returns their pids."""
+    ended = {pid: p for pid, p in running_processes(name).items() if pid not in keep}
+    for p in ended.values():
+        try:
+            p.kill()
+        except (OSError, ValueError):  # gone already, or closed
+            pass
+    if wait > 0 and ended:
+        from multiprocessing.connection import wait as wait_for
+
+        sentinels = []
+        for p in ended.values():
+            try:
+                sentinels.append(p.sentinel)
+            except ValueError:  # closed
+                pass
+        deadline = time.monotonic() + wait
+        while sentinels and time.monotonic() < deadline:
+            ready = wait_for(sentinels, max(0.0, deadline - time.monotonic()))
+            sentinels = [s for s in sentinels if s not in ready]
+    return list(ended)
