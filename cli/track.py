@@ -64,16 +64,30 @@ def run(args: argparse.Namespace) -> int:
     limit = positive_quantity(args.limit, "length", "--limit", bare_unit="mm") if args.limit else None
     t = track_sessions(args.sessions, runs, limit=limit, design=design_from_args(args), estimator=args.estimator,
                        move=not args.no_move, **calibration_options(args), compute=compute_options(args))
-    if not t.explains:
-        print(t.verdict)
-        for note in t.notes:
-            print(note)
-        if args.json:
-            with output_file(args.json, force=args.force, option="--json") as tmp, \
-                    open(tmp, "w", encoding="utf-8") as f:
-                json.dump(t.to_dict(), f, indent=1)
-            print(f"results: {args.json}")
-        return 1
+    if t.explains:
+        _print_life(t, limit)
+    else:
+        print(t.verdict)  # no numbers where no bench's life explains the sessions
+    print(f"move from new to worn {t.move['described']}" if t.move else
+          "no measured move from new to worn used" + (" (--no-move)" if args.no_move else ""))
+    for note in t.notes:
+        print(note)
+    if args.json:
+        with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
+            json.dump(t.to_dict(), f, indent=1)
+        print(f"results: {args.json}")
+    if args.figure and t.explains:
+        with output_file(args.figure, force=args.force, option="--figure") as tmp:
+            track_figure(t, tmp)
+        print(f"figure: {args.figure}")
+    elif args.figure:
+        print(f"no figure: {t.verdict}")
+    return 0 if t.explains else 1
+
+
+def _print_life(t, limit: float | None) -> None:
+    """The life's numbers: each session's wear depth, the initial clearance, the wear coefficient and
+    the cycles to the clearance limit."""
     for label, n, d in zip(t.sessions, t.cycles_run, t.depth, strict=True):
         print(f"{label}: {n:,.0f} cycles run, wear depth {d.median * 1e6:.1f} um (90 % {d.lo90 * 1e6:.1f}-"
               f"{d.hi90 * 1e6:.1f})")
@@ -87,17 +101,5 @@ def run(args: argparse.Namespace) -> int:
         else:
             m = t.cycles_to_limit
             print(f"clearance limit {limit * 1e3:g} mm reached after {m.median:,.0f} cycles from new "
-                  f"(90 % {m.lo90:,.0f}-{m.hi90:,.0f}); {max(0.0, m.median - max(t.cycles_run)):,.0f} after the last session")
-    print(f"move from new to worn {t.move['described']}" if t.move else
-          "no measured move from new to worn used" + (" (--no-move)" if args.no_move else ""))
-    for note in t.notes:
-        print(note)
-    if args.json:
-        with output_file(args.json, force=args.force, option="--json") as tmp, open(tmp, "w", encoding="utf-8") as f:
-            json.dump(t.to_dict(), f, indent=1)
-        print(f"results: {args.json}")
-    if args.figure:
-        with output_file(args.figure, force=args.force, option="--figure") as tmp:
-            track_figure(t, tmp)
-        print(f"figure: {args.figure}")
-    return 0
+                  f"(90 % {m.lo90:,.0f}-{m.hi90:,.0f}); {max(0.0, m.median - max(t.cycles_run)):,.0f} after the last "
+                  "session")

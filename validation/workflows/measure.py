@@ -64,10 +64,10 @@ def calibrate_sessions(sessions: Sessions, state: str, *,
     group = sessions.one_bench("calibration", sensor=True)
     sessions.refuse_duplicates("calibration")
     first = group.first
-    names = [st.name for st in candidate_states(first.bench, candidates)]
+    ready = sessions.ensembles(group, candidates=candidates, ensembles=ensembles) if ensembles is not None else None
+    names = list(ready) if ready else [st.name for st in candidate_states(first.bench, candidates)]
     if state not in names:
         raise ValueError(f"calibrate: --state {state!r}: expected one of the bench's states {names}")
-    ready = sessions.ensembles(group, candidates=candidates, ensembles=ensembles) if ensembles is not None else None
     spec = next(iter(ready.values())).settings.features if ready else (settings or EnsembleSettings()).features
     if before is not None:
         before(calibration_key(first.bench, first.metadata, spec, mount))

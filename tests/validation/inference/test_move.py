@@ -139,7 +139,9 @@ def test_a_move_measured_against_another_estimator_is_refused_naming_file_field_
 
 def test_track_uses_the_stored_move_unless_told_not_to(model, sessions, tmp_path, capsys):
     """`wearbench track --estimator FILE` with FILE.move.npz beside it: the move is used and said (output,
-    --json), --no-move leaves it out and says so; a move of another estimator stops track with its error."""
+    --json), --no-move leaves it out and says so; a move of another estimator stops track with its error.
+    The synthetic estimator explains nothing of these emulated sessions: track says so (exit 1, no wear
+    factor printed) and still says which move it used."""
     s0, s1, _ = sessions
     _, lives = planted(model, np.random.default_rng(15))
     # the estimator at the sessions' speed: one of another speed is refused (below)
@@ -148,13 +150,14 @@ def test_track_uses_the_stored_move_unless_told_not_to(model, sessions, tmp_path
               move_path(path))
     common = ["track", str(s0), str(s1), "--estimator", str(path), "--calibration", "none"]
     capsys.readouterr()
-    assert main([*common, "--json", str(tmp_path / "with.json")]) == 0
+    assert main([*common, "--json", str(tmp_path / "with.json")]) == 1
     out = capsys.readouterr().out
+    assert out.startswith("no (c, k) explains these sessions") and "1/Pa" not in out  # no factor printed
     assert "move from new to worn measured on 12 simulated lives (default path; seeds 1-2" in out
     assert "no measured move" not in out
     with_move = json.loads((tmp_path / "with.json").read_text())
     assert with_move["move"]["file"] == str(move_path(path)) and with_move["move"]["lives"] == 12
-    assert main([*common, "--no-move", "--json", str(tmp_path / "without.json")]) == 0
+    assert main([*common, "--no-move", "--json", str(tmp_path / "without.json")]) == 1
     out = capsys.readouterr().out
     assert "no measured move from new to worn used (--no-move)" in out
     without = json.loads((tmp_path / "without.json").read_text())
