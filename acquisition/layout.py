@@ -14,7 +14,7 @@ viewer (Foxglove, ``mcap cat``, protobufjs) decodes and plots the fields with no
   CAN backends in both directions: ``transmitted`` marks the host's own frames, ``host_time`` the
   host clock at arrival or sending) and ``/events`` (the well-known ``foxglove.Log``: ``name`` is the event kind).
 
-Protobuf over JSON numeric arrays by measurement (``benchmarks/session_format.py``, 20 kHz, zstd):
+Protobuf over JSON numeric arrays by measurement (``benchmarks/acquisition/session_format.py``, 20 kHz, zstd):
 148 against 161 MB per hour and 2.6x less write CPU; besides, float32 samples stay exact and a NaN
 sample stays a valid message (JSON has no NaN). Layout 1 (JSON, base64 samples) is read by
 ``layout1``. ``log_time`` is the host time of arrival (ns since the Unix epoch), made non-decreasing

@@ -66,7 +66,7 @@ __all__ = ["CHUNK_SIZE", "COMPRESSION", "MIN_FREE_BYTES", "PROFILE", "SUMMARY_PE
            "unlock_session_path"]
 
 PROFILE = "wearbench-session"
-# Chosen by measurement (benchmarks/session_format.py, 20 kHz): zstd 148 MB per hour against lz4's
+# Chosen by measurement (benchmarks/acquisition/session_format.py, 20 kHz): zstd 148 MB per hour against lz4's
 # 248 and none's 377, at the same write CPU (0.4 % of a core); 256 KiB and 1 MiB chunks compress
 # alike. The flush interval closes a chunk every 0.5 s (about 48 kB before compression at 20 kHz),
 # so CHUNK_SIZE caps a burst (a writer catching up), and with it what a full disk leaves in memory.

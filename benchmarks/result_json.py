@@ -75,8 +75,10 @@ def code_version() -> dict[str, Any]:
 
 
 def command(script: Path, argv: Sequence[str]) -> str:
-    """The command line that ran ``script`` with ``argv``, as run from the repository root."""
-    return shlex.join(["python", script.resolve().relative_to(ROOT).as_posix(), *argv])
+    """The command line that ran ``script`` with ``argv``, as run from the repository root (a benchmark
+    runs as a module: ``python -m benchmarks.GROUP.NAME``)."""
+    module = ".".join(script.resolve().relative_to(ROOT).with_suffix("").parts)
+    return shlex.join(["python", "-m", module, *argv])
 
 
 def environment() -> dict[str, Any]:

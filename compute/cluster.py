@@ -116,7 +116,7 @@ def _warm_up_plugin():
 
 # A local cluster's background work, trimmed (Dask's own settings). While a batch runs, the event
 # loops of scheduler, nannies and workers wake up on timers whatever the tasks do; at Dask's defaults
-# that cost 7 % of a core, about 100 ms per 1.4 s task (benchmarks/scale_out.py). Here:
+# that cost 7 % of a core, about 100 ms per 1.4 s task (benchmarks/compute/scale_out.py). Here:
 # - the event-loop health tick every 1 s, not 20 ms (it only measures how long a loop was blocked);
 # - the memory monitors of workers and nannies every 1 s, not 100 ms (simulations grow slowly);
 # - no statistical profiler sampling each worker's stack every 10 ms (it feeds the dashboard, off);

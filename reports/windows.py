@@ -28,7 +28,7 @@ NOTES = (
      "the latency, the clock drift since the stream began) plus one fitted residual per session within the "
      "statement's uncertainty, reported as 'stated X ms + fitted residual Y ms' (a residual at its bound is "
      "flagged); without a statement it is fitted from the signal alone, once per session within 0 to max_delay, "
-     "and a fit on the acceleration scatters by about the floor named with it (benchmarks/delay_floor.py)."),
+     "and a fit on the acceleration scatters by about the floor named with it (benchmarks/validation/delay_floor.py)."),
     ("Window verdict: consistent when the window's cycle features (low-passed curve and impact energies in "
      "20 deg bins, as the identification uses them) are no more likely under the best other candidate, "
      "relative to the state, than the same windows of held-out realisations are (the generalised likelihood "

@@ -1,5 +1,5 @@
 """Simulated truths and lives of known truth through the emulator's sensor chain, for the estimator:
-what ``benchmarks/estimate.py`` scores it on, and what ``wearbench estimator --lives`` measures the
+what ``benchmarks/validation/estimate.py`` scores it on, and what ``wearbench estimator --lives`` measures the
 benches' move from new to worn on (``validation/track_move.py``).
 
 A truth is the bench drawn from the bench file's ``[tolerances]`` with its own seed (the estimator's

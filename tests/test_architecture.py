@@ -152,7 +152,15 @@ def graph(sources: dict[str, str] | None = None) -> dict[str, set[str]]:
 
 
 def benchmark_scripts() -> dict[str, Path]:
-    return {f"benchmarks.{p.stem}": p for p in sorted((ROOT / "benchmarks").glob("*.py"))}
+    """The benchmarks, by module name (``benchmarks.validation.identify``; a package's ``__init__`` by
+    the package's name)."""
+    out = {}
+    for p in sorted((ROOT / "benchmarks").rglob("*.py")):
+        parts = list(p.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        out[".".join(parts)] = p
+    return out
 
 
 def _resolve(name: str, modules: dict[str, Path]) -> str:
@@ -336,7 +344,7 @@ PROCESS_LAUNCHES: dict[str, str] = {
     "wearbench.compute.cluster": "the Dask LocalCluster's worker processes",
     "wearbench.hardware.emulators.serial_server": "the serial emulator in its own process (forkserver)",
     "wearbench.testing.mcap_readers": "npm and node: the reader Foxglove uses, checking the files we write",
-    "benchmarks.scale_out": "a process pool timed against the cluster",
+    "benchmarks.compute.scale_out": "a process pool timed against the cluster",
     "benchmarks.trajectory_identity": "a fresh interpreter per model source, for bit identity",
     "benchmarks.profile_revolution": "a fresh interpreter, so compilation is not timed",
     "benchmarks.result_json": "git, for the commit a result was measured on",
@@ -357,8 +365,8 @@ def _wearbench_aliases(tree: ast.Module, module: str, known: set[str]) -> dict[s
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             for a in node.names:
-                if a.name.startswith("wearbench."):
-                    aliases[a.asname or a.name.split(".")[0]] = a.name if a.asname else "wearbench"
+                if a.name.startswith(("wearbench.", "benchmarks.")):
+                    aliases[a.asname or a.name.split(".")[0]] = a.name if a.asname else a.name.split(".")[0]
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
@@ -382,7 +390,7 @@ def private_crossings(source: str, module: str, known: set[str]) -> list[str]:
             if node.level:
                 anchor = package.split(".")
                 base = ".".join(anchor[: len(anchor) - (node.level - 1)] + ([base] if base else []))
-            if base.startswith("wearbench") and base != module:
+            if base.startswith(("wearbench", "benchmarks")) and base != module:
                 found += [f"{module} -> {base}.{a.name}" for a in node.names
                           if a.name.startswith("_") and not a.name.startswith("__")]
     aliases = _wearbench_aliases(tree, module, known)
@@ -421,9 +429,9 @@ def starts_processes(source: str) -> bool:
 
 
 def _sources() -> tuple[dict[str, str], set[str]]:
-    modules = library_modules()
+    modules = {**library_modules(), **benchmark_scripts()}
     known = set(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
-    texts = {m: p.read_text(encoding="utf-8") for m, p in {**modules, **benchmark_scripts()}.items()}
+    texts = {m: p.read_text(encoding="utf-8") for m, p in modules.items()}
     return texts, known
 
 
@@ -447,6 +455,8 @@ def test_processes_start_only_where_listed():
      ["wearbench.validation.inference.track -> wearbench.validation.inference.estimate._interval"]),
     ("benchmarks.profile", "import wearbench.model.kernel as K\nK._schur(1)\n",
      ["benchmarks.profile -> wearbench.model.kernel._schur"]),
+    ("benchmarks.acquisition.live_view", "from benchmarks.acquisition.record_throughput import _metered\n",
+     ["benchmarks.acquisition.live_view -> benchmarks.acquisition.record_throughput._metered"]),
     ("wearbench.validation.inference.track", "from wearbench.validation.inference import estimate\nestimate._x\n",
      ["wearbench.validation.inference.track -> wearbench.validation.inference.estimate._x"]),
     ("wearbench.validation.inference.track", "from wearbench.validation.inference.estimate import Interval\n", []),

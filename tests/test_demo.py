@@ -53,7 +53,7 @@ def test_every_reported_number_is_finite(demo):
 def test_verdicts_are_probabilities_and_never_confidently_wrong(demo):
     """Non-twin truths: a state is named only when the evidence says so. 0.6 mm differs from the
     0.3 mm states by its impacts and is named; the 0.3 mm states differ by a few micrometres of wear
-    and may stay undecided after 20 cycles (benchmarks/identify.py has the rates), but a named state
+    and may stay undecided after 20 cycles (benchmarks/validation/identify.py has the rates), but a named state
     is the true one and the true state is never ruled out."""
     out, stdout = demo
     scores = json.loads((out / "report" / "scores.json").read_text())

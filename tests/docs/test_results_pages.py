@@ -46,7 +46,8 @@ def test_each_result_follows_the_schema_and_names_its_command(path):
     script = result["benchmark"]["script"]
     assert (ROOT / script).is_file(), f"{path.name}: {script} does not exist"
     words = shlex.split(result["benchmark"]["command"])
-    assert words[:2] == ["python", script], f"{path.name}: the command does not run {script}: {words}"
+    module = ".".join(Path(script).with_suffix("").parts)
+    assert words[:3] == ["python", "-m", module], f"{path.name}: the command does not run {script}: {words}"
     assert "--json" in words, f"{path.name}: the command does not write the JSON: {words}"
     checkout = subprocess.run(["git", "rev-parse", "--git-dir"], cwd=ROOT, capture_output=True, check=False)
     if checkout.returncode == 0:  # outside a git checkout (an unpacked sdist) there is nothing to ask

@@ -17,7 +17,7 @@ once, limited to ``0 <= delay <= max_delay``. Either fit minimises the mean squa
 deviation from the realisations' per-angle mean, both low-passed at ``delay_lowpass`` (the measured
 signal re-sampled at the crank's times plus the delay, from the full-rate record). Below 10 Hz the
 impacts' chaos leaks least into the fit; the bench's tolerances and the chaos still shift its curve by
-as much as the delay (``benchmarks/delay_floor.py``), so the signal alone does not place it to 0.2 ms.
+as much as the delay (``benchmarks/validation/delay_floor.py``), so the signal alone does not place it to 0.2 ms.
 
 Scores of a window against a state (see README "How sessions are scored" for the measurement behind
 the choice of the verdict's statistic):

@@ -15,7 +15,7 @@ curve on the curve block | one indicator column per band block]. With a Gaussian
 gains the low-rank term ``A P A^T`` (:meth:`SensorPath.nuisance`, added once, in
 ``StateStatistics.covariance``, so identification, its consistency test and the estimator all use it).
 What is lost: the absolute level of each band (the crank-angle shape within a band and the ratios
-between crank angles are kept); ``benchmarks/identify.py --sensor-paths`` measures it.
+between crank angles are kept); ``benchmarks/validation/identify.py --sensor-paths`` measures it.
 
 The default prior (:meth:`SensorPath.prior`) is that of a second-order mode log-uniform between
 300 Hz and 3 kHz with damping ratio 0.02-0.1 and a sensitivity within +/-5 %, averaged over each

@@ -36,10 +36,10 @@ the drift's course there is not measured; taken as linear in ``k N_i`` up to the
 determinant (which then changes with ``k``) pulled the factor towards its lower edge (its 90 %
 interval held 1.3 in 0.70 of 20 simulated lives, against 0.90 with the step). Without the drift,
 those lives read the session differences as the clearance's: its 90 % interval held the truth in
-0.70 of them (median error +0.022 mm), 0.85 with the drift (``benchmarks/estimate.py``).
+0.70 of them (median error +0.022 mm), 0.85 with the drift (``benchmarks/validation/estimate.py``).
 With two or three sessions (0 and 200k; 0, 100k and 200k) the factor rests on the change from new to
 worn alone, and there the estimator's error *of that change* decides it. Measured on 20 simulated
-lives (``benchmarks/estimate.py --life-sessions 0,200k``): their worn sessions sit less worn, relative
+lives (``benchmarks/validation/estimate.py --life-sessions 0,200k``): their worn sessions sit less worn, relative
 to their new one, than the estimator's mean says, by a nearly constant 10-16 % of the change from
 new to 600k cycles at 130k-520k effective cycles (se 5 %): the drift's step shape, with a mean that
 is not zero. Along the direction that tells the factor this is -0.6 sd (se 0.2) at 130k-260k; the
@@ -52,7 +52,7 @@ the same truths gave 0.80 (median 1.13). The design's mean move is the mean of i
 so it carries an error common to every bench the estimator judges (covariance about ``D / M``); with
 five sessions the slope across them tells the factor despite it, with two or three it does not.
 :func:`~wearbench.validation.inference.move.life_move` measures that error on lives of known truth, and
-``track_features(move=...)`` carries its mean and its standard error (see ``benchmarks/estimate.py``:
+``track_features(move=...)`` carries its mean and its standard error (see ``benchmarks/validation/estimate.py``:
 lives scored with a move measured on other lives). The move is stored beside the estimator it was
 measured against (``track_move.py``) and ``track`` uses it by default.
 A bench's features need not change along its life at the estimator's rate either. On 40 simulated
@@ -71,7 +71,7 @@ held-out ones the lives' rates scatter little below 0.40 mm and fall and scatter
 0.55 mm. :func:`life_rate` measures it on the move's lives (its log-mean and sd linear in the
 clearance, ``track_move.Rate``), stored with the move; ``track`` then uses it in place of the
 constant (the kernel per clearance row). Chosen on the move's lives only, it raised the five-session
-coverage on held-out lives (``benchmarks/estimate.py``; the README's numbers).
+coverage on held-out lives (``benchmarks/validation/estimate.py``; the README's numbers).
 ``mu`` at ``k N_i`` is the estimator's emulated mean; a ``k N_i`` beyond the design's last cycles
 run is outside what the estimator knows (zero likelihood there; the rate's kernel is renormalised
 over the factors inside).
@@ -81,7 +81,7 @@ beyond the estimator's last design point at its last stage's rate, gives for eac
 until ``c + depth`` reaches a clearance ``limit``. A bench's own trajectory differs from the
 estimator's by a factor ``delta`` on the depth (its staging, and its geometry within tolerances):
 lognormal with ``depth_spread`` (default 5 %: simulated lives' depth after 100k-500k cycles differed
-from the estimator's trajectory at the same effective cycles by 1-5 % sd, ``benchmarks/estimate.py``),
+from the estimator's trajectory at the same effective cycles by 1-5 % sd, ``benchmarks/validation/estimate.py``),
 integrated by Gauss-Hermite quadrature. The cycles-to-limit interval is that of the joint posterior
 of (c, k, delta): the clearance's and coefficient's uncertainty and their correlation included.
 """

@@ -1,7 +1,7 @@
 """The accelerometer's delay behind the encoder as the lab states it (``[sensor.chain]`` of the bench).
 
 A fit on the acceleration cannot place the sensor chain's delay to 0.2 ms: a bench's tolerances and
-the chaos of its impacts shift its own curve by as much (``benchmarks/delay_floor.py``). Labs know it
+the chaos of its impacts shift its own curve by as much (``benchmarks/validation/delay_floor.py``). Labs know it
 from the chain itself: the DAQ's anti-alias filter (type, order, cutoff; or its datasheet group
 delay), the sensor's mounted resonance (its calibration sheet; or a stated delay), the rest (a tap
 test) and the DAQ's sample-clock drift against the encoder's. From that statement this module

@@ -14,7 +14,7 @@ and theory share the bins):
   1 kHz are left out on purpose: a real accelerometer's mounting resonance changes them and the
   model knows nothing of it. ``floor`` (m^2/s^4) keeps the logarithm finite in quiet bins.
 
-The defaults were chosen by measurement (``benchmarks/identify.py`` and the README's
+The defaults were chosen by measurement (``benchmarks/validation/identify.py`` and the README's
 identification section): 20 degree bins and three impact bands separate the test bed's new and
 first-wear states where 10 degree bins of one 100-1000 Hz band did not.
 

@@ -1,7 +1,7 @@
 """The estimator on the real model, at a small design (2 clearances x 2 cycles-run values, 6
 realisations of 4 cycles): wear runs and ensembles on the compute layer, truths drawn from the
 bench's tolerances with seeds the design never uses (non-twin), and a bench far outside the design.
-``benchmarks/estimate.py`` runs the full-size calibration."""
+``benchmarks/validation/estimate.py`` runs the full-size calibration."""
 
 from dataclasses import replace
 

@@ -4,7 +4,7 @@ Each session's emulator plays a bench drawn from the test bed's [tolerances] wit
 ensemble uses (other masses, lengths, friction, speed, start state) through the test bed's sensor
 chain, recorded through the sim backend to MCAP, against the test bed's shipped ensembles (64
 realisations per state, whose freshness test_ensemble.py checks). Two draws per state and 10-cycle
-sessions keep this to about a minute; ``benchmarks/identify.py`` runs the full-size version.
+sessions keep this to about a minute; ``benchmarks/validation/identify.py`` runs the full-size version.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def test_non_twin_sessions_get_their_clearance_and_wear_class_first(case):
     """Every session's top state has its clearance, and all but at most one of the eight has new or
     worn as its truth; which of the two wear stages is on top is not asserted here: they are 2-12 um
     of wear apart, about four standard deviations at 20 cycles and two at these 10, so on eight
-    sessions it is a coin the benchmark counts (``benchmarks/identify.py``: top-1 0.96 at 10 cycles
+    sessions it is a coin the benchmark counts (``benchmarks/validation/identify.py``: top-1 0.96 at 10 cycles
     over 80 sessions), not a unit test's to call. New against first wear at 0.3 mm is nearly as
     close at 10 cycles: the same seeds simulated on another machine (the motion is chaotic, so the
     realisations differ from the first rounding difference on) put one 0.3 mm new session on first
@@ -70,7 +70,7 @@ def test_non_twin_sessions_get_their_clearance_and_wear_class_first(case):
         assert r.cycles >= CYCLES - 2 and abs(sum(r.posterior.values()) - 1) < 1e-9
         assert r.verdict in (s.name, UNDECIDED, NONE), (s.name, r.verdict, r.posterior)  # never a wrong state
     # "none of the candidates" for the true state: the consistency test's false alarms (0.03 of
-    # 20-cycle sessions in benchmarks/identify.py; these are 10 cycles): at most one of eight
+    # 20-cycle sessions in benchmarks/validation/identify.py; these are 10 cycles): at most one of eight
     assert sum(v == NONE for _, v in verdicts) <= 1, verdicts
 
 

@@ -11,7 +11,7 @@ energy envelope by crank angle (high-passed at 50 Hz, log10 of the mean square: 
 times); and (c) the chaos alone: a realisation's cycles 1-4 against its own cycles 5-8 (one bench).
 Prints the shifts' percentiles and the fraction within 0.2 ms (issue 26's mark: 0.90).
 
-    .venv/bin/python benchmarks/delay_floor.py       # shipped ensembles, no simulation (about a minute)
+    .venv/bin/python -m benchmarks.validation.delay_floor       # shipped ensembles, no simulation (about a minute)
 """
 
 from __future__ import annotations

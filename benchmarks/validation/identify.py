@@ -14,11 +14,11 @@ all-feature part alone (the test of earlier versions), true states failing it,
 the confusion matrix and a reliability table at the full session length, held-out candidates, and
 the earlier pointwise ISO ranking (one nominal simulation per state) on the same sessions.
 
-    .venv/bin/python benchmarks/identify.py [--draws 5] [--cycles 20] [--realisations 64]
-    .venv/bin/python benchmarks/identify.py --bins 36 --bands 100-1000    # the earlier statistics
-    .venv/bin/python benchmarks/identify.py --sensor-paths --calibrate    # drawn mounts, with calibration
-    .venv/bin/python benchmarks/identify.py --ensemble-paths none         # ensembles without drawn paths
-    .venv/bin/python benchmarks/identify.py --draws 10 --seed 41000 --sensor-paths --calibrate gains \
+    .venv/bin/python -m benchmarks.validation.identify [--draws 5] [--cycles 20] [--realisations 64]
+    .venv/bin/python -m benchmarks.validation.identify --bins 36 --bands 100-1000    # the earlier statistics
+    .venv/bin/python -m benchmarks.validation.identify --sensor-paths --calibrate    # drawn mounts, with calibration
+    .venv/bin/python -m benchmarks.validation.identify --ensemble-paths none         # ensembles without drawn paths
+    .venv/bin/python -m benchmarks.validation.identify --draws 10 --seed 41000 --sensor-paths --calibrate gains \
         --sessions DIR --cache DIR   # a rerun judges the recorded sessions again, nothing re-simulated
 
 The ensembles' realisations are each seen through a drawn sensor path (``EnsembleSettings.sensor_paths``;

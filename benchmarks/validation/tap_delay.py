@@ -1,6 +1,6 @@
 """The sensor delay with a tap-tested statement: issue 26's delay mark measured through the tap test.
 
-The truths are ``benchmarks/windows.py``'s (same seeds, states, accel_delay drawn uniform in
+The truths are ``benchmarks/validation/windows.py``'s (same seeds, states, accel_delay drawn uniform in
 [0, --delay-max], with --sensor-paths each truth's own drawn mount). For each truth a tap session is
 recorded on the same emulated bench (the sim backend, cranks at rest, --taps taps: what
 ``wearbench taptest`` records) and ``validation.tap_test`` measures the latency from it; the bench's
@@ -15,7 +15,7 @@ statement, with the latency copied from the truth's accel_delay (the old benchma
 the signal alone: the fraction within 0.2 ms (the mark: >= 0.90), the error's p5/p50/p95 and how often the fitted
 residual sits at its bound or the statement is flagged (``windows.delay_rates``).
 
-    .venv/bin/python benchmarks/tap_delay.py [--draws 5] [--seed 31000] [--sensor-paths] [--sessions DIR] [--taps 10]
+    .venv/bin/python -m benchmarks.validation.tap_delay [--draws 5] [--seed 31000] [--sensor-paths] [--sessions DIR] [--taps 10]
 """
 
 from __future__ import annotations
@@ -29,7 +29,14 @@ from pathlib import Path
 
 import numpy as np
 from wearbench.compute.options import QUIET
-from windows import chain_delay, delay_rates, record_truths, tap_latencies, truth_specs
+
+from benchmarks.validation.windows import (
+    chain_delay,
+    delay_rates,
+    record_truths,
+    tap_latencies,
+    truth_specs,
+)
 
 
 def main() -> None:

@@ -8,7 +8,7 @@ start, and is seen through the emulator's sensor chain (the bench file's [emulat
 mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with --sensor-paths a
 mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %; with
 --cross-axis also a cross-axis sensitivity of 1-5 % to the carriage's lateral mode, 0.3-3 kHz), applied
-in-process to the model's acceleration (no MCAP round trip: benchmarks/identify.py covers that).
+in-process to the model's acceleration (no MCAP round trip: benchmarks/validation/identify.py covers that).
 ``--at 200000 --at-truths 10`` adds truths at that many cycles run (clearance from the prior).
 ``--lives L`` adds simulated lives for ``wearbench track``: one bench per life (clearance from the
 prior, its own seed) worn with a coefficient ``--life-factor`` (1.3) times the file's, recorded
@@ -36,8 +36,8 @@ offset constant over the life, ``track(drift=False)``); for the --at truths, wha
 interval (Fisher information) and what a lab must record (cycles per session, sessions of one bench)
 for it to exclude 0 and twice the truth.
 
-    .venv/bin/python benchmarks/estimate.py [--truths 100] [--cycles 20] [--realisations 16]
-    .venv/bin/python benchmarks/estimate.py --design-clearances 0.25mm,0.45mm,0.65mm \\
+    .venv/bin/python -m benchmarks.validation.estimate [--truths 100] [--cycles 20] [--realisations 16]
+    .venv/bin/python -m benchmarks.validation.estimate --design-clearances 0.25mm,0.45mm,0.65mm \\
         --design-cycles 0,300000,600000 --realisations 8 --truths 12        # a small run
 """
 
@@ -384,7 +384,7 @@ def store_move(bench, model, lives, life_key, args) -> None:
     # a seed is one drawn bench (its tolerances, clearance and wear run): its lives through the two path kinds
     # are one bench seen twice, averaged before the move's error is taken (life_move's benches)
     move = move_with_rate(model, pooled, {"bench": bench.name, **about, "factor": args.life_factor, "sessions": every,
-                                          "cycles": args.life_cycles, "measured_by": "benchmarks/estimate.py "
+                                          "cycles": args.life_cycles, "measured_by": "benchmarks/validation/estimate.py "
                                           "--store-move --move-from " + args.move_from},
                           cycles=args.life_cycles, benches=about["seeds"])
     save_move(move, args.store_move)

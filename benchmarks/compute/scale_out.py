@@ -19,7 +19,7 @@ theory ensembles and sweeps submit. Measured in one run:
 - a projection of the wall time for N idle workers from the measured task CPU time and overhead
   (serial speed-up is the serial loop's task time over T(N), so it includes the start-up).
 
-Run: ``nice -n 10 python benchmarks/scale_out.py [--tasks 12] [--revolutions 10]``. Wall times need
+Run: ``nice -n 10 python -m benchmarks.compute.scale_out [--tasks 12] [--revolutions 10]``. Wall times need
 idle cores: the load average is printed with the table; "task cpu s" (CPU time inside the tasks)
 is what the tasks cost whatever else the machine runs.
 """

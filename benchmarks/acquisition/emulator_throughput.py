@@ -7,7 +7,7 @@ anti-alias filter at 4x oversampling); the serial emulator process over a pty an
 virtual bus, each streaming 20 kHz + 1 kHz in real time for DURATION s to a host that counts
 blocks and sequence gaps, with the emulator's CPU share (of one core).
 
-    .venv/bin/python benchmarks/emulator_throughput.py [DURATION]
+    .venv/bin/python -m benchmarks.acquisition.emulator_throughput [DURATION]
 """
 
 from __future__ import annotations

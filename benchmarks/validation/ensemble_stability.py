@@ -6,7 +6,7 @@ calibration temperature (fitted by ``identify.fit_states`` on the ensembles' hel
 and every verdict. For each size M and first seed this builds the shipped ensembles' settings
 (``EnsembleSettings()`` but ``realisations`` and ``seed``; checked against the shipped file's) on the
 compute layer, then judges ONE fixed set of non-twin sessions with every build, so only the build
-changes between rows: the identification benchmark's truths (``benchmarks/identify.py``'s naming, so
+changes between rows: the identification benchmark's truths (``benchmarks/validation/identify.py``'s naming, so
 ``identify.py --sessions DIR --seed S`` shares the files), each recorded on a drawn sensor mount and on
 the emulator's default path; their seeds (from 46000) never meet the ensembles' (first seed + i).
 Issue 27's mark: the temperature's spread (max - min) over three rebuilds <= 0.1.
@@ -17,7 +17,7 @@ build's wall and CPU time (workers and this process) count only the realisations
 "new" column); the cold cost of a size is extrapolated from the CPU per realisation. Builds are saved
 to --out (a scratch folder outside the repository; never the shipped ensembles' folder).
 
-    nice -n 15 .venv/bin/python benchmarks/ensemble_stability.py [--sizes 16,32,64] [--seeds 1,1001,2001]
+    nice -n 15 .venv/bin/python -m benchmarks.validation.ensemble_stability [--sizes 16,32,64] [--seeds 1,1001,2001]
         [--draws 5] [--cycles 20] [--seed 46000] [--sessions DIR] [--out DIR] [--workers 2]
 """
 
@@ -27,38 +27,11 @@ import argparse
 import os
 import tempfile
 import time
-from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-import numpy as np
+from wearbench.validation.inference.verdicts import spread, stable_size, verdict_scores
 
 MARK = 0.1  # issue 27: temperature spread over three rebuilds
-
-
-def spread(values: Sequence[float]) -> float:
-    """Max - min of ``values`` (how far rebuilds move a number)."""
-    return float(np.ptp(np.asarray(values, dtype=float)))
-
-
-def stable_size(spreads: Mapping[int, float], mark: float = MARK) -> int | None:
-    """The smallest size from which on every measured size's spread is <= ``mark`` (None: not reached
-    at the largest size; a size that meets it below a larger one that does not does not count)."""
-    found = None
-    for m in sorted(spreads, reverse=True):
-        if not spreads[m] <= mark:
-            break
-        found = m
-    return found
-
-
-def verdict_scores(results: Sequence, truths: Sequence[str], names: Sequence[str]) -> dict[str, float]:
-    """Brier score (sum over the candidates, mean over sessions), top-1, named right and named wrong of
-    ``identify_features`` results against each session's true state."""
-    rows = list(zip(results, truths, strict=True))
-    return {"brier": float(np.mean([sum((r.posterior[s] - (s == t)) ** 2 for s in names) for r, t in rows])),
-            "top1": float(np.mean([max(r.posterior, key=r.posterior.get) == t for r, t in rows])),
-            "right": float(np.mean([r.verdict == t for r, t in rows])),
-            "wrong": float(np.mean([r.verdict in names and r.verdict != t for r, t in rows]))}
 
 
 def print_row(r: dict) -> None:
@@ -120,10 +93,10 @@ def main() -> None:
     folder.mkdir(parents=True, exist_ok=True)
     truths = [(s, args.seed + 100 * k + d) for k, s in enumerate(states) for d in range(args.draws)]
     # drawn: SensorSpread's mounts without cross-axis (the sessions its README table was measured on;
-    # benchmarks/identify.py --cross-axis off, whose "_drawn" file names these share)
+    # benchmarks/validation/identify.py --cross-axis off, whose "_drawn" file names these share)
     kinds = {"drawn": {"accelerometer": {"spread": {"cross_axis": [0.0, 0.0]}}}, "default": {}}
     revolutions = truth_revolutions(args.cycles + 1)
-    # (kind, truth state, its seed, file): benchmarks/identify.py's file names
+    # (kind, truth state, its seed, file): benchmarks/validation/identify.py's file names
     sessions = [(kind, s, seed, folder / f"{slug(s.name)}_{seed}{'_drawn' if kind == 'drawn' else ''}_{args.cycles}.mcap")
                 for kind in kinds for s, seed in truths]
 

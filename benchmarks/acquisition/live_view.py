@@ -7,7 +7,7 @@ costs is the process CPU less the emulator's own work (metered in its calling th
 ``record_throughput.py``) and less the viewers' thread: the WebSocket server's threads are counted
 in. Prints a table; exits 1 if the recording dropped a sample.
 
-    python benchmarks/live_view.py [--seconds 120] [--rate 20kHz] [--speedup 1]
+    python -m benchmarks.acquisition.live_view [--seconds 120] [--rate 20kHz] [--speedup 1]
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ import time
 from pathlib import Path
 
 import websockets
-from record_throughput import _metered
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.live import LiveView
 from wearbench.acquisition.recorder import Recorder
@@ -31,6 +30,8 @@ from wearbench.acquisition.session import SessionPlan
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.load import parse_bench, shipped_bench
 from wearbench.bench.units import parse_quantity
+
+from benchmarks.acquisition.record_throughput import metered
 
 
 async def _viewer(url: str, stop: threading.Event, counts: dict, name: str, pause: float) -> None:
@@ -70,7 +71,7 @@ def main() -> int:
     rig = open_rig(bench, "sim", {"speedup": args.speedup, "config": {
         "signal": "harmonic", "cache": False, "accelerometer": {"noise": "0.05 m/s^2"}}})
     emulator: list[float] = []
-    _metered(rig.drive.device, ("read", "events", "motor_status", "set_speed", "enable", "disable", "stop",
+    metered(rig.drive.device, ("read", "events", "motor_status", "set_speed", "enable", "disable", "stop",
                                 "start_stream", "stop_stream", "configure_accelerometer"), emulator)
     counts, viewer_cpu, stop = {"reading": 0, "slow": 0}, [], threading.Event()
     with tempfile.TemporaryDirectory() as tmp, LiveView(port=0) as live:

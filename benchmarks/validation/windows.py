@@ -1,13 +1,13 @@
 """Five-cycle window validation on non-twin truths: does a window's verdict separate the right
 theory from a wrong one, is it calibrated, is the sensor delay found, and what does it cost.
 
-Truths are made as in ``benchmarks/identify.py`` (its helpers, ``wearbench.synthetic.truths``'s ``prepare_truth`` and
+Truths are made as in ``benchmarks/validation/identify.py`` (its helpers, ``wearbench.synthetic.truths``'s ``prepare_truth`` and
 ``record_state``): each session's emulator plays a bench drawn from the bench file's [tolerances]
 with its own seed (never an ensemble draw: those use seeds 1..M), through the test bed's sensor chain
 (stud-mounted resonance, 8th-order anti-alias filter, noise, 16-bit ADC), recorded through the sim
 backend to MCAP. Each truth's accelerometer is also late behind the encoder by its own
 ``accel_delay``, drawn uniform in [0, --delay-max]. The true sensor delay of a window is
-``chain_delay``'s (``benchmarks/tap_delay.py`` uses the same function): accel_delay plus the group
+``chain_delay``'s (``benchmarks/validation/tap_delay.py`` uses the same function): accel_delay plus the group
 delay of the truth's own chain (its mount, drawn or stud, and its anti-alias filter, as the emulator
 runs them, averaged over 1-100 Hz, where the CFC 180 windows carry their content), plus its sample
 clock's drift since the stream began (at the window's middle): all read from the emulator's side,
@@ -30,7 +30,7 @@ alone (``windows.separation``: the most any test can tell them apart), and the t
 ``DECISION_RULE``, written down (and committed) before the fresh truths it is applied to were scored;
 the table prints how many of the issue's marks each statistic meets and the rule's pick.
 
-    .venv/bin/python benchmarks/windows.py [--draws 5] [--cycles 20] [--seed S] [--sensor-paths] [--sessions DIR]
+    .venv/bin/python -m benchmarks.validation.windows [--draws 5] [--cycles 20] [--seed S] [--sensor-paths] [--sessions DIR]
         [--delay-only] [--separation-only]
 
 ``--sessions DIR`` keeps the recorded sessions there and reuses them on the next run (the truths
@@ -105,7 +105,7 @@ def truth_specs(bench, states, args, folder: Path) -> list[tuple]:
             seed = args.seed + 100 * k + d
             delay = float(np.random.default_rng(seed).uniform(0.0, args.delay_max))
             table = {**bench.emulator, "truth": {"accel_delay": f"{delay * 1e3!r} ms"}}
-            if args.sensor_paths:  # the truth's own mount, as benchmarks/identify.py --sensor-paths draws it
+            if args.sensor_paths:  # the truth's own mount, as benchmarks/validation/identify.py --sensor-paths draws it
                 table["accelerometer"] = {**bench.emulator.get("accelerometer", {}), "spread": {}}  # the emulator's drawn mounts
             truths.append((s, seed, table, delay, folder / f"{slug(s.name)}_{seed}.mcap"))
     return truths
@@ -219,7 +219,7 @@ def delay_rates(bench, truths, tapped, ensembles, options, ways=None) -> None:
         "wrong statement (latency +0.5 ms)": lambda p, d: replace(chain, latency=round(tapped[p][0], 6) + 5e-4),
         "wrong statement (latency +1.5 ms)": lambda p, d: replace(chain, latency=round(tapped[p][0], 6) + 1.5e-3)}
     print(f"\nsensor delay, true = accel_delay (0-{max(t[2] for t in truths) * 1e3:.2f} ms) + the group delay of the "
-          f"truth's own chain (its mount and filter, 1-100 Hz; benchmarks/tap_delay.py's) + its clock drift since the "
+          f"truth's own chain (its mount and filter, 1-100 Hz; benchmarks/validation/tap_delay.py's) + its clock drift since the "
           f"stream began; statement: {chain} with each truth's tap-tested latency")
     print(f"{'delay from':40s} {'within 0.2 ms':>13s} {'error p5/p50/p95 ms':>22s} {'residual at bound':>18s} "
           f"{'flagged disagrees':>18s}")

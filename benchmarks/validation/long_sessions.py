@@ -8,7 +8,7 @@ use) for ``--cycles`` revolutions, identifies every 10-cycle window against the 
 and prints the posterior and consistency p-value of the true state per window, and their means
 over the first and the last two windows.
 
-    .venv/bin/python benchmarks/long_sessions.py [--draws 4] [--cycles 60]
+    .venv/bin/python -m benchmarks.validation.long_sessions [--draws 4] [--cycles 60]
 """
 
 from __future__ import annotations

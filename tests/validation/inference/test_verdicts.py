@@ -1,18 +1,12 @@
-"""benchmarks/ensemble_stability.py's own arithmetic on known inputs: the spread over rebuilds, the
-size from which it meets the mark, and the verdict scores (Brier, top-1, named right / wrong)."""
+"""The arithmetic the identification benchmarks score with, on known inputs: the spread over rebuilds,
+the size from which it meets the mark, and the verdict scores (Brier, top-1, named right / wrong)."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-
-PATH = Path(__file__).resolve().parents[3] / "benchmarks" / "ensemble_stability.py"
-spec = importlib.util.spec_from_file_location("ensemble_stability", PATH)
-stability = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(stability)
+from wearbench.validation.inference import verdicts as stability
 
 NAMES = ("a", "b", "c")
 

@@ -10,7 +10,7 @@ the simulated duration, i.e. the fraction of one core the recorder needs to keep
 ``--serial S`` adds a real-time check: S seconds over the serial backend against the emulator in
 its own process, where the recorder's share is simply this process's CPU time over the wall time.
 
-    python benchmarks/record_throughput.py [--minutes 10] [--rate 20kHz] [--serial 30]
+    python -m benchmarks.acquisition.record_throughput [--minutes 10] [--rate 20kHz] [--serial 30]
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from wearbench.bench.load import parse_bench, shipped_bench
 from wearbench.bench.units import parse_quantity
 
 
-def _metered(device, names, spent: list[float]) -> None:
+def metered(device, names, spent: list[float]) -> None:
     """Add the CPU time of the device's own methods (in the calling thread) to ``spent``."""
     for name in names:
         method = getattr(device, name)
@@ -61,7 +61,7 @@ def main() -> int:
     rig = open_rig(bench, "sim", {"speedup": math.inf, "config": {
         "signal": "harmonic", "cache": False, "accelerometer": {"noise": "0.05 m/s^2"}}})
     emulator: list[float] = []
-    _metered(rig.drive.device, ("read", "events", "motor_status", "set_speed", "enable", "disable", "stop",
+    metered(rig.drive.device, ("read", "events", "motor_status", "set_speed", "enable", "disable", "stop",
                                 "start_stream", "stop_stream", "configure_accelerometer"), emulator)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "throughput.mcap"

@@ -5,7 +5,7 @@ Sprague-Geers). A textbook full-matrix DTW would need n^2 float64 = 20 GB here; 
 needs n (2 band + 1) bytes. Prints a table of the steps of one window comparison (median of
 ``--repeat`` runs, after one warm-up run that compiles the numba DTW).
 
-    .venv/bin/python benchmarks/score_window.py [--samples 50000] [--repeat 5] [--band 0.05]
+    .venv/bin/python -m benchmarks.validation.score_window [--samples 50000] [--repeat 5] [--band 0.05]
 """
 
 from __future__ import annotations

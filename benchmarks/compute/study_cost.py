@@ -11,7 +11,7 @@ previous one), plus the start-up each worker pays once (a first, one-cycle reali
 the compiled kernels, timed apart). One seed per task kind: the 0.1 mm wear runs' cost varies by about +/-30 % between
 seeds (84-158 s seen), so read the projection to that.
 
-    nice -n 10 .venv/bin/python benchmarks/study_cost.py [--seed 900001] [--workers 2 8 32 128]
+    nice -n 10 .venv/bin/python -m benchmarks.compute.study_cost [--seed 900001] [--workers 2 8 32 128]
 """
 
 from __future__ import annotations

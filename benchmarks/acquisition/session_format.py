@@ -10,7 +10,7 @@ JSON numeric arrays, what a JSON-schema layout a viewer can plot would hold), ``
 (layout 1: base64 float32 inside JSON, which no viewer plots). Prints a table; with ``--json PATH``
 also writes it as a result for the documentation (``result_json``, ``docs/results/data/``).
 
-    python benchmarks/session_format.py [--seconds 60] [--rate 20kHz] [--json PATH]
+    python -m benchmarks.acquisition.session_format [--seconds 60] [--rate 20kHz] [--json PATH]
 """
 
 from __future__ import annotations
@@ -25,13 +25,14 @@ import time
 
 import numpy as np
 from mcap.writer import CompressionType, IndexType, Writer
-from result_json import Run, column, table, write_result  # benchmarks/ on sys.path
 from wearbench.acquisition.backends import open_rig
 from wearbench.acquisition.backends.sim import blocks_from_device
 from wearbench.acquisition.drivers import ACCELERATION, Block
 from wearbench.acquisition.layout import SCHEMAS, CrankAngle, encode_block
 from wearbench.bench.load import parse_bench, shipped_bench
 from wearbench.bench.units import parse_quantity
+
+from benchmarks.result_json import Run, column, table, write_result
 
 
 def capture(rate: float, seconds: float) -> list[Block]:

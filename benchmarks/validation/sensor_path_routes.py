@@ -12,14 +12,14 @@ to features in every variant, so the variants differ only in the route:
 - truths: the test bed's default path (no mode below 3 kHz), or a drawn path per truth exactly as the
   emulator draws it (``[emulator.accelerometer.spread]``: mode 0.3-3 kHz, damping 0.02-0.1,
   sensitivity +/-5 %), applied to the model's output (no DAQ, noise or ADC: those are the same in
-  every variant; ``benchmarks/identify.py`` runs the full chain).
+  every variant; ``benchmarks/validation/identify.py`` runs the full chain).
 
 Prints, per variant, the rates at 20 and 10 cycles (top-1, named right / wrong, undecided, none, the
 true state failing its consistency test) and how often a truth held out of the candidates is caught
 (undecided or none; per state). Realisations run through the compute layer in this process (cached).
 
-    .venv/bin/python benchmarks/sensor_path_routes.py [--realisations 16] [--draws 3]
-    .venv/bin/python benchmarks/sensor_path_routes.py --modes 300-3000,300-8500 --specs 3   # mode ranges
+    .venv/bin/python -m benchmarks.validation.sensor_path_routes [--realisations 16] [--draws 3]
+    .venv/bin/python -m benchmarks.validation.sensor_path_routes --modes 300-3000,300-8500 --specs 3   # mode ranges
 
 --modes: the mode ranges (Hz, log-uniform) of the drawn ensemble paths compared (default 300-3000,
 ``PathSpread``'s); a range reaching far above the bands holds the stud mount of the emulator's

@@ -1,0 +1,1 @@
+"""Benchmarks of recording: session file formats, the recorder, the live view, the emulators."""

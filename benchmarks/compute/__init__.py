@@ -1,0 +1,1 @@
+"""Benchmarks of the compute layer: scale-out of a batch, the cost of a study."""

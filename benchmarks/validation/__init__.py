@@ -1,0 +1,1 @@
+"""Benchmarks of validation: identification, estimation and tracking, window verdicts, sensor delays."""
