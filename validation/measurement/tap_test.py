@@ -164,7 +164,7 @@ def tap_test(path: str | Path, bench: Bench | None = None, *, band: tuple[float,
         raise TapTestError(f"{source}: no accelerometer samples")
     t = acc["time"].to_numpy()
     x = acc["acc"].to_numpy()
-    clipped = acc["clipped"].to_numpy() if "clipped" in acc.columns else np.zeros(t.size, bool)
+    clipped = acc["clipped"].to_numpy(bool)  # the reader's flags
     fs = float(bench.sensor("accelerometer").sample_rate)
     start = stream_start(acc, fs)
     fits = [_fit_tap(tap, taps, t, x, clipped, fs, chain, band, start, source) for tap in taps]
