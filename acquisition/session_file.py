@@ -158,8 +158,8 @@ def scan_mcap(path: str | Path) -> Scan:
 class Session:
     """A recorded session as read back (the layout is `acquisition/layout.py`); times in s, SI values.
 
-    ``streams``: what each stream is, as recorded (``layout.recorded_stream``): the acceleration
-    stream's range and LSB (m/s^2).
+    ``streams``: what each stream is, as recorded (``layout.recorded_stream``): the rate its blocks
+    were recorded at (Hz; 0 without blocks), and the acceleration stream's range and LSB (m/s^2).
     The ``clipped`` column of ``acceleration`` is the clip rule on them (``clip_level``), applied
     here once: the features take the column."""
 
@@ -179,6 +179,11 @@ class Session:
     host_origin: float  # host time (s, Unix) of time 0
     surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> embedded worn-surface .npz
     streams: dict[str, StreamInfo] = field(default_factory=dict)  # ACCELERATION, ENCODER as recorded
+
+    @property
+    def sample_rate(self) -> float:
+        """The acceleration's sample rate (Hz) as its blocks recorded it (0 without blocks)."""
+        return self.streams[ACCELERATION].sample_rate if ACCELERATION in self.streams else 0.0
 
     @property
     def clip_level(self) -> float:
@@ -264,6 +269,16 @@ def _dedupe(blocks, stream: str, quality: dict) -> list:
     quality[stream] = {"blocks": len(kept), "samples": int(sum(len(b.samples) for b in kept)),
                        "dropped": check.dropped, "repeated": check.repeated}
     return kept
+
+
+def _recorded_rate(blocks) -> float:
+    """The rate (Hz) a stream's blocks were recorded at, as recorded: every block carries it (when
+    they differ, a stream reconfigured mid-way, the rate most samples were taken at); 0 without blocks.
+    Sample times come from each block's own rate (``_sample_frame``)."""
+    samples: dict[float, int] = {}
+    for b in blocks:
+        samples[float(b.sample_rate)] = samples.get(float(b.sample_rate), 0) + len(b.samples)
+    return max(samples, key=samples.__getitem__) if samples else 0.0
 
 
 def _sample_frame(blocks, origin: float, host_origin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -373,7 +388,8 @@ def read_session(path: str | Path) -> Session:
     origin = min((b.device_time for b in firsts), default=0.0)
     host_origin = min((b.host_time for b in firsts), default=0.0)
 
-    streams = {name: recorded_stream(calib, name) for name in (ACCELERATION, ENCODER)}
+    streams = {name: recorded_stream(calib, name, _recorded_rate(b))
+               for name, b in ((ACCELERATION, acc_blocks), (ENCODER, enc_blocks))}
     t, h, seq = _sample_frame(acc_blocks, origin, host_origin)
     values = np.concatenate([b.samples for b in acc_blocks]).astype(np.float64) if acc_blocks else np.zeros(0)
     acc = streams[ACCELERATION]

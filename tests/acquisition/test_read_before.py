@@ -2,7 +2,9 @@
 they did: the layout-1 session and a current-layout one recorded with the code before the change
 (``data/session_layout2_before.mcap``: the range under two keys, no LSB, 634 clipped samples) give
 the clipped flags, clip level, gaps and cycle features that code read from them
-(``data/read_before.json``, see data/README.md)."""
+(``data/read_before.json``, see data/README.md). The one difference: ``fs`` is now the rate the blocks
+recorded (10 kHz exactly) where it was 1/median of the sample steps (within 1e-12 of it), which moves
+the features by rounding only."""
 
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from wearbench.acquisition.drivers import ACCELERATION
+from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.layout import clip_level
 from wearbench.acquisition.session_file import read_session
 from wearbench.testing import recorded_blocks
@@ -32,9 +34,10 @@ def test_a_session_recorded_before_reads_as_before(name):
     acc = r.streams[ACCELERATION]  # the range as recorded then, typed; no LSB was recorded
     assert acc.range == float(calibration["acceleration.range"]) == float(calibration["accelerometer.range"])
     assert acc.lsb is None and r.clip_level == clip_level(acc.range, None)
+    assert (acc.sample_rate, r.streams[ENCODER].sample_rate) == (10000.0, 1000.0)
     s = load_session(path)
     assert s.clip_level == before["clip_level"] and s.gaps == before["gaps"]
-    assert s.fs == before["fs"]
+    assert s.fs == 10000.0 and s.fs == pytest.approx(before["fs"], rel=1e-12)
     f = s.features()
     assert f.cycles == before["cycles"]
     assert f.clipped.tolist() == before["features_clipped"]

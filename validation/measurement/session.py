@@ -2,10 +2,11 @@
 
 Holds ``MeasuredSession`` (time signals, cycle table, crank-angle view, recorded conditions) and
 ``load_session`` (from a session MCAP via wearbench.acquisition.session_file.read_session). The
-session carries what was recorded, as the reader gives it: its clip level and each sample's
-``clipped`` flag (the acquisition's clip rule on the recorded range, applied by the reader); it owns
-its sample rate, its gaps (the acquisition's rule) and each sample's crank angle, direction and cycle
-(``cycles.crank_turns``); features, windows and identification take them from here.
+session carries what was recorded, as the reader gives it: its sample rate (the rate its blocks were
+recorded at), its clip level and each sample's ``clipped`` flag (the acquisition's clip rule on the
+recorded range, applied by the reader); it owns its gaps (the acquisition's rule) and each sample's
+crank angle, direction and cycle (``cycles.crank_turns``); features, windows and identification take
+them from here.
 """
 
 from __future__ import annotations
@@ -50,10 +51,12 @@ def stream_start(acc: pd.DataFrame, fs: float) -> float:
 class MeasuredSession:
     """Acceleration (time, acc, clipped) and encoder (time, angle, speed, index) of one session, device clock.
 
-    fs: acceleration sample rate (Hz, ``features.sample_rate`` of the recorded sample times).
-    clip_level: |a| (m/s^2) from which the reader flagged a sample clipped (the acquisition's rule on
-    the recorded range; None when the session recorded no range); the flags are the acceleration's
-    ``clipped`` column (all False when a frame built in Python has none). cycles: ``cut_cycles`` table; angles: ``angle_view`` of the
+    fs: acceleration sample rate (Hz): the rate the session's blocks were recorded at (``load_session``
+    gives the reader's); a session built from frames in Python without one has no recording to take it
+    from and gets ``features.sample_rate`` of its sample times. clip_level: |a| (m/s^2) from which the
+    reader flagged a sample clipped (the acquisition's rule on the recorded range; None when the
+    session recorded no range); the flags are the acceleration's ``clipped`` column (all False when a
+    frame built in Python has none). cycles: ``cut_cycles`` table; angles: ``angle_view`` of the
     acceleration (cycle, angle, value); gaps: acceleration time steps the acquisition counts as gaps
     (``acquisition.sequence.gaps``: dropped samples), windows spanning one are not scored;
     crank_angle: the encoder's crank angle (rad, unwrapped) at each acceleration sample; turns: its
@@ -74,6 +77,7 @@ class MeasuredSession:
     problem: str | None = None  # why the file is not finished
     speed_tolerance: float = 0.02
     points_per_rev: int = 720
+    fs: float | None = None  # Hz, as recorded (see the class docstring)
     clip_level: float | None = None  # m/s^2, as the reader applied it (see the class docstring)
 
     def __post_init__(self) -> None:
@@ -92,7 +96,11 @@ class MeasuredSession:
         if self.encoder["angle"].isna().all():
             raise ValueError(f"session {self.label}: the encoder angle is missing (no counts per revolution "
                              "in the bench or calibration)")
-        self.fs = sample_rate(t)
+        if self.fs is None:  # built from frames, not read from a recording: the rate of its times
+            self.fs = sample_rate(t)
+        elif not 0 < self.fs < np.inf:
+            raise ValueError(f"session {self.label}: fs = {self.fs!r} Hz: expected the positive sample rate "
+                             "the session was recorded at")
         if self.clip_level is not None and not np.isfinite(self.clip_level):
             self.clip_level = None
         self.gap_times = t[:-1][gaps(np.diff(t), self.fs)]
@@ -158,8 +166,8 @@ class MeasuredSession:
         return stream_start(self.acceleration, self.fs)
 
     def features(self, spec: FeatureSpec | None = None) -> CycleFeatures:
-        """Cycle features of the session, from its samples, sample rate and its samples' ``clipped``
-        flags (the reader's)."""
+        """Cycle features of the session, from its samples, its recorded sample rate and its samples'
+        ``clipped`` flags (the reader's)."""
         return cycle_features(*self.samples, spec or FeatureSpec(), clipped=self.clipped, fs=self.fs)
 
     def stated_delay(self, band: tuple[float, float] = (1.0, 100.0)) -> StatedDelay | None:
@@ -191,4 +199,4 @@ def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSessi
                            encoder=s.encoder, bench=s.bench, clearances=dict(s.clearances),
                            wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path,
                            surface_files=dict(s.surface_files), finished=s.finished, problem=s.problem,
-                           clip_level=s.clip_level)
+                           fs=s.sample_rate, clip_level=s.clip_level)

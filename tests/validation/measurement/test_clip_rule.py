@@ -112,7 +112,7 @@ def test_the_recorded_range_not_the_benchs(wearbench_bench, tmp_path):
     assert not {"accelerometer.range", "acceleration.lsb"} & set(calibration)  # one key; no LSB stated
     r = read_session(out)
     acc = r.streams[ACCELERATION]
-    assert (acc.range, acc.lsb, acc.unit) == (RANGE, None, "m/s^2")
+    assert (acc.range, acc.lsb, acc.unit, acc.sample_rate) == (RANGE, None, "m/s^2", 10000.0)
     assert r.clip_level == clip_level(RANGE)
     flags = _same_count_everywhere(result, out)
     values = r.acceleration["acc"].to_numpy()
