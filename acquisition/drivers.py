@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import abc
 import itertools
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -55,15 +56,41 @@ class DeviceTimeout(DriverError):
 
 @dataclass(frozen=True)
 class StreamInfo:
-    """What a stream holds: ``describe()`` returns these, data comes separately as blocks."""
+    """What a stream holds: ``describe()`` returns these, data comes separately as blocks.
+
+    ``range`` and ``lsb`` are the ADC's, as the device runs it (an acceleration stream's): the full
+    scale (m/s^2; no sample reads beyond it) and the step of one count (m/s^2; None where the device
+    does not say: the clip rule then takes range/32768, ``layout.clip_level``). The recorder records
+    them once and counts clipped samples with them; the session reader gives them back typed.
+    ``extra`` holds the rest a device says of the stream, as text (sensitivity, block size, ...)."""
 
     name: str  # ACCELERATION or ENCODER
     unit: str  # unit of ``Block.samples``: "m/s^2", "counts"
-    sample_rate: float  # Hz, nominal
+    sample_rate: float  # Hz, nominal (a block carries the rate it was taken at)
     dtype: str  # numpy dtype of ``Block.samples``: "float32", "int32"
     shape: tuple[int, ...] = ()  # shape of one sample
     source: str = ""  # the device that produces it
-    extra: dict[str, str] = field(default_factory=dict)  # calibration, counts_per_rev, ...
+    extra: dict[str, str] = field(default_factory=dict)  # counts_per_rev, sensitivity, ...
+    range: float | None = None  # m/s^2, full scale (acceleration streams)
+    lsb: float | None = None  # m/s^2 per count (acceleration streams; None: not stated)
+
+    def __post_init__(self) -> None:
+        typed = sorted({"range", "lsb"} & set(self.extra))
+        if typed:
+            raise ValueError(f"stream {self.name!r}: extra {typed}: give them as StreamInfo.range and "
+                             "StreamInfo.lsb (m/s^2), not as text")
+        for what in ("range", "lsb"):
+            value = getattr(self, what)
+            if value is None:
+                continue
+            try:
+                number = math.nan if isinstance(value, (str, bytes)) else float(value)
+            except (TypeError, ValueError):
+                number = math.nan
+            if not 0 < number < math.inf:
+                raise ValueError(f"stream {self.name!r}: {what} = {value!r}: expected a positive number "
+                                 "(m/s^2) or None")
+            object.__setattr__(self, what, number)
 
 
 @dataclass

@@ -25,7 +25,9 @@ message that has none).
 
 The metadata records (:data:`METADATA`) are written and read back by name here too:
 :func:`session_records`, :func:`record_crank`, :func:`record_stream` and :func:`result_record` for
-the recorder, :func:`recorded_crank` and :func:`recorded_clip_level` for the reader and ``recover``.
+the recorder, :func:`recorded_crank` and :func:`recorded_stream` for the reader and ``recover``. The
+clip rule (:func:`clip_level`, :func:`clipped`) is here, applied where samples enter: by the recorder
+to each block (its ``clipped`` count) and by the reader to each sample (its ``clipped`` column).
 Imports numpy, protobuf, foxglove's schemas and the driver dataclasses (the bench and the session
 records for types only).
 """
@@ -86,8 +88,8 @@ __all__ = [
     "publish_time",
     "record_crank",
     "record_stream",
-    "recorded_clip_level",
     "recorded_crank",
+    "recorded_stream",
     "result_record",
     "session_records",
     "surface_attachment",
@@ -100,8 +102,9 @@ METADATA = {
                "cycles_run (cycles the bench had run before the session, when given)",
     "clearance": "radial clearance (m, repr) per clearance joint as mounted",
     "wear": "wear state per clearance joint: a label or the worn-surface file",
-    "calibration": "sensor names and rates, accelerometer range/axis/sensitivity/mount, encoder joint, "
-                   "counts_per_rev and angle_offset, and each stream's description",
+    "calibration": "sensor names and rates, accelerometer axis/sensitivity/mount, encoder joint, "
+                   "counts_per_rev and angle_offset, each stream's description, and the acceleration "
+                   "stream's range and lsb (m/s^2, as the device runs it)",
     "hardware": "backend and what the rig reports of itself",
     "result": "how the session ended: reason, completed, cycles, duration_s, counts per stream",
     "recovery": "written by `wearbench recover`: the broken source and what was restored",
@@ -164,7 +167,7 @@ def session_records(bench: Bench, plan: SessionPlan, backend: str, info: Mapping
     for s in b.sensors:
         calibration.update({f"{s.kind}.name": s.name, f"{s.kind}.sample_rate": repr(s.sample_rate)})
         if s.kind == "accelerometer":
-            calibration.update({"accelerometer.range": repr(s.range), "accelerometer.axis": repr(s.axis),
+            calibration.update({"accelerometer.axis": repr(s.axis),
                                 "accelerometer.sensitivity": repr(s.sensitivity),
                                 "accelerometer.body": s.body, "accelerometer.point": s.point})
         else:
@@ -188,10 +191,14 @@ def record_crank(calibration: dict[str, str], state: MotorState | Exception) -> 
 
 
 def record_stream(calibration: dict[str, str], info: StreamInfo, source: str) -> None:
-    """Write what stream ``info`` of source ``source`` holds, and its extras, into ``calibration``."""
+    """Write what stream ``info`` of source ``source`` holds into ``calibration``: its description
+    (``NAME.stream``), its extras, and its range and LSB (``NAME.range``, ``NAME.lsb``, m/s^2, exact
+    reprs): the one record of them, which :func:`recorded_stream` reads back."""
     calibration[f"{info.name}.stream"] = (f"{info.unit} {info.dtype}{list(info.shape) or ''} "
                                           f"at {info.sample_rate:g} Hz from {info.source or source}")
     calibration.update({f"{info.name}.{k}": v for k, v in info.extra.items()})
+    calibration.update({f"{info.name}.{what}": repr(value) for what in ("range", "lsb")
+                        if (value := getattr(info, what)) is not None})
 
 
 def result_record(r: SessionResult, lost: int) -> dict[str, str]:
@@ -214,11 +221,32 @@ def calibration_number(calibration: Mapping[str, str], key: str, default: float 
         return default
 
 
-def recorded_clip_level(calibration: Mapping[str, str]) -> float:
-    """The acceleration clip level (:func:`clip_level`) from the recorded range and LSB."""
-    full_scale = calibration_number(calibration, "acceleration.range",
-                                    calibration_number(calibration, "accelerometer.range"))
-    return clip_level(full_scale, calibration_number(calibration, "acceleration.lsb", full_scale / 32768))
+def _recorded_scale(calibration: Mapping[str, str], key: str) -> float | None:
+    """The positive number recorded at ``key`` (m/s^2); None when absent or not one."""
+    value = calibration_number(calibration, key, math.nan)
+    return value if 0 < value < math.inf else None
+
+
+# unit and dtype of the samples the layout stores per stream (``encode_block``)
+_SAMPLES = {ACCELERATION: ("m/s^2", "float32"), ENCODER: ("counts", "int32")}
+
+
+def recorded_stream(calibration: Mapping[str, str], name: str, sample_rate: float = 0.0) -> StreamInfo:
+    """Stream ``name`` (ACCELERATION or ENCODER) as a session recorded it, the inverse of
+    :func:`record_stream`: the unit and dtype of the layout's messages, ``sample_rate`` (Hz: the rate
+    its blocks were recorded at, which the reader gives; 0 when not known), the source its description
+    names, and its range and LSB (m/s^2) typed. Its extras stay in the calibration record.
+
+    Sessions recorded before the stream info carried the range typed read alike (the keys are the
+    same). One whose stream recorded no range gets the accelerometer's range from the bench file
+    (``accelerometer.range``, which sessions then recorded too), as the recorder then did; an LSB not
+    recorded stays None (the clip rule takes range/32768, as it always did)."""
+    unit, dtype = _SAMPLES[name]
+    source = calibration.get(f"{name}.stream", "").partition(" from ")[2]
+    key = f"{name}.range" if f"{name}.range" in calibration or name != ACCELERATION else "accelerometer.range"
+    full_scale = _recorded_scale(calibration, key)
+    return StreamInfo(name, unit, float(sample_rate), dtype, source=source, range=full_scale,
+                      lsb=_recorded_scale(calibration, f"{name}.lsb"))
 
 
 def recorded_crank(calibration: Mapping[str, str], counts_per_rev: float = 0.0) -> CrankAngle | None:
@@ -289,19 +317,21 @@ def ns(seconds: float) -> int:
     return max(0, round(seconds * 1e9))
 
 
-def clip_level(full_scale: float, lsb: float | None = None) -> float:
+def clip_level(full_scale: float | None, lsb: float | None = None) -> float:
     """|a| (m/s^2) from which a sample counts as clipped: one LSB below the range (the largest
     int16 count is ``full_scale - lsb``, where a saturated ADC sits; the protocols' LSB is
-    range/32768), less float32 rounding. ``inf`` when the range is unknown."""
-    if not full_scale > 0:
+    range/32768, taken when ``lsb`` is None), less float32 rounding. ``inf`` when the range is
+    unknown (None). The recorder and the reader call it with a stream's ``range`` and ``lsb``."""
+    if full_scale is None or not full_scale > 0:
         return math.inf
     lsb = full_scale / 32768 if lsb is None else lsb
     return float(np.float32(full_scale - lsb)) * (1 - 1e-6)
 
 
 def clipped(samples: np.ndarray, level: float) -> np.ndarray:
-    """Which samples are at or beyond ``level`` (:func:`clip_level`): the one clip rule, used by the
-    recorder, ``recover`` and the identification alike."""
+    """Which samples are at or beyond ``level`` (:func:`clip_level`): the one clip rule, applied where
+    samples enter: the recorder's per-block count (and ``recover``'s for a layout-1 file) and the
+    reader's per-sample ``clipped`` column, which the features take."""
     return np.abs(np.asarray(samples)) >= level
 
 

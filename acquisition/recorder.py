@@ -18,6 +18,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import BinaryIO
 
@@ -262,7 +263,8 @@ class Recorder:
     # ---- the session ------------------------------------------------------------------------
 
     def _metadata(self) -> dict[str, dict[str, str]]:
-        """The session's metadata records; sets the writer's crank angle and the clip level."""
+        """The session's metadata records; sets the writer's crank angle and the clip level (of the
+        acceleration stream's range and LSB, recorded with it by ``record_stream``)."""
         rig = self.rig
         records = session_records(self.bench, self.plan, rig.backend, rig.info,
                                   time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
@@ -277,9 +279,9 @@ class Recorder:
         for source in rig.sources:
             for info in source.describe():
                 if info.name == ACCELERATION:
-                    full_scale = float(info.extra.get("range", self.bench.sensor("accelerometer").range))
-                    lsb = info.extra.get("lsb")
-                    self._clip_level = clip_level(full_scale, float(lsb) if lsb else None)
+                    if info.range is None:  # a device that does not say: the range it was configured with
+                        info = replace(info, range=self.bench.sensor("accelerometer").range)
+                    self._clip_level = clip_level(info.range, info.lsb)  # what the reader applies too
                 record_stream(calibration, info, source.name)
         return records
 

@@ -24,11 +24,12 @@ from wearbench.acquisition.layout import (
     ENCODING,
     SCHEMAS,
     TOPICS,
+    clip_level,
     count_clipped,
     ns,
     publish_time,
-    recorded_clip_level,
     recorded_crank,
+    recorded_stream,
 )
 from wearbench.acquisition.session_file import check_session, scan_mcap
 from wearbench.acquisition.session_writer import CHUNK_SIZE, COMPRESSION, PROFILE
@@ -52,7 +53,8 @@ def _upgraders(calibration: dict[str, str]) -> dict[str, Callable[[bytes], bytes
     """Layout-1 message -> current-layout message, per channel key."""
 
     crank = recorded_crank(calibration)
-    level = recorded_clip_level(calibration)
+    acc = recorded_stream(calibration, ACCELERATION)
+    level = clip_level(acc.range, acc.lsb)  # the recorder's count, as it would have recorded it
 
     def acceleration(data: bytes) -> bytes:
         block = layout1.decode_block(ACCELERATION, data)

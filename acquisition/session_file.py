@@ -35,16 +35,25 @@ from mcap.records import (
 )
 from mcap.stream_reader import StreamReader, breakup_chunk
 from wearbench.acquisition import layout, layout1
-from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, BusFrame, Event, MotorState
+from wearbench.acquisition.drivers import (
+    ACCELERATION,
+    ENCODER,
+    Block,
+    BusFrame,
+    Event,
+    MotorState,
+    StreamInfo,
+)
 from wearbench.acquisition.layout import (
     BENCH_ATTACHMENT,
     BENCH_FILES,
     ENCODING,
     SCHEMAS,
     TOPICS,
+    clip_level,
     clipped,
-    recorded_clip_level,
     recorded_crank,
+    recorded_stream,
     surface_joint,
 )
 from wearbench.acquisition.sequence import SequenceCheck
@@ -147,7 +156,12 @@ def scan_mcap(path: str | Path) -> Scan:
 
 @dataclass
 class Session:
-    """A recorded session as read back (the layout is `acquisition/layout.py`); times in s, SI values."""
+    """A recorded session as read back (the layout is `acquisition/layout.py`); times in s, SI values.
+
+    ``streams``: what each stream is, as recorded (``layout.recorded_stream``): the rate its blocks
+    were recorded at (Hz; 0 without blocks), and the acceleration stream's range and LSB (m/s^2).
+    The ``clipped`` column of ``acceleration`` is the clip rule on them (``clip_level``), applied
+    here once: the features take the column."""
 
     path: Path
     bench: Bench | None
@@ -164,6 +178,19 @@ class Session:
     origin: float  # device time (s) of time 0
     host_origin: float  # host time (s, Unix) of time 0
     surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> embedded worn-surface .npz
+    streams: dict[str, StreamInfo] = field(default_factory=dict)  # ACCELERATION, ENCODER as recorded
+
+    @property
+    def sample_rate(self) -> float:
+        """The acceleration's sample rate (Hz) as its blocks recorded it (0 without blocks)."""
+        return self.streams[ACCELERATION].sample_rate if ACCELERATION in self.streams else 0.0
+
+    @property
+    def clip_level(self) -> float:
+        """|a| (m/s^2) from which the ``clipped`` column flags a sample (``layout.clip_level`` of the
+        recorded range and LSB; inf when the session recorded no range)."""
+        acc = self.streams.get(ACCELERATION)
+        return clip_level(acc.range, acc.lsb) if acc is not None else float("inf")
 
 
 def _messages(scan: Scan, key: str):
@@ -242,6 +269,16 @@ def _dedupe(blocks, stream: str, quality: dict) -> list:
     quality[stream] = {"blocks": len(kept), "samples": int(sum(len(b.samples) for b in kept)),
                        "dropped": check.dropped, "repeated": check.repeated}
     return kept
+
+
+def _recorded_rate(blocks) -> float:
+    """The rate (Hz) a stream's blocks were recorded at, as recorded: every block carries it (when
+    they differ, a stream reconfigured mid-way, the rate most samples were taken at); 0 without blocks.
+    Sample times come from each block's own rate (``_sample_frame``)."""
+    samples: dict[float, int] = {}
+    for b in blocks:
+        samples[float(b.sample_rate)] = samples.get(float(b.sample_rate), 0) + len(b.samples)
+    return max(samples, key=samples.__getitem__) if samples else 0.0
 
 
 def _sample_frame(blocks, origin: float, host_origin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -351,11 +388,13 @@ def read_session(path: str | Path) -> Session:
     origin = min((b.device_time for b in firsts), default=0.0)
     host_origin = min((b.host_time for b in firsts), default=0.0)
 
+    streams = {name: recorded_stream(calib, name, _recorded_rate(b))
+               for name, b in ((ACCELERATION, acc_blocks), (ENCODER, enc_blocks))}
     t, h, seq = _sample_frame(acc_blocks, origin, host_origin)
     values = np.concatenate([b.samples for b in acc_blocks]).astype(np.float64) if acc_blocks else np.zeros(0)
-    level = recorded_clip_level(calib)
+    acc = streams[ACCELERATION]
     acceleration = pd.DataFrame({"time": t, "host_time": h, "acc": values, "sequence": seq,
-                                 "clipped": clipped(values, level)})
+                                 "clipped": clipped(values, clip_level(acc.range, acc.lsb))})
 
     t, h, seq = _sample_frame(enc_blocks, origin, host_origin)
     crank = recorded_crank(calib, _bench_counts_per_rev(bench))
@@ -380,4 +419,4 @@ def read_session(path: str | Path) -> Session:
                    finished=scan.finished, problem=problem, quality=quality, origin=origin,
                    host_origin=host_origin,
                    surface_files={surface_joint(a.name): a.data for a in scan.attachments
-                                  if surface_joint(a.name)})
+                                  if surface_joint(a.name)}, streams=streams)

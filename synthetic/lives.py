@@ -53,7 +53,6 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     ``files``: worn surfaces to use instead of a wear run of ``cycles_run``."""
     from pathlib import Path
 
-    from wearbench.acquisition.layout import clip_level
     from wearbench.bench.schema import WearState
     from wearbench.hardware.emulators.carriage import lateral_force
     from wearbench.model.realisation import simulate_state
@@ -76,8 +75,7 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     m = chain.oversample
     samples = chain.process(run.acc, lateral_force(run.realisation.bench, run.table) if chain.lateral else None)
     t, crank = run.t[m - 1::m], run.crank[m - 1::m]
-    sensor = bench.sensor("accelerometer")
-    f = cycle_features(t, crank, samples.astype(float), FeatureSpec(), clip_level=clip_level(sensor.range))
+    f = cycle_features(t, crank, samples.astype(float), FeatureSpec())  # only its values are kept
     return {"features": f.values[:cycles], "depth": depth, "mode": chain.acc.resonance,
             "cross_axis": chain.acc.cross_axis}
 

@@ -41,6 +41,7 @@ from wearbench.acquisition.drivers import (
     Rig,
     StreamInfo,
 )
+from wearbench.acquisition.layout import recorded_stream
 from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.messages import ErrorCode
@@ -230,7 +231,10 @@ def replay(frames: Iterable[BusFrame], bench: Bench, calibration: Mapping[str, s
     """What a fresh decoder makes of recorded ``frames``: the blocks and events the source would
     have delivered. ``calibration`` is the session's metadata record of that name (LSB and rates)."""
     decoder = BenchFrames.for_bench(bench)
-    decoder.lsb = float(calibration["acceleration.lsb"])
+    lsb = recorded_stream(calibration, ACCELERATION).lsb  # a CAN session records the LSB it decoded with
+    if lsb is None:
+        raise ValueError("replay: the calibration record holds no acceleration.lsb: not a session of a CAN backend")
+    decoder.lsb = lsb
     decoder.sample_rate = float(calibration["acceleration.sample_rate"])
     decoder.encoder_rate = float(calibration["encoder.sample_rate"])
     for f in frames:
@@ -289,8 +293,8 @@ class CanSource(AccelerationSource):
     def describe(self) -> tuple[StreamInfo, ...]:
         src = f"CAN {self.bus.channel_info}"
         return (StreamInfo(ACCELERATION, "m/s^2", self._rate, "float32", source=src,
-                           extra={"range": repr(self._range), "lsb": repr(cf.accel_lsb(self._range)),
-                                  "sample_rate": repr(self._rate)}),
+                           extra={"sample_rate": repr(self._rate)}, range=self._range,
+                           lsb=cf.accel_lsb(self._range)),
                 StreamInfo(ENCODER, "counts", self._enc.sample_rate, "int32", source=src,
                            extra={"counts_per_rev": str(self.frames.counts_per_rev),
                                   "sample_rate": repr(self.frames.encoder_rate)}))

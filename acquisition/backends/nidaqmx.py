@@ -91,8 +91,8 @@ class DaqSource(AccelerationSource):
 
     def describe(self) -> tuple[StreamInfo, ...]:
         return (StreamInfo(ACCELERATION, "m/s^2", self._rate, "float32", source=f"NI-DAQmx {self.channel}",
-                           extra={"range": repr(self._range), "sensitivity_V_per_m_s2": repr(self.sensitivity),
-                                  "iepe_excitation_A": repr(self.excitation)}),)
+                           extra={"sensitivity_V_per_m_s2": repr(self.sensitivity),
+                                  "iepe_excitation_A": repr(self.excitation)}, range=self._range or None),)
 
     def start(self) -> None:
         self._sequence = self._samples = 0

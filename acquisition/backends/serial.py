@@ -242,7 +242,7 @@ class SerialSource(AccelerationSource):
     def describe(self) -> tuple[StreamInfo, ...]:
         src = f"{self.info.name or 'serial device'} on {self.link.port}"
         return (StreamInfo(ACCELERATION, "m/s^2", self._rate, "float32", source=src,
-                           extra={"range": repr(self._range), "block": str(self.info.accel_block)}),
+                           extra={"block": str(self.info.accel_block)}, range=self._range),
                 StreamInfo(ENCODER, "counts", self._enc.sample_rate, "int32", source=src,
                            extra={"counts_per_rev": str(self.info.counts_per_rev),
                                   "block": str(self.info.encoder_block)}))

@@ -188,7 +188,7 @@ class SimSource(AccelerationSource):
 
     def describe(self) -> tuple[StreamInfo, ...]:
         return (StreamInfo(ACCELERATION, "m/s^2", self._rate, "float32", source="sim accelerometer",
-                           extra={"range": repr(self._range)}),
+                           range=self._range),
                 StreamInfo(ENCODER, "counts", self._enc.sample_rate, "int32", source="sim encoder",
                            extra={"counts_per_rev": str(self._enc.counts_per_rev)}))
 

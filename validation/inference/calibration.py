@@ -43,10 +43,19 @@ def calibrations_dir() -> Path:
                                Path.home() / ".local" / "share" / "wearbench" / "calibrations"))
 
 
-def sensor_record(metadata: dict) -> dict[str, str]:
-    """The accelerometer's part of a session's ``calibration`` metadata record."""
+def sensor_record(metadata: dict, bench=None) -> dict[str, str]:
+    """The accelerometer's part of a session's ``calibration`` metadata record: the bench file's
+    sensor as recorded. Its ``range`` is the bench file's (``bench``, the session's recorded bench):
+    sessions recorded before the stream's range was recorded once (as ``acceleration.range``) also
+    wrote it as ``accelerometer.range``, taken when there, so a key stays what it was."""
     cal = metadata.get("calibration", {})
-    return {f: cal.get(f"accelerometer.{f}", "") for f in _SENSOR_FIELDS}
+    record = {f: cal.get(f"accelerometer.{f}", "") for f in _SENSOR_FIELDS}
+    if "accelerometer.range" not in cal and bench is not None:
+        try:
+            record["range"] = repr(bench.sensor("accelerometer").range)
+        except KeyError:
+            pass
+    return record
 
 
 def calibration_key(bench, metadata: dict, spec: FeatureSpec, mount: str = "") -> str:
@@ -54,7 +63,7 @@ def calibration_key(bench, metadata: dict, spec: FeatureSpec, mount: str = "") -
     mount label and the feature spec."""
     from wearbench.bench.content import bench_key
 
-    content = {"bench": bench_key(bench), "sensor": sensor_record(metadata), "mount": mount,
+    content = {"bench": bench_key(bench), "sensor": sensor_record(metadata, bench), "mount": mount,
                "features": spec.to_dict()}
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
 

@@ -27,7 +27,6 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy import signal
-from wearbench.acquisition.layout import clipped as is_clipped
 from wearbench.validation.measurement.cycles import crank_turns
 from wearbench.validation.measurement.filters import FilterSpec, apply_filter
 
@@ -75,7 +74,7 @@ class CycleFeatures:
 
     spec: FeatureSpec
     values: np.ndarray
-    clipped: np.ndarray  # (cycles,) samples at the sensor's range in each cycle (0 if unknown)
+    clipped: np.ndarray  # (cycles,) samples flagged clipped in each cycle (0 if unknown)
 
     @property
     def cycles(self) -> int:
@@ -107,15 +106,15 @@ def sample_rate(t: np.ndarray) -> float:
 
 
 def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: FeatureSpec = FeatureSpec(), *,
-                   clip_level: float | None = None, fs: float | None = None) -> CycleFeatures:
+                   clipped: np.ndarray | None = None, fs: float | None = None) -> CycleFeatures:
     """Features of every complete crank revolution of a record.
 
     t: sample times (s, uniform rate); angle: unwrapped absolute crank angle at those times (rad;
     either sense of rotation); acc: slider acceleration (m/s^2). A cycle runs from one crossing of
     crank angle 0 (mod 2 pi, in the sense of rotation) to the next; partial cycles at the ends are
-    dropped. clip_level: |a| (m/s^2) from which a sample is clipped, by the acquisition's rule
-    (``acquisition.layout.clip_level`` of the recorded range, ``clipped``). fs: the sample rate (Hz;
-    default :func:`sample_rate` of ``t``).
+    dropped. clipped: which samples are clipped (bool per sample: a session's ``clipped`` column, which
+    the session reader flags by the acquisition's clip rule on the recorded range; None: not known,
+    none counted). fs: the sample rate (Hz; default :func:`sample_rate` of ``t``).
     """
     t = np.asarray(t, dtype=float)
     angle = np.asarray(angle, dtype=float)
@@ -125,6 +124,9 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
                          f"{acc.size}")
     if not np.all(np.isfinite(acc)):
         raise ValueError(f"features: {int(np.sum(~np.isfinite(acc)))} non-finite acceleration samples")
+    flags = None if clipped is None else np.asarray(clipped, dtype=bool)
+    if flags is not None and flags.shape != acc.shape:
+        raise ValueError(f"features: {flags.size} clipped flags for {acc.size} samples; expected one per sample")
     fs = sample_rate(t) if fs is None else fs
     turns = crank_turns(angle)  # cycles from crank angle 0
     u, cycle, first, last = turns.progress, turns.cycle, turns.first, turns.last
@@ -147,10 +149,10 @@ def cycle_features(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, spec: Feat
         power = _band(centred, fs, band)[keep] ** 2
         blocks.append(np.log10((np.bincount(cells, power, n_cells) / count).reshape(-1, spec.bins) + spec.floor))
     values = np.hstack(blocks)
-    clipped = np.zeros(last - first + 1, dtype=np.int64)
-    if clip_level is not None:
-        clipped = np.bincount(k[is_clipped(acc[keep], clip_level)], minlength=clipped.size)
-    return CycleFeatures(spec, values, clipped)
+    counts = np.zeros(last - first + 1, dtype=np.int64)
+    if flags is not None:
+        counts = np.bincount(k[flags[keep]], minlength=counts.size)
+    return CycleFeatures(spec, values, counts)
 
 
 def cycle_curves(t: np.ndarray, angle: np.ndarray, acc: np.ndarray, *, grid: int = 720,

@@ -2,9 +2,11 @@
 
 Holds ``MeasuredSession`` (time signals, cycle table, crank-angle view, recorded conditions) and
 ``load_session`` (from a session MCAP via wearbench.acquisition.session_file.read_session). The
-session owns what was recorded: its sample rate, its clip level (the recorder's rule on the recorded
-calibration), its gaps (the acquisition's rule) and each sample's crank angle, direction and cycle
-(``cycles.crank_turns``); features, windows and identification take them from here.
+session carries what was recorded, as the reader gives it: its sample rate (the rate its blocks were
+recorded at), its clip level and each sample's ``clipped`` flag (the acquisition's clip rule on the
+recorded range, applied by the reader); it owns its gaps (the acquisition's rule) and each sample's
+crank angle, direction and cycle (``cycles.crank_turns``); features, windows and identification take
+them from here.
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from wearbench.acquisition.layout import recorded_clip_level
 from wearbench.acquisition.sequence import gaps
 from wearbench.validation.measurement.chain_delay import StatedDelay, stated_delay
 from wearbench.validation.measurement.cycles import (
@@ -48,16 +49,19 @@ def stream_start(acc: pd.DataFrame, fs: float) -> float:
 
 @dataclass
 class MeasuredSession:
-    """Acceleration (time, acc) and encoder (time, angle, speed, index) of one session, device clock.
+    """Acceleration (time, acc, clipped) and encoder (time, angle, speed, index) of one session, device clock.
 
-    cycles: ``cut_cycles`` table; angles: ``angle_view`` of the acceleration (cycle, angle, value);
-    fs: acceleration sample rate (Hz, ``features.sample_rate`` of the recorded sample times); gaps:
-    acceleration time steps the acquisition counts as gaps (``acquisition.sequence.gaps``: dropped
-    samples), windows spanning one are not scored; clip_level: |a| (m/s^2) from which a sample is
-    clipped, the recorder's rule on the recorded calibration (None when the session recorded no
-    range); crank_angle: the encoder's crank angle (rad, unwrapped) at each acceleration sample;
-    turns: its ``crank_turns`` (direction, progress and cycle index per sample, cycles from crank
-    angle 0 as the features count them).
+    fs: acceleration sample rate (Hz): the rate the session's blocks were recorded at (``load_session``
+    gives the reader's); a session built from frames in Python without one has no recording to take it
+    from and gets ``features.sample_rate`` of its sample times. clip_level: |a| (m/s^2) from which the
+    reader flagged a sample clipped (the acquisition's rule on the recorded range; None when the
+    session recorded no range); the flags are the acceleration's ``clipped`` column (all False when a
+    frame built in Python has none). cycles: ``cut_cycles`` table; angles: ``angle_view`` of the
+    acceleration (cycle, angle, value); gaps: acceleration time steps the acquisition counts as gaps
+    (``acquisition.sequence.gaps``: dropped samples), windows spanning one are not scored;
+    crank_angle: the encoder's crank angle (rad, unwrapped) at each acceleration sample; turns: its
+    ``crank_turns`` (direction, progress and cycle index per sample, cycles from crank angle 0 as the
+    features count them).
     """
 
     label: str
@@ -73,6 +77,8 @@ class MeasuredSession:
     problem: str | None = None  # why the file is not finished
     speed_tolerance: float = 0.02
     points_per_rev: int = 720
+    fs: float | None = None  # Hz, as recorded (see the class docstring)
+    clip_level: float | None = None  # m/s^2, as the reader applied it (see the class docstring)
 
     def __post_init__(self) -> None:
         for name, frame, cols in (("acceleration", self.acceleration, ("time", "acc")),
@@ -81,6 +87,8 @@ class MeasuredSession:
             if missing:
                 raise ValueError(f"session {self.label}: {name} lacks column(s) {missing}")
         self.acceleration = self.acceleration.sort_values("time", kind="stable").reset_index(drop=True)
+        if "clipped" not in self.acceleration.columns:
+            self.acceleration["clipped"] = False
         self.encoder = self.encoder.sort_values("time", kind="stable").reset_index(drop=True)
         t = self.acceleration["time"].to_numpy(float)
         if t.size < 16:
@@ -88,10 +96,14 @@ class MeasuredSession:
         if self.encoder["angle"].isna().all():
             raise ValueError(f"session {self.label}: the encoder angle is missing (no counts per revolution "
                              "in the bench or calibration)")
-        self.fs = sample_rate(t)
+        if self.fs is None:  # built from frames, not read from a recording: the rate of its times
+            self.fs = sample_rate(t)
+        elif not 0 < self.fs < np.inf:
+            raise ValueError(f"session {self.label}: fs = {self.fs!r} Hz: expected the positive sample rate "
+                             "the session was recorded at")
+        if self.clip_level is not None and not np.isfinite(self.clip_level):
+            self.clip_level = None
         self.gap_times = t[:-1][gaps(np.diff(t), self.fs)]
-        level = recorded_clip_level(self.metadata.get("calibration", {}))
-        self.clip_level = level if np.isfinite(level) else None
         self.crank_angle = np.interp(t, self.encoder["time"].to_numpy(float), self.encoder["angle"].to_numpy(float))
         self.turns: CrankTurns = crank_turns(self.crank_angle)
         self.direction = self.turns.direction
@@ -100,6 +112,11 @@ class MeasuredSession:
                                  speed_tolerance=self.speed_tolerance)
         self.angles = angle_view(t, self.acceleration["acc"].to_numpy(float), self.encoder, self.cycles,
                                  start_angle=self.start_angle, points_per_rev=self.points_per_rev)
+
+    @property
+    def clipped(self) -> np.ndarray:
+        """Which acceleration samples the reader flagged clipped (bool per sample)."""
+        return self.acceleration["clipped"].to_numpy(bool)
 
     @property
     def samples(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -149,9 +166,9 @@ class MeasuredSession:
         return stream_start(self.acceleration, self.fs)
 
     def features(self, spec: FeatureSpec | None = None) -> CycleFeatures:
-        """Cycle features of the session, from its samples, sample rate and clip level (the recorder's
-        rule at the range the session recorded in its calibration)."""
-        return cycle_features(*self.samples, spec or FeatureSpec(), clip_level=self.clip_level, fs=self.fs)
+        """Cycle features of the session, from its samples, its recorded sample rate and its samples'
+        ``clipped`` flags (the reader's)."""
+        return cycle_features(*self.samples, spec or FeatureSpec(), clipped=self.clipped, fs=self.fs)
 
     def stated_delay(self, band: tuple[float, float] = (1.0, 100.0)) -> StatedDelay | None:
         """The accelerometer delay the session's bench states (its ``[sensor.chain]``), its filters'
@@ -178,7 +195,8 @@ def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSessi
         raise ValueError(f"{path}: the session holds no encoder samples")
     if label is None:
         label = path.stem if s.finished else f"{path.stem} (unfinished)"
-    return MeasuredSession(label=label, acceleration=s.acceleration[["time", "acc"]],
+    return MeasuredSession(label=label, acceleration=s.acceleration[["time", "acc", "clipped"]],
                            encoder=s.encoder, bench=s.bench, clearances=dict(s.clearances),
                            wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path,
-                           surface_files=dict(s.surface_files), finished=s.finished, problem=s.problem)
+                           surface_files=dict(s.surface_files), finished=s.finished, problem=s.problem,
+                           fs=s.sample_rate, clip_level=s.clip_level)

@@ -164,8 +164,8 @@ def tap_test(path: str | Path, bench: Bench | None = None, *, band: tuple[float,
         raise TapTestError(f"{source}: no accelerometer samples")
     t = acc["time"].to_numpy()
     x = acc["acc"].to_numpy()
-    clipped = acc["clipped"].to_numpy() if "clipped" in acc.columns else np.zeros(t.size, bool)
-    fs = float(bench.sensor("accelerometer").sample_rate)
+    clipped = acc["clipped"].to_numpy(bool)  # the reader's flags
+    fs = session.sample_rate  # the rate the blocks were recorded at, not the bench file's nominal one
     start = stream_start(acc, fs)
     fits = [_fit_tap(tap, taps, t, x, clipped, fs, chain, band, start, source) for tap in taps]
     lat = np.array([f.latency for f in fits])

@@ -172,7 +172,7 @@ class SessionSet:
             if s.bench.sha256 != first.bench.sha256:
                 raise ValueError(f"session {s.label}: another bench file than {first.label}'s; {noun} takes the "
                                  "sessions of one bench")
-            if sensor and sensor_record(s.metadata) != sensor_record(first.metadata):
+            if sensor and sensor_record(s.metadata, s.bench) != sensor_record(first.metadata, first.bench):
                 raise ValueError(f"session {s.label}: another sensor than {first.label}'s; {noun} takes the sessions "
                                  "of one bench and sensor")
         groups = self.groups()

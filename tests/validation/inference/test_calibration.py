@@ -69,3 +69,29 @@ def test_fit_recovers_a_band_gain_and_the_store_keeps_it(exact_models, tmp_path)
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(ValueError, match="not a calibration"):
         load_calibration(tmp_path / "bad.json")
+
+
+def test_a_sessions_key_is_what_it_was_before_the_range_was_recorded_once(tmp_path):
+    """Sessions recorded before issue 47's item 7 wrote the bench file's range as ``accelerometer.range``
+    too; sessions now record the range once (the stream's ``acceleration.range``). A session recorded
+    now of the same bench and sensor finds the calibrations keyed on the older ones."""
+    import math
+    from pathlib import Path
+
+    from wearbench.acquisition.backends import open_rig
+    from wearbench.acquisition.recorder import Recorder
+    from wearbench.acquisition.session import SessionPlan
+    from wearbench.validation.inference.calibration import sensor_record
+    from wearbench.validation.measurement.session import load_session
+
+    before = load_session(Path(__file__).parents[2] / "acquisition" / "data" / "session_layout2_before.mcap")
+    assert "accelerometer.range" in before.metadata["calibration"]
+    rig = open_rig(before.bench, "sim", {"speedup": math.inf, "config": {"signal": "harmonic", "cache": False}})
+    try:
+        assert Recorder(rig, before.bench, SessionPlan(speed=62.0, cycles=2), tmp_path / "now.mcap").run().completed
+    finally:
+        rig.close()
+    now = load_session(tmp_path / "now.mcap")
+    assert "accelerometer.range" not in now.metadata["calibration"]
+    assert sensor_record(now.metadata, now.bench) == sensor_record(before.metadata, before.bench)
+    assert calibration_key(now.bench, now.metadata, SPEC) == calibration_key(before.bench, before.metadata, SPEC)

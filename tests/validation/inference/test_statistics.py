@@ -48,9 +48,14 @@ def test_each_band_sees_only_its_own_tone():
 
 def test_reverse_rotation_and_clipping():
     t, theta, acc = record()
-    f = cycle_features(t, -theta, np.clip(acc, -29.0, 29.0), clip_level=29.0)
+    clipped = np.abs(acc) >= 29.0  # the flags a session's clipped column gives
+    f = cycle_features(t, -theta, np.clip(acc, -29.0, 29.0), clipped=clipped)
     assert f.cycles == 5 and np.all(f.clipped > 0)
-    assert cycle_features(t, theta, acc, clip_level=100.0).clipped.sum() == 0
+    assert f.clipped.sum() <= clipped.sum()  # the flags inside complete cycles
+    assert cycle_features(t, theta, acc, clipped=np.abs(acc) >= 100.0).clipped.sum() == 0
+    assert cycle_features(t, theta, acc).clipped.sum() == 0  # flags not known: none counted
+    with pytest.raises(ValueError, match="clipped flags"):
+        cycle_features(t, theta, acc, clipped=clipped[:-1])
 
 
 def test_too_coarse_a_record_is_refused():
