@@ -21,9 +21,34 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["MCAP_MAGIC", "check_output", "holds_session", "output_file", "output_folder", "save_npz"]
+__all__ = ["MCAP_MAGIC", "check_output", "holds_session", "output_file", "output_folder", "remove_unfinished",
+           "save_npz"]
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+# the temporary names being written in this process: what a forced exit (os._exit after Ctrl-C, which
+# skips every finally) removes, so nothing unfinished is left beside the outputs
+_UNFINISHED: set[Path] = set()
+
+
+def remove_unfinished() -> None:
+    """Remove the temporary files and folders this process is still writing (its way out, on a forced
+    exit); the finished outputs and the old ones they would replace stay as they are."""
+    for tmp in list(_UNFINISHED):
+        if tmp.is_dir():
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            tmp.unlink(missing_ok=True)
+    _UNFINISHED.clear()
+
+
+@contextmanager
+def _unfinished(tmp: Path) -> Iterator[Path]:
+    _UNFINISHED.add(tmp)
+    try:
+        yield tmp
+    finally:
+        _UNFINISHED.discard(tmp)
 
 
 def holds_session(path: str | Path) -> bool:
@@ -100,7 +125,7 @@ def save_npz(path: str | Path, **arrays) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _temporary(path)
     try:
-        with open(tmp, "wb") as f:  # a file object: numpy appends ".npz" to a name that lacks it
+        with _unfinished(tmp), open(tmp, "wb") as f:  # a file object: numpy appends ".npz" to a name that lacks it
             np.savez_compressed(f, **arrays)
         os.replace(tmp, path)
     finally:
@@ -118,7 +143,8 @@ def output_file(path: str | Path, *, force: bool = False, option: str = "--out",
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _temporary(path)
     try:
-        yield tmp
+        with _unfinished(tmp):
+            yield tmp
         check_output(path, force=force, option=option, session=session)  # nothing appeared meanwhile
         replaces_session = holds_session(path)
         os.replace(tmp, path)
@@ -139,7 +165,8 @@ def output_folder(path: str | Path, *, force: bool = False, option: str = "--out
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        yield tmp
+        with _unfinished(tmp):
+            yield tmp
         if not path.exists():
             os.replace(tmp, path)
             return

@@ -158,15 +158,20 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _release_process_resources() -> None:
-    """Before ``os._exit``, which skips multiprocessing's exit clean-up: kill the processes the command
-    started that still run (a local cluster's workers, an emulator; ``wearbench.compute.interrupts``,
-    loaded by whatever started them), then run multiprocessing's exit finalizers (priority >= 0: they
+    """Before ``os._exit``, which skips multiprocessing's exit clean-up and every ``finally``: kill the
+    processes the command started that still run (a local cluster's workers, an emulator;
+    ``wearbench.compute.interrupts``, loaded by whatever started them), remove the outputs it was still
+    writing (their temporary names; the old outputs stay), then run multiprocessing's exit finalizers (priority >= 0: they
     unlink the named semaphores of a local cluster's process handles), so its resource tracker has
     nothing left to warn about ("leaked semaphore objects")."""
     interrupts = sys.modules.get("wearbench.compute.interrupts")  # never imported here: main may hold
     if interrupts is not None:  # the import lock when the watchdog runs
         with contextlib.suppress(Exception):  # best effort on the way out
             interrupts.end_processes()
+    outputs = sys.modules.get("wearbench.bench.output_file")  # outputs being written: nothing half-done stays
+    if outputs is not None:
+        with contextlib.suppress(Exception):
+            outputs.remove_unfinished()
     util = sys.modules.get("multiprocessing.util")
     if util is not None:
         with contextlib.suppress(Exception):  # best effort on the way out

@@ -477,3 +477,22 @@ def test_a_place_that_cannot_be_written_is_refused_before_any_work(recorded, rea
     assert main(["estimate", str(recorded), option, str(target)]) == 2
     err = _one_line(capsys)
     assert f"{option} {target}: cannot write in {read_only}" in err and ".partial" not in err
+
+
+def test_a_forced_exit_leaves_nothing_half_written(tmp_path):
+    """What the Ctrl-C watchdog's forced exit (os._exit, which runs no finally) calls first: every
+    temporary name still being written goes, the old outputs stay."""
+    from wearbench.bench.output_file import output_file, output_folder, remove_unfinished
+
+    old = tmp_path / "r.json"
+    old.write_bytes(OLD)
+    with output_folder(tmp_path / "report") as folder, output_file(old, force=True) as tmp:
+        (folder / "report.html").write_text("half")
+        tmp.write_text("half")
+        remove_unfinished()  # the watchdog, mid-write
+        assert not folder.exists() and not tmp.exists()
+        folder.mkdir()  # the block goes on as a live process would (nothing to rename afterwards)
+        tmp.write_text("{}")
+    assert old.read_bytes() != OLD  # a process that was not killed finishes as usual
+    remove_unfinished()  # nothing registered any more: nothing removed
+    assert old.exists()
