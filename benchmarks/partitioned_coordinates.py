@@ -41,11 +41,11 @@ from collections import namedtuple
 
 import numpy as np
 from numba import njit
-from profile_revolution import _clock, contact_modes, watched_loop  # benchmarks/ on sys.path
+from profile_revolution import clock, contact_modes, watched_loop  # benchmarks/ on sys.path
 from wearbench.model import integrators as I
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
-from wearbench.model.scene import _dense_jacobian
+from wearbench.model.scene import dense_jacobian
 
 STATES = {"new": "0.3 mm new", "worn": "0.3 mm second wear"}
 NEWTON_TOL = 1e-12  # m (or rad): largest |Phi| the position solve leaves
@@ -80,7 +80,7 @@ def _pattern(scene, t: float, q: np.ndarray, v: np.ndarray, speed: float) -> np.
         if r:
             qq[2::3] += rng.uniform(-math.pi, math.pi, n // 3)
         K.constraints(t, qq, v.copy(), speed, P, W)
-        pat |= _dense_jacobian(P, W.Jv, n) != 0.0
+        pat |= dense_jacobian(P, W.Jv, n) != 0.0
     return pat
 
 
@@ -89,7 +89,7 @@ def choose_partition(scene, t: float, q: np.ndarray, v: np.ndarray, speed: float
     of the dependent block Phi_u by threshold Markowitz (sparse and stable at this state) and its fill."""
     P, W, n, m = scene.params, scene.work(), scene.n, scene.m
     K.constraints(t, q.copy(), v.copy(), speed, P, W)
-    J = _dense_jacobian(P, W.Jv, n)
+    J = dense_jacobian(P, W.Jv, n)
     A, cols = J.copy(), np.arange(n)
     for k in range(m):
         i, j = np.unravel_index(np.argmax(np.abs(A[k:, k:])), (m - k, n - k))
@@ -308,19 +308,26 @@ def reduced_system(dep, indep, mass, Ru, cu, g, Mr, fr, av, a):
         a[dep[p]] = s
 
 
+@njit(cache=True, inline="always")
+def mechanism(P, speed, W, inc, v0i):
+    """The kernel's mechanism record (``kernel.Model``) without stabilisation, as the reduced method evaluates it."""
+    return K.Model(P, speed, 0.0, 0.0, inc, v0i, W)
+
+
 @njit(cache=True)
-def reduced_accel(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, maxit):
-    """Accelerations of all coordinates (Z.a) at the reduced state (q_v, v_v), the full q, v in Z.q,
-    Z.v, contact outputs in cout. Returns OK, NO_CONVERGENCE or REPARTITION. (:func:`reduced_accel_inline`
-    is the same, compiled into its caller.)"""
-    return reduced_accel_inline(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, maxit)
+def reduced_accel(t, qv, vv, mdl, part, Z, cout, tol, maxit):
+    """Accelerations of all coordinates (Z.a) of the mechanism ``mdl`` (``kernel.Model``) at the reduced
+    state (q_v, v_v), the full q, v in Z.q, Z.v, contact outputs in cout. Returns OK, NO_CONVERGENCE or
+    REPARTITION. (:func:`reduced_accel_inline` is the same, compiled into its caller.)"""
+    return reduced_accel_inline(t, qv, vv, mdl, part, Z, cout, tol, maxit)
 
 
 @njit(cache=True, inline="always")
-def reduced_accel_inline(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, maxit):
+def reduced_accel_inline(t, qv, vv, mdl, part, Z, cout, tol, maxit):
     """:func:`reduced_accel` compiled into its caller. Steps: q_u by Newton from the predicted last
     solution with the last factorisation (frozen), Phi_u factorised at the solution, [R_u | s_u] and v_u,
     gamma at the exact velocities (the constraints again) and c_u, the forces, the reduced system."""
+    P, W, speed = mdl.P, mdl.W, mdl.speed
     q, v, A, V, X, x, cu, cnt = Z.q, Z.v, Z.A, Z.V, Z.Ru, Z.x, Z.cu, Z.counts
     dep, indep, rowpos = part.dep, part.indep, part.rowpos
     lptr, lidx, uptr, uidx = part.lptr, part.lidx, part.uptr, part.uidx
@@ -390,7 +397,7 @@ def reduced_accel_inline(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, m
         cu[rowpos[k]] = gam[k]
     solve_lu(lptr, lidx, uptr, uidx, A, cu)
     K.element_forces(q, v, P, W.g)
-    K._clearance_forces(q, v, P, inc, v0i, W, cout, True)
+    K.clearance_forces(q, v, mdl, cout, True)
     reduced_system(dep, indep, part.mass, X, cu, W.g, Z.Mr, Z.fr, Z.av, Z.a)
     Z.tlast[0] = t
     for i in range(q.shape[0]):
@@ -413,11 +420,11 @@ def check_states(ts, qs, vs, speed, P, part, Z, W, inc, v0i, cout, tol, maxit, a
         for j in range(nv):
             qv[j] = qs[i, part.indep[j]]
             vv[j] = vs[i, part.indep[j]]
-        if reduced_accel(ts[i], qv, vv, speed, P, part, Z, W, inc[i], v0i[i], cout, tol, maxit) != OK:
+        if reduced_accel(ts[i], qv, vv, mechanism(P, speed, W, inc[i], v0i[i]), part, Z, cout, tol, maxit) != OK:
             return i
         a_part[i] = Z.a
         q_part[i] = Z.q
-        K.accel(ts[i], Z.q.copy(), Z.v.copy(), speed, P, 0.0, 0.0, inc[i], v0i[i], a_aug[i], lam, cout, W2)
+        K.accel(ts[i], Z.q.copy(), Z.v.copy(), mechanism(P, speed, W2, inc[i], v0i[i]), a_aug[i], lam, cout)
     return ts.shape[0]
 
 
@@ -426,13 +433,14 @@ def _timers():
     def aug(reps, ts, qs, vs, speed, P, W, inc, v0i, a, lam, cout):
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K.accel(ts[i], qs[i], vs[i], speed, P, 0.0, 0.0, inc[i], v0i[i], a, lam, cout, W)
+                K.accel(ts[i], qs[i], vs[i], mechanism(P, speed, W, inc[i], v0i[i]), a, lam, cout)
 
     @njit
     def part_whole(reps, ts, qvs, vvs, speed, P, part, Z, W, inc, v0i, cout, tol, maxit):
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                reduced_accel(ts[i], qvs[i], vvs[i], speed, P, part, Z, W, inc[i], v0i[i], cout, tol, maxit)
+                reduced_accel(ts[i], qvs[i], vvs[i], mechanism(P, speed, W, inc[i], v0i[i]), part, Z, cout, tol,
+                              maxit)
 
     @njit
     def constraints(reps, ts, qs, vs, speed, P, W):
@@ -448,7 +456,7 @@ def _timers():
                     W.cs[b] = css[i, b]
                     W.sn[b] = sns[i, b]
                 K.element_forces(qs[i], vs[i], P, W.g)
-                K._clearance_forces(qs[i], vs[i], P, inc[i], v0i[i], W, cout, True)
+                K.clearance_forces(qs[i], vs[i], mechanism(P, speed, W, inc[i], v0i[i]), cout, True)
 
     @njit
     def factor(reps, Jvs, P, part, A, V):
@@ -508,15 +516,15 @@ def _timers():
     def schur_solve(reps, Jvs, P, S, rhs, lam):
         for _ in range(reps):
             for i in range(Jvs.shape[0]):
-                K._schur(P, Jvs[i], S)
-                K._cholesky_solve(S, rhs, lam, P.s_first)
+                K.schur(P, Jvs[i], S)
+                K.cholesky_solve(S, rhs, lam, P.s_first)
 
     return {"aug": aug, "part": part_whole, "constraints": constraints, "forces": forces, "factor": factor,
             "substitution": substitution, "copy_only": copy_only, "columns": columns, "columns_copy": columns_copy,
             "reduced": reduced, "reduced_copy": reduced_copy, "schur_solve": schur_solve}
 
 
-def _sample_states(scene, speed, revolutions: float = 1.0):
+def sample_states(scene, speed, revolutions: float = 1.0):
     """The 20 kHz samples of one default revolution (y from the continuous extension), each projected
     onto the position and velocity constraints (tol 1e-13), with contact modes as the table shows them."""
     from wearbench.model import simulate
@@ -535,7 +543,7 @@ def _sample_states(scene, speed, revolutions: float = 1.0):
 def check_and_time(label: str, scene, repeat: int) -> dict:
     P, speed, n, m = scene.params, scene.bench.speed, scene.n, scene.m
     nc = len(scene.clearance_joints)
-    _, ts, qs, vs, inc, v0i = _sample_states(scene, speed)
+    _, ts, qs, vs, inc, v0i = sample_states(scene, speed)
     part = choose_partition(scene, 0.0, qs[0], vs[0], speed)
     names = [f"{scene.bodies[c // 3]}.{'xy'[c % 3] if c % 3 < 2 else 'theta'}" for c in part.indep]
     Z = new_reduced(scene, part, ts[0], qs[0], vs[0], speed)
@@ -580,7 +588,8 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
     css, sns = np.zeros((tt.size, n // 3)), np.zeros((tt.size, n // 3))
     Zr = new_reduced(scene, part, tt[0], qq[0], vv_[0], speed)
     for i in range(tt.size):
-        reduced_accel(tt[i], qvs[i], vvs[i], speed, P, part, Zr, W, ii[i], vi[i], cout, NEWTON_TOL, NEWTON_MAXIT)
+        reduced_accel(tt[i], qvs[i], vvs[i], K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=ii[i], v0i=vi[i], W=W),
+                      part, Zr, cout, NEWTON_TOL, NEWTON_MAXIT)
         K.constraints(tt[i], Zr.q.copy(), Zr.v.copy(), speed, P, W)
         Jvs.append(W.Jv.copy())
         css[i], sns[i] = W.cs, W.sn
@@ -588,7 +597,8 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
         Rus.append(Zr.Ru.copy())
         cus.append(Zr.cu.copy())
         K.element_forces(Zr.q, Zr.v, P, W.g)
-        K._clearance_forces(Zr.q, Zr.v, P, ii[i], vi[i], W, cout, True)
+        K.clearance_forces(Zr.q, Zr.v, K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=ii[i], v0i=vi[i], W=W),
+                           cout, True)
         gs.append(W.g.copy())
     # the parts on every k-th state (<= 400: their recorded arrays stay in cache, as a right-hand side's do)
     every = max(1, tt.size // 400)
@@ -616,7 +626,7 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
                 ("reduced", T["reduced"], (Rus, cus, gs, part, Zr), ts_p.size),
                 ("reduced_copy", T["reduced_copy"], (Rus, cus, gs, part, Zr), ts_p.size),
                 ("schur_solve", T["schur_solve"], (Jvs, P, np.zeros((m, m)), np.ones(m), np.zeros(m)), ts_p.size)):
-            sec = _clock(fn, *args, budget=0.2, best_of=1) / per  # --repeat interleaves the best-of
+            sec = clock(fn, *args, budget=0.2, best_of=1) / per  # --repeat interleaves the best-of
             best[key] = min(best.get(key, math.inf), sec)
     sub = max(0.0, best["substitution"] - best["copy_only"])
     cols = max(0.0, best["columns"] - best["columns_copy"])
@@ -647,9 +657,9 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
 # --- one revolution with DOPRI5 on the reduced state ------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def _rhs(t, y, speed, P, part, Z, W, inc, v0i, cout, f):
+def _rhs(t, y, mdl, part, Z, cout, f):
     nv = y.shape[0] // 2
-    st = reduced_accel_inline(t, y[:nv], y[nv:], speed, P, part, Z, W, inc, v0i, cout, NEWTON_TOL, NEWTON_MAXIT)
+    st = reduced_accel_inline(t, y[:nv], y[nv:], mdl, part, Z, cout, NEWTON_TOL, NEWTON_MAXIT)
     for j in range(nv):
         f[j] = y[nv + j]
         f[nv + j] = Z.a[part.indep[j]]
@@ -669,13 +679,13 @@ def _restore(Z, t, y, qacc, Xacc, Aacc):
 
 
 @njit(cache=True)
-def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P, part, Z, W, inc, v0i, cout_old,
-                 stats, ts_out, acc_out, sensor, Z2, W2, qacc, vacc):
+def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, mdl, part, Z, cout_old, stats, ts_out, acc_out,
+                 sensor, Z2, mdl2, qacc, vacc):
     """DOPRI5 on the reduced state y = (q_v, v_v) with the default's step control (error norm over
     y's components with atol, rtol; rejection shrink; PI control; contact modes after each accepted
     step; a stage where the position solve fails rejects the step with h / 4); output samples at ts_out
-    (the slider acceleration, a right-hand side on the continuous extension with its own work arrays Z2,
-    W2). stats: steps, rejected, t, h, err_old, out index, steps rejected for a failed position solve.
+    (the slider acceleration, a right-hand side on the continuous extension with its own work arrays Z2 and
+    mechanism record mdl2: the same but its workspace). stats: steps, rejected, t, h, err_old, out index, steps rejected for a failed position solve.
     Returns OK, or the right-hand side's status (the state at the last accepted step in qacc, vacc)."""
     N = y.shape[0]
     nv = N // 2
@@ -703,7 +713,7 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P,
                 for r in range(s):
                     acc += A_[s, r] * k[r, i]
                 ytmp[i] = y[i] + hh * acc
-            st = _rhs(t + C_[s] * hh, ytmp, speed, P, part, Z, W, inc, v0i, cnew, k[s])
+            st = _rhs(t + C_[s] * hh, ytmp, mdl, part, Z, cnew, k[s])
             if st != OK:
                 break
         if st == NO_CONVERGENCE and hh > 1e-9:  # a stage the mechanism cannot assemble at: a rejected step
@@ -741,17 +751,16 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P,
         Xacc[:] = Z.Ru
         Aacc[:] = Z.A
         while iout < ts_out.shape[0] and ts_out[iout] <= t_new:
-            I._extension(scheme.d, y, hh, k, (ts_out[iout] - t) / hh, yo, fo, dbs)
-            reduced_accel(ts_out[iout], yo[:nv], yo[nv:], speed, P, part, Z2, W2, inc, v0i, c2, NEWTON_TOL,
-                          NEWTON_MAXIT)
+            I.extension(scheme.d, y, hh, k, (ts_out[iout] - t) / hh, yo, fo, dbs)
+            reduced_accel(ts_out[iout], yo[:nv], yo[nv:], mdl2, part, Z2, c2, NEWTON_TOL, NEWTON_MAXIT)
             b = int(sensor[0])
             _, _, acc = K.point_along(Z2.q[3 * b], Z2.q[3 * b + 1], Z2.q[3 * b + 2], Z2.v[3 * b], Z2.v[3 * b + 1],
                                       Z2.v[3 * b + 2], Z2.a[3 * b], Z2.a[3 * b + 1], Z2.a[3 * b + 2], sensor[1],
                                       sensor[2], sensor[3])
             acc_out[iout] = acc
             iout += 1
-        if I._update_modes(cout_old, cnew, inc, v0i):
-            st = _rhs(t_new, ynew, speed, P, part, Z, W, inc, v0i, cnew, k[end])
+        if I.update_modes(cout_old, cnew, mdl.inc, mdl.v0i):
+            st = _rhs(t_new, ynew, mdl, part, Z, cnew, k[end])
             if st != OK:
                 stats[2], stats[3], stats[4], stats[5] = t, h, err_old, iout
                 return st
@@ -763,7 +772,7 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P,
                 cout_old[c, j] = cnew[c, j]
         t = t_new
         stats[0] += 1
-        h, err_old = I._next_step(hh, err, err_old, factor_max, hmax, scheme.expo_pi)
+        h, err_old = I.next_step(hh, err, err_old, factor_max, hmax, scheme.expo_pi)
         factor_max = 5.0
     stats[2], stats[3], stats[4], stats[5] = t, h, err_old, iout
     return OK
@@ -773,13 +782,13 @@ def run_reduced(scene, t_end: float, ts_out: np.ndarray) -> dict:
     """One run of the reduced DOPRI5 from the default's start (projected assembly, journals centred):
     counts, CPU and the slider acceleration at ts_out. Re-partitions in Python when asked."""
     from wearbench.model.methods import Dopri5
-    from wearbench.model.simulation import _step_cap, _tolerances
+    from wearbench.model.simulation import error_scales, step_cap
 
     P, speed, n = scene.params, scene.bench.speed, scene.n
     nc = len(scene.clearance_joints)
     scheme = Dopri5.tableau.scheme()
-    atol_full = _tolerances(scene, Dopri5.atol)
-    hmax = _step_cap(scene, speed, False)
+    atol_full = error_scales(scene, Dopri5.atol)
+    hmax = step_cap(scene, speed, False)
     q, v = scene.q0.copy(), scene.v_unit * speed
     W = scene.work()
     K.project(0.0, q, v, speed, P, W, max(2e-15, min(1e-11, 1e-2 * Dopri5.atol)), 20)
@@ -798,19 +807,20 @@ def run_reduced(scene, t_end: float, ts_out: np.ndarray) -> dict:
         part = choose_partition(scene, t, qacc, vacc, speed)
         Z = new_reduced(scene, part, t, qacc, vacc, speed)
         Z2 = new_reduced(scene, part, t, qacc, vacc, speed)
-        W2 = scene.work()
+        mdl = K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=inc, v0i=v0i, W=W)
+        mdl2 = mdl._replace(W=scene.work())
         y = np.concatenate([qacc[part.indep], vacc[part.indep]])
         atol = np.concatenate([atol_full[part.indep], atol_full[n + part.indep]])
         k = np.zeros((scheme.end + 1, y.size))
-        if _rhs(t, y, speed, P, part, Z, W, inc, v0i, cout, k[0]) != OK:
+        if _rhs(t, y, mdl, part, Z, cout, k[0]) != OK:
             raise RuntimeError(f"reduced right-hand side failed at t = {t}")
         if first:
             for c in range(nc):
                 if cout[c, K.CO_PEN] > 0:
                     inc[c], v0i[c] = 1, impact_speed(cout[c, K.CO_VN])
             first = False
-        st = reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, Dopri5.rtol, hmax, speed, P, part, Z, W, inc,
-                          v0i, cout, stats, ts_out, acc_out, sensor, Z2, W2, qacc, vacc)
+        st = reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, Dopri5.rtol, hmax, mdl, part, Z, cout, stats,
+                          ts_out, acc_out, sensor, Z2, mdl2, qacc, vacc)
         cpu += time.process_time() - t0
         calls += int(Z.counts[0])
         updates += int(Z.counts[1])

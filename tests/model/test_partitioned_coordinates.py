@@ -31,7 +31,7 @@ def scene():
 @pytest.mark.slow  # ~35 s of numba compilation on a cold cache (3 s warm)
 def test_partitioned_accelerations_equal_the_augmented_ones(scene):
     speed = scene.bench.speed
-    _, ts, qs, vs, inc, v0i = pc._sample_states(scene, speed, revolutions=0.05)  # 50 ms at 20 kHz
+    _, ts, qs, vs, inc, v0i = pc.sample_states(scene, speed, revolutions=0.05)  # 50 ms at 20 kHz
     assert inc.any(), "expected contacts among the states (the contact forces must enter the check)"
     part = pc.choose_partition(scene, 0.0, qs[0], vs[0], speed)
     assert part.indep.size == scene.dof == 4
