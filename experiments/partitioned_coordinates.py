@@ -3,7 +3,10 @@
 Issue 27 asked whether "independent or partitioned coordinates for a closed-loop mechanism instead of
 a dense augmented solve per evaluation" would make a realisation cheaper. This script measures it
 without touching ``model/`` (it calls the compiled kernels of ``wearbench.model.kernel``: constraints,
-force elements, contact forces).
+force elements, contact forces). Measured: 0.99x / 1.12x per evaluation against the augmented solve,
+the same steps: not a route to the speed-up, so it lives here, an experiment no test run loads
+(``experiments/test_partitioned_coordinates.py`` checks it when run by hand:
+``.venv/bin/pytest experiments -m slow``).
 
 The right-hand side in partitioned coordinates (Wehage-Haug): the 4 independent coordinates q_v are
 the columns left over by an LU with complete pivoting of Phi_q (20 x 24) at the start state; the 20
@@ -29,23 +32,27 @@ What it prints, on the test bed (0.3 mm, nominal) on new and 400,000-cycle worn 
    accepted / rejected steps, evaluations, CPU, and the slider acceleration's RMS error over the first
    20 and 40 ms against a tight reference (rtol 1e-10), for both, and of the one against the other.
 
-Run:  .venv/bin/python benchmarks/partitioned_coordinates.py [--repeat 3] [--states new worn]
+Run:  .venv/bin/python experiments/partitioned_coordinates.py [--repeat 3] [--states new worn]
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from collections import namedtuple
+from pathlib import Path
 
 import numpy as np
 from numba import njit
-from profile_revolution import clock, contact_modes, watched_loop  # benchmarks/ on sys.path
 from wearbench.model import integrators as I
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
 from wearbench.model.scene import dense_jacobian
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the profile's clock and loop watch
+from profile_revolution import clock, contact_modes, watched_loop
 
 STATES = {"new": "0.3 mm new", "worn": "0.3 mm second wear"}
 NEWTON_TOL = 1e-12  # m (or rad): largest |Phi| the position solve leaves
