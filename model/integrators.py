@@ -373,7 +373,7 @@ def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
     return DONE
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _search_step(j, D, plain, e, k, sensor, s, st):
     """Largest value of tracked quantity j over the step ``e``: on the continuous extension D with the
     step's stages k where D has rows (the tableau's own interpolant), else on cubic Hermite with a
@@ -554,7 +554,7 @@ def next_step(hh, err, err_old, factor_max, hmax, expo_pi):
     return min(hmax, hh * min(factor_max, max(0.2, f))), max(e, 1e-4)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _begin(L, t, y, lamk):
     """At a call's start: the tracked values at the run's start (on its first call) and, for samples from
     the stages, the multipliers at t (k[0] holds f there) into lamk[0]."""
@@ -569,7 +569,7 @@ def _begin(L, t, y, lamk):
         st.nfev += 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _after_accept(L, iout, irec, e, hh, k, lamk, cout_old, cnew):
     """An accepted step ``e`` of length hh, checked and projected: its peaks, output samples, contact-mode
     changes (f and the multipliers at its end evaluated again with the new modes) and contact records.

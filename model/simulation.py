@@ -218,9 +218,10 @@ def error_scales(scene: Scene, atol: float | tuple[float, float]) -> np.ndarray:
     scales alone control the step)."""
     bodies = scene.n // 3
     if isinstance(atol, (tuple, list)):
-        position, velocity = atol
+        position, velocity = (float(x) for x in atol)
         return np.concatenate([np.tile([position, position, position / 0.1], bodies),
                                np.tile([velocity, velocity, velocity / 0.1], bodies)])
+    atol = float(atol)
     base = np.tile([atol, atol, atol / 0.1], bodies)
     return np.concatenate([base, base * 1e3])
 
