@@ -18,7 +18,8 @@ The cost of one evaluation is measured on the run's own states (the table's samp
 positions, speeds and contacts) part by part: the constraint Jacobian (Phi, Phi_q, gamma), the
 force elements, the contact search and contact forces, the Schur complement Phi_q M^-1 Phi_q^T
 (the mass matrix is diagonal: this is where it enters), the linear solve (Cholesky) and the whole
-evaluation ``deriv``; the parts are timed in compiled loops, so call overhead is excluded.
+evaluation (``deriv``'s: ``kernel.accel_arrays`` on the model record's parts, as a step takes them); the
+parts are timed in compiled loops, so call overhead is excluded.
 
 All times are the process's CPU time (``time.process_time``; the loop is single-threaded), so a busy
 shared machine inflates them less than wall time would; ratios are still best measured in one run.
@@ -75,7 +76,6 @@ def _timed_runs(revolutions: float) -> dict:
 def _part_timers():
     """Compiled loops timing each part of one evaluation over a set of states (built on first use)."""
     from numba import njit
-    from wearbench.model import integrators as I
     from wearbench.model import kernel as K
 
     @njit
@@ -98,8 +98,7 @@ def _part_timers():
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                mdl = K.Model(P, speed, 0.0, 0.0, inc[i], v0i[i], W)
-                K.clearance_forces(ys[i, :n], ys[i, n:], mdl, cout, False)
+                K.clearance_arrays(ys[i, :n], ys[i, n:], P, W, inc[i], v0i[i], cout, False)
 
     @njit
     def contacts_in_rhs(reps, ts, ys, speed, P, W, inc, v0i, cout, css, sns):
@@ -110,8 +109,7 @@ def _part_timers():
                 for b in range(css.shape[1]):
                     W.cs[b] = css[i, b]
                     W.sn[b] = sns[i, b]
-                mdl = K.Model(P, speed, 0.0, 0.0, inc[i], v0i[i], W)
-                K.clearance_forces(ys[i, :n], ys[i, n:], mdl, cout, True)
+                K.clearance_arrays(ys[i, :n], ys[i, n:], P, W, inc[i], v0i[i], cout, True)
 
     @njit
     def schur(reps, ts, ys, speed, P, W, Jvs):
@@ -134,9 +132,13 @@ def _part_timers():
 
     @njit
     def evaluation(reps, ts, ys, speed, P, W, inc, v0i, dy, lam, cout):
+        """A right-hand side as the step evaluates it (integrators.deriv on the model record's parts)."""
+        n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                I.deriv(ts[i], ys[i], K.Model(P, speed, 0.0, 0.0, inc[i], v0i[i], W), dy, lam, cout)
+                K.accel_arrays(ts[i], ys[i, :n], ys[i, n:], speed, P, W, (0.0, 0.0), inc[i], v0i[i], dy[n:], lam, cout)
+                for j in range(n):
+                    dy[j] = ys[i, n + j]
 
     return constraints, elements, contacts, contacts_in_rhs, schur, solve, copy_only, evaluation
 

@@ -5,8 +5,7 @@ a dense augmented solve per evaluation" would make a realisation cheaper. This s
 without touching ``model/`` (it calls the compiled kernels of ``wearbench.model.kernel``: constraints,
 force elements, contact forces). Measured: 0.99x / 1.12x per evaluation against the augmented solve,
 the same steps: not a route to the speed-up, so it lives here, an experiment no test run loads
-(``experiments/test_partitioned_coordinates.py`` checks it when run by hand:
-``.venv/bin/pytest experiments -m slow``).
+(``experiments/test_partitioned_coordinates.py`` checks it when run by hand: ``.venv/bin/pytest experiments``).
 
 The right-hand side in partitioned coordinates (Wehage-Haug): the 4 independent coordinates q_v are
 the columns left over by an LU with complete pivoting of Phi_q (20 x 24) at the start state; the 20
@@ -315,26 +314,19 @@ def reduced_system(dep, indep, mass, Ru, cu, g, Mr, fr, av, a):
         a[dep[p]] = s
 
 
-@njit(cache=True, inline="always")
-def mechanism(P, speed, W, inc, v0i):
-    """The kernel's mechanism record (``kernel.Model``) without stabilisation, as the reduced method evaluates it."""
-    return K.Model(P, speed, 0.0, 0.0, inc, v0i, W)
-
-
 @njit(cache=True)
-def reduced_accel(t, qv, vv, mdl, part, Z, cout, tol, maxit):
-    """Accelerations of all coordinates (Z.a) of the mechanism ``mdl`` (``kernel.Model``) at the reduced
-    state (q_v, v_v), the full q, v in Z.q, Z.v, contact outputs in cout. Returns OK, NO_CONVERGENCE or
-    REPARTITION. (:func:`reduced_accel_inline` is the same, compiled into its caller.)"""
-    return reduced_accel_inline(t, qv, vv, mdl, part, Z, cout, tol, maxit)
+def reduced_accel(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, maxit):
+    """Accelerations of all coordinates (Z.a) at the reduced state (q_v, v_v), the full q, v in Z.q,
+    Z.v, contact outputs in cout. Returns OK, NO_CONVERGENCE or REPARTITION. (:func:`reduced_accel_inline`
+    is the same, compiled into its caller.)"""
+    return reduced_accel_inline(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, maxit)
 
 
 @njit(cache=True, inline="always")
-def reduced_accel_inline(t, qv, vv, mdl, part, Z, cout, tol, maxit):
+def reduced_accel_inline(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, maxit):
     """:func:`reduced_accel` compiled into its caller. Steps: q_u by Newton from the predicted last
     solution with the last factorisation (frozen), Phi_u factorised at the solution, [R_u | s_u] and v_u,
     gamma at the exact velocities (the constraints again) and c_u, the forces, the reduced system."""
-    P, W, speed = mdl.P, mdl.W, mdl.speed
     q, v, A, V, X, x, cu, cnt = Z.q, Z.v, Z.A, Z.V, Z.Ru, Z.x, Z.cu, Z.counts
     dep, indep, rowpos = part.dep, part.indep, part.rowpos
     lptr, lidx, uptr, uidx = part.lptr, part.lidx, part.uptr, part.uidx
@@ -404,7 +396,7 @@ def reduced_accel_inline(t, qv, vv, mdl, part, Z, cout, tol, maxit):
         cu[rowpos[k]] = gam[k]
     solve_lu(lptr, lidx, uptr, uidx, A, cu)
     K.element_forces(q, v, P, W.g)
-    K.clearance_forces(q, v, mdl, cout, True)
+    K.clearance_arrays(q, v, P, W, inc, v0i, cout, True)
     reduced_system(dep, indep, part.mass, X, cu, W.g, Z.Mr, Z.fr, Z.av, Z.a)
     Z.tlast[0] = t
     for i in range(q.shape[0]):
@@ -427,11 +419,11 @@ def check_states(ts, qs, vs, speed, P, part, Z, W, inc, v0i, cout, tol, maxit, a
         for j in range(nv):
             qv[j] = qs[i, part.indep[j]]
             vv[j] = vs[i, part.indep[j]]
-        if reduced_accel(ts[i], qv, vv, mechanism(P, speed, W, inc[i], v0i[i]), part, Z, cout, tol, maxit) != OK:
+        if reduced_accel(ts[i], qv, vv, speed, P, part, Z, W, inc[i], v0i[i], cout, tol, maxit) != OK:
             return i
         a_part[i] = Z.a
         q_part[i] = Z.q
-        K.accel(ts[i], Z.q.copy(), Z.v.copy(), mechanism(P, speed, W2, inc[i], v0i[i]), a_aug[i], lam, cout)
+        K.accel_arrays(ts[i], Z.q.copy(), Z.v.copy(), speed, P, W2, (0.0, 0.0), inc[i], v0i[i], a_aug[i], lam, cout)
     return ts.shape[0]
 
 
@@ -440,14 +432,13 @@ def _timers():
     def aug(reps, ts, qs, vs, speed, P, W, inc, v0i, a, lam, cout):
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K.accel(ts[i], qs[i], vs[i], mechanism(P, speed, W, inc[i], v0i[i]), a, lam, cout)
+                K.accel_arrays(ts[i], qs[i], vs[i], speed, P, W, (0.0, 0.0), inc[i], v0i[i], a, lam, cout)
 
     @njit
     def part_whole(reps, ts, qvs, vvs, speed, P, part, Z, W, inc, v0i, cout, tol, maxit):
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                reduced_accel(ts[i], qvs[i], vvs[i], mechanism(P, speed, W, inc[i], v0i[i]), part, Z, cout, tol,
-                              maxit)
+                reduced_accel(ts[i], qvs[i], vvs[i], speed, P, part, Z, W, inc[i], v0i[i], cout, tol, maxit)
 
     @njit
     def constraints(reps, ts, qs, vs, speed, P, W):
@@ -463,7 +454,7 @@ def _timers():
                     W.cs[b] = css[i, b]
                     W.sn[b] = sns[i, b]
                 K.element_forces(qs[i], vs[i], P, W.g)
-                K.clearance_forces(qs[i], vs[i], mechanism(P, speed, W, inc[i], v0i[i]), cout, True)
+                K.clearance_arrays(qs[i], vs[i], P, W, inc[i], v0i[i], cout, True)
 
     @njit
     def factor(reps, Jvs, P, part, A, V):
@@ -595,8 +586,7 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
     css, sns = np.zeros((tt.size, n // 3)), np.zeros((tt.size, n // 3))
     Zr = new_reduced(scene, part, tt[0], qq[0], vv_[0], speed)
     for i in range(tt.size):
-        reduced_accel(tt[i], qvs[i], vvs[i], K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=ii[i], v0i=vi[i], W=W),
-                      part, Zr, cout, NEWTON_TOL, NEWTON_MAXIT)
+        reduced_accel(tt[i], qvs[i], vvs[i], speed, P, part, Zr, W, ii[i], vi[i], cout, NEWTON_TOL, NEWTON_MAXIT)
         K.constraints(tt[i], Zr.q.copy(), Zr.v.copy(), speed, P, W)
         Jvs.append(W.Jv.copy())
         css[i], sns[i] = W.cs, W.sn
@@ -604,8 +594,7 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
         Rus.append(Zr.Ru.copy())
         cus.append(Zr.cu.copy())
         K.element_forces(Zr.q, Zr.v, P, W.g)
-        K.clearance_forces(Zr.q, Zr.v, K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=ii[i], v0i=vi[i], W=W),
-                           cout, True)
+        K.clearance_arrays(Zr.q, Zr.v, P, W, ii[i], vi[i], cout, True)
         gs.append(W.g.copy())
     # the parts on every k-th state (<= 400: their recorded arrays stay in cache, as a right-hand side's do)
     every = max(1, tt.size // 400)
@@ -664,9 +653,9 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
 # --- one revolution with DOPRI5 on the reduced state ------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def _rhs(t, y, mdl, part, Z, cout, f):
+def _rhs(t, y, speed, P, part, Z, W, inc, v0i, cout, f):
     nv = y.shape[0] // 2
-    st = reduced_accel_inline(t, y[:nv], y[nv:], mdl, part, Z, cout, NEWTON_TOL, NEWTON_MAXIT)
+    st = reduced_accel_inline(t, y[:nv], y[nv:], speed, P, part, Z, W, inc, v0i, cout, NEWTON_TOL, NEWTON_MAXIT)
     for j in range(nv):
         f[j] = y[nv + j]
         f[nv + j] = Z.a[part.indep[j]]
@@ -686,13 +675,13 @@ def _restore(Z, t, y, qacc, Xacc, Aacc):
 
 
 @njit(cache=True)
-def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, mdl, part, Z, cout_old, stats, ts_out, acc_out,
-                 sensor, Z2, mdl2, qacc, vacc):
+def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P, part, Z, W, inc, v0i, cout_old,
+                 stats, ts_out, acc_out, sensor, Z2, W2, qacc, vacc):
     """DOPRI5 on the reduced state y = (q_v, v_v) with the default's step control (error norm over
     y's components with atol, rtol; rejection shrink; PI control; contact modes after each accepted
     step; a stage where the position solve fails rejects the step with h / 4); output samples at ts_out
-    (the slider acceleration, a right-hand side on the continuous extension with its own work arrays Z2 and
-    mechanism record mdl2: the same but its workspace). stats: steps, rejected, t, h, err_old, out index, steps rejected for a failed position solve.
+    (the slider acceleration, a right-hand side on the continuous extension with its own work arrays Z2,
+    W2). stats: steps, rejected, t, h, err_old, out index, steps rejected for a failed position solve.
     Returns OK, or the right-hand side's status (the state at the last accepted step in qacc, vacc)."""
     N = y.shape[0]
     nv = N // 2
@@ -720,7 +709,7 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, mdl, part
                 for r in range(s):
                     acc += A_[s, r] * k[r, i]
                 ytmp[i] = y[i] + hh * acc
-            st = _rhs(t + C_[s] * hh, ytmp, mdl, part, Z, cnew, k[s])
+            st = _rhs(t + C_[s] * hh, ytmp, speed, P, part, Z, W, inc, v0i, cnew, k[s])
             if st != OK:
                 break
         if st == NO_CONVERGENCE and hh > 1e-9:  # a stage the mechanism cannot assemble at: a rejected step
@@ -759,15 +748,16 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, mdl, part
         Aacc[:] = Z.A
         while iout < ts_out.shape[0] and ts_out[iout] <= t_new:
             I.extension(scheme.d, y, hh, k, (ts_out[iout] - t) / hh, yo, fo, dbs)
-            reduced_accel(ts_out[iout], yo[:nv], yo[nv:], mdl2, part, Z2, c2, NEWTON_TOL, NEWTON_MAXIT)
+            reduced_accel(ts_out[iout], yo[:nv], yo[nv:], speed, P, part, Z2, W2, inc, v0i, c2, NEWTON_TOL,
+                          NEWTON_MAXIT)
             b = int(sensor[0])
             _, _, acc = K.point_along(Z2.q[3 * b], Z2.q[3 * b + 1], Z2.q[3 * b + 2], Z2.v[3 * b], Z2.v[3 * b + 1],
                                       Z2.v[3 * b + 2], Z2.a[3 * b], Z2.a[3 * b + 1], Z2.a[3 * b + 2], sensor[1],
                                       sensor[2], sensor[3])
             acc_out[iout] = acc
             iout += 1
-        if I.update_modes(cout_old, cnew, mdl.inc, mdl.v0i):
-            st = _rhs(t_new, ynew, mdl, part, Z, cnew, k[end])
+        if I.update_modes(cout_old, cnew, inc, v0i):
+            st = _rhs(t_new, ynew, speed, P, part, Z, W, inc, v0i, cnew, k[end])
             if st != OK:
                 stats[2], stats[3], stats[4], stats[5] = t, h, err_old, iout
                 return st
@@ -814,20 +804,19 @@ def run_reduced(scene, t_end: float, ts_out: np.ndarray) -> dict:
         part = choose_partition(scene, t, qacc, vacc, speed)
         Z = new_reduced(scene, part, t, qacc, vacc, speed)
         Z2 = new_reduced(scene, part, t, qacc, vacc, speed)
-        mdl = K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=inc, v0i=v0i, W=W)
-        mdl2 = mdl._replace(W=scene.work())
+        W2 = scene.work()
         y = np.concatenate([qacc[part.indep], vacc[part.indep]])
         atol = np.concatenate([atol_full[part.indep], atol_full[n + part.indep]])
         k = np.zeros((scheme.end + 1, y.size))
-        if _rhs(t, y, mdl, part, Z, cout, k[0]) != OK:
+        if _rhs(t, y, speed, P, part, Z, W, inc, v0i, cout, k[0]) != OK:
             raise RuntimeError(f"reduced right-hand side failed at t = {t}")
         if first:
             for c in range(nc):
                 if cout[c, K.CO_PEN] > 0:
                     inc[c], v0i[c] = 1, impact_speed(cout[c, K.CO_VN])
             first = False
-        st = reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, Dopri5.rtol, hmax, mdl, part, Z, cout, stats,
-                          ts_out, acc_out, sensor, Z2, mdl2, qacc, vacc)
+        st = reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, Dopri5.rtol, hmax, speed, P, part, Z, W, inc,
+                          v0i, cout, stats, ts_out, acc_out, sensor, Z2, W2, qacc, vacc)
         cpu += time.process_time() - t0
         calls += int(Z.counts[0])
         updates += int(Z.counts[1])

@@ -89,17 +89,17 @@ def new_track(sensor: np.ndarray, joints: int, scheme: Scheme, size: int) -> Tra
 @njit(cache=True)
 def deriv(t, y, mdl, dy, lam, cout):
     """f(t, y) = (v, a) of the mechanism ``mdl`` (``kernel.Model``) into dy, the multipliers into lam, the
-    contact outputs into cout; returns the kernel's status (:func:`_deriv`, compiled into the stages of
-    :func:`erk_try`)."""
-    return _deriv(t, y, mdl, dy, lam, cout)
+    contact outputs into cout; returns the kernel's status (:func:`_deriv` on the record's parts, which
+    :func:`erk_try` takes apart once per step)."""
+    return _deriv(t, y, mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i, dy, lam, cout)
 
 
 @njit(cache=True, inline="always")
-def _deriv(t, y, mdl, dy, lam, cout):
+def _deriv(t, y, speed, P, W, stab, inc, v0i, dy, lam, cout):
     n = y.shape[0] // 2
     q = y[:n]
     v = y[n:]
-    st = K.accel_inline(t, q, v, mdl, dy[n:], lam, cout)
+    st = K.accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, dy[n:], lam, cout)
     for i in range(n):
         dy[i] = v[i]
     return st
@@ -119,6 +119,8 @@ def erk_try(scheme, control, mdl, t, y, h, k, ynew, ytmp, lamk, cout):
     N = y.shape[0]
     A, B, C, last = scheme.a, scheme.b, scheme.c, scheme.end
     atol, rtol = control.atol, control.rtol
+    # the record's parts once per step (taking a record of arrays apart counts a reference to each array)
+    speed, P, W, stab, inc, v0i = mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i
     # the stages, then (without FSAL) f at the new state as stage ``last``: one evaluation site, compiled in
     for s in range(1, last + 1):
         if s < scheme.stages:
@@ -135,7 +137,7 @@ def erk_try(scheme, control, mdl, t, y, h, k, ynew, ytmp, lamk, cout):
                     acc += B[r] * k[r, i]
                 ynew[i] = y[i] + h / scheme.b_den * acc
             ts, ys = t + h, ynew
-        st = _deriv(ts, ys, mdl, k[s], lamk[s], cout)
+        st = _deriv(ts, ys, speed, P, W, stab, inc, v0i, k[s], lamk[s], cout)
         if st != 0:
             return st, 0.0
     if scheme.fsal:
@@ -490,6 +492,7 @@ def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
     end itself takes its evaluated values. Returns the next sample's index."""
     t, y, t_new, ynew = e.t0, e.y0, e.t1, e.y1
     yo, fo, dbs = s.yo, s.fo, s.dbs
+    P, W, inc, v0i = plain.P, plain.W, plain.inc, plain.v0i  # once for the step's samples
     N = y.shape[0]
     n = N // 2
     m = lamk.shape[1]
@@ -518,7 +521,7 @@ def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
                 if db != 0.0:
                     for r in range(m):
                         lo[r] += db * lamk[s_, r]
-        K.clearance_forces(yo[:n], yo[n:], plain, s.csamp, False)
+        K.clearance_arrays(yo[:n], yo[n:], P, W, inc, v0i, s.csamp, False)
         _store_sample(out, iout, s, track)
         iout += 1
     return iout

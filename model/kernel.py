@@ -60,9 +60,10 @@ Workspace = namedtuple("Workspace", "phi Jv gam nu g S rhs lam tmp cs sn buf")
 # the mechanism as the kernels evaluate it: parameters P, motor speed (rad/s; a speed profile is P's), Baumgarte
 # (alpha, beta), contact modes per clearance joint (inc: in contact, v0i: impact speed), the workspace W
 Model = namedtuple("Model", "P speed alpha beta inc v0i W")
-# one clearance joint at the state: bearing and journal bodies, parameter row, bearing and journal centres,
-# angular velocities, contact mode (in contact, impact speed)
-Pair = namedtuple("Pair", "bi bj p pix piy pjx pjy wi wj inc v0")
+# one clearance joint at the state: bearing and journal bodies, bearing and journal centres, angular velocities,
+# contact mode (in contact, impact speed); scalars only (its parameter row travels as an argument: a record
+# holding an array costs reference counting in the contact force)
+Pair = namedtuple("Pair", "bi bj pix piy pjx pjy wi wj inc v0")
 
 # clearance parameter columns (CLR_WORN: 1 for worn surfaces; CLR_CURV: their largest |h_b''| + |h_j''|)
 CLR_SIX, CLR_SIY, CLR_SJX, CLR_SJY, CLR_R1, CLR_R2, CLR_K, CLR_N, CLR_CE, CLR_LAW, CLR_CF, \
@@ -273,14 +274,15 @@ def _vel(q, v, b, px, py):
 
 
 @njit(cache=True)
-def _zone_force(q, v, pair, nx, ny, pen, zone, scale, g):
-    """Apply the normal and friction force of one contact zone of the joint ``pair`` (:class:`Pair`) to g;
+def _zone_force(q, v, pair, p, nx, ny, pen, zone, scale, g):
+    """Apply the normal and friction force of one contact zone of the joint ``pair`` (:class:`Pair`, its
+    parameter row ``p``) to g;
     returns (fn, ft, vn, vt). (nx, ny): the zone's normal from the bearing's centre; pen: its penetration;
     ``zone``: its :class:`~wearbench.model.worn_contact.Zone` (worn depths and their slopes there, zero for
     new surfaces); the force scaled by ``scale`` in [0, 1]. The contact points on each body are the
     surface points along the normal; the penetration rate is the normal speed of the journal's centre
     relative to the bearing's (rolling terms are tangential) plus the worn surfaces' sweep."""
-    bi, bj, p, pix, piy, pjx, pjy, wi, wj, inck, v0k = pair
+    bi, bj, pix, piy, pjx, pjy, wi, wj, inck, v0k = pair
     hb, hj = zone.hb, zone.hj
     tx, ty = -ny, nx
     qix, qiy = pix + (p[CLR_R1] + hb) * nx, piy + (p[CLR_R1] + hb) * ny
@@ -337,19 +339,20 @@ def eccentricity(q, bi, bj, p, W, trig):
 
 
 @njit(cache=True, inline="always")
-def _worn_zones(q, v, pair, gap, curv, W):
-    """The contact forces of a worn joint (``pair``, its :class:`~wearbench.model.worn_contact.Gap`
-    ``gap``) into W.g, the second zone's first (see :func:`clearance_forces`); returns the top zone's
-    direction and penetration, the summed normal and friction forces and its (vn, vt)."""
-    top, second, sad = contact_zones(gap, curv, W.buf)
+def _worn_zones(q, v, pair, p, tb, tj, gap, buf, g):
+    """The contact forces of a worn joint (``pair``, its parameter row ``p``, the surface tables ``tb``, ``tj``
+    of bearing and journal and its :class:`~wearbench.model.worn_contact.Gap` ``gap``) into g, the second
+    zone's first (see :func:`clearance_forces`; ``buf``: the midpoint samples' work array); returns the top
+    zone's direction and penetration, the summed normal and friction forces and its (vn, vt)."""
+    top, second, sad = contact_zones(tb, tj, gap, p[CLR_CURV], buf)
     pen = top.overlap - gap.clear
     pen1 = pen
     fn2 = 0.0
     ft2 = 0.0
     if second.overlap > -math.inf:  # searched only in contact
         pen1, pen2, r = zone_penetrations(top.overlap, second.overlap, sad, gap.clear)
-        fn2, ft2, _, _ = _zone_force(q, v, pair, math.cos(second.psi), math.sin(second.psi), pen2, second, r, W.g)
-    fn, ft, vn, vt = _zone_force(q, v, pair, math.cos(top.psi), math.sin(top.psi), pen1, top, 1.0, W.g)
+        fn2, ft2, _, _ = _zone_force(q, v, pair, p, math.cos(second.psi), math.sin(second.psi), pen2, second, r, g)
+    fn, ft, vn, vt = _zone_force(q, v, pair, p, math.cos(top.psi), math.sin(top.psi), pen1, top, 1.0, g)
     return top.psi, pen, fn + fn2, ft + ft2, vn, vt
 
 
@@ -357,7 +360,16 @@ def _worn_zones(q, v, pair, gap, curv, W):
 def clearance_forces(q, v, mdl, cout, trig):
     """Add the clearance contact forces of the mechanism ``mdl`` (:class:`Model`: its parameters, contact
     modes and workspace) to W.g; fill cout (nc, NCO). ``trig``: W.cs and W.sn hold the bodies' cos/sin at q
-    (inside :func:`accel`, after :func:`constraints`), else they are computed.
+    (inside :func:`accel`, after :func:`constraints`), else they are computed. The law is
+    :func:`clearance_arrays`'s, on the record's parts."""
+    clearance_arrays(q, v, mdl.P, mdl.W, mdl.inc, mdl.v0i, cout, trig)
+
+
+@njit(cache=True, inline="always")
+def clearance_arrays(q, v, P, W, inc, v0i, cout, trig):
+    """:func:`clearance_forces` on the parts of the mechanism record (parameters P, workspace W, contact
+    modes inc, v0i): for a caller that takes them from the record once for many evaluations (a record of
+    arrays taken apart counts a reference to each array, in and out, every time).
 
     Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
@@ -374,11 +386,10 @@ def clearance_forces(q, v, mdl, cout, trig):
     (smoothstep) between overlap ratios 0.5 and 1 and the first zone's share blends with it.
     The record (cout) keeps the top zone's direction, penetration and speeds, and the summed
     normal and friction force magnitudes. Both surfaces go through one zone force (:func:`_zone_force`).
-    ``mdl.inc[k]`` (contact flag) and ``mdl.v0i[k]`` (impact speed) are the mode state of joint k: while
-    the flag is off the current normal speed stands in for the impact speed (contact onset).
+    ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while the flag
+    is off the current normal speed stands in for the impact speed (contact onset).
     """
-    P, W, inc, v0i = mdl.P, mdl.W, mdl.inc, mdl.v0i
-    clr_b, clr_p, surf_n, surf_t = P.clr_b, P.clr_p, P.surf_n, P.surf_t
+    clr_b, clr_p, surf_n, surf_t, g, buf = P.clr_b, P.clr_p, P.surf_n, P.surf_t, W.g, W.buf
     for k in range(clr_b.shape[0]):
         bi, bj = clr_b[k, 0], clr_b[k, 1]
         p = clr_p[k]
@@ -386,7 +397,7 @@ def clearance_forces(q, v, mdl, cout, trig):
         emag = math.sqrt(ex * ex + ey * ey)
         thi = 0.0 if bi < 0 else q[3 * bi + 2]
         thj = 0.0 if bj < 0 else q[3 * bj + 2]
-        pair = Pair(bi=bi, bj=bj, p=p, pix=pix, piy=piy, pjx=pjx, pjy=pjy, wi=_omega(v, bi), wj=_omega(v, bj),
+        pair = Pair(bi=bi, bj=bj, pix=pix, piy=piy, pjx=pjx, pjy=pjy, wi=_omega(v, bi), wj=_omega(v, bj),
                     inc=inc[k], v0=v0i[k])
         if emag > 0.0:
             ux, uy = ex / emag, ey / emag
@@ -395,13 +406,12 @@ def clearance_forces(q, v, mdl, cout, trig):
         alpha = math.atan2(uy, ux)
         clear = p[CLR_R1] - p[CLR_R2]
         if p[CLR_WORN] > 0.0 and emag > 0.0:
-            gap = Gap(tb=surf_t[k, 0], tj=surf_t[k, 1], nb=surf_n[k, 0], nj=surf_n[k, 1], emag=emag, alpha=alpha,
-                      thi=thi, thj=thj, clear=clear)
-            psi, pen, fn, ft, vn, vt = _worn_zones(q, v, pair, gap, p[CLR_CURV], W)
+            gap = Gap(nb=surf_n[k, 0], nj=surf_n[k, 1], emag=emag, alpha=alpha, thi=thi, thj=thj, clear=clear)
+            psi, pen, fn, ft, vn, vt = _worn_zones(q, v, pair, p, surf_t[k, 0], surf_t[k, 1], gap, buf, g)
         else:
             psi, pen = alpha, emag - clear
             even = Zone(psi=psi, overlap=emag, hb=0.0, hj=0.0, slope_b=0.0, slope_j=0.0)  # no depths, no slopes
-            fn, ft, vn, vt = _zone_force(q, v, pair, ux, uy, pen, even, 1.0, W.g)
+            fn, ft, vn, vt = _zone_force(q, v, pair, p, ux, uy, pen, even, 1.0, g)
         c = cout[k]
         c[CO_EX] = ex
         c[CO_EY] = ey
@@ -537,21 +547,23 @@ def _j_times(P, Jv, x, k):
 def accel(t, q, v, mdl, a, lam, cout):
     """Accelerations a (n) and multipliers lam (m) of eq. 30 for the mechanism ``mdl`` (:class:`Model`:
     parameters, motor speed, Baumgarte coefficients alpha, beta (0, 0 for none), contact modes and
-    workspace) at (t, q, v); contact outputs into cout. Returns OK or SINGULAR.
-    (:func:`accel_inline` is the same, compiled into its caller.)
+    workspace) at (t, q, v); contact outputs into cout. Returns OK or SINGULAR. The equations are
+    :func:`accel_arrays`'s, on the record's parts.
     """
-    return accel_inline(t, q, v, mdl, a, lam, cout)
+    return accel_arrays(t, q, v, mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i, a, lam, cout)
 
 
 @njit(cache=True, inline="always")
-def accel_inline(t, q, v, mdl, a, lam, cout):
-    """:func:`accel` compiled into its caller (the right-hand side of the integrators: one call less)."""
-    P, W, alpha, beta = mdl.P, mdl.W, mdl.alpha, mdl.beta
+def accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, a, lam, cout):
+    """:func:`accel` on the parts of the mechanism record (motor speed, parameters P, workspace W,
+    stab = (alpha, beta), contact modes inc, v0i), compiled into its caller: the integrators take the
+    parts from the record once per step, not once per right-hand side (see :func:`clearance_arrays`)."""
+    alpha, beta = stab
     minv = P.minv
     phi, Jv, gam, nu, g, S, rhs, tmp = W.phi, W.Jv, W.gam, W.nu, W.g, W.S, W.rhs, W.tmp
-    constraints(t, q, v, mdl.speed, P, W)
+    constraints(t, q, v, speed, P, W)
     element_forces(q, v, P, g)
-    clearance_forces(q, v, mdl, cout, True)
+    clearance_arrays(q, v, P, W, inc, v0i, cout, True)
     m = phi.shape[0]
     n = q.shape[0]
     for i in range(n):

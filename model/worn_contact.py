@@ -39,14 +39,15 @@ __all__ = ["SECOND_ZONE_RATIO", "Gap", "Zone", "contact_zones", "overlap_at", "s
 # the worn depths h_b, h_j (m) and their slopes h_b', h_j' (m/rad) of bearing and journal there
 # (overlap -inf: no zone)
 Zone = namedtuple("Zone", "psi overlap hb hj slope_b slope_j")
-# a worn joint at the state as the searches read it: the ``midpoints.surface_tables`` of bearing (tb) and
-# journal (tj) and their region counts, |e| (m) and its direction alpha, the bodies' angles, the clearance (m)
-Gap = namedtuple("Gap", "tb tj nb nj emag alpha thi thj clear")
+# a worn joint at the state as the searches read it beside the surfaces' tables: the region counts of bearing
+# and journal, |e| (m) and its direction alpha, the bodies' angles, the clearance (m). Scalars only (the
+# tables travel as arguments): a record holding arrays costs reference counting in the contact search
+Gap = namedtuple("Gap", "nb nj emag alpha thi thj clear")
 # the second zone's walk over the midpoint samples (:func:`search_second_zone`): the gap, the region
-# coordinates of alpha, the samples and their window, the bearing interval holding the top zone, how far
-# the walk may go (half the circle; sample indices t_lo..t_hi; |e| cos down to ec_end; e in the bearing
-# frame (ex, ey)), the interval's angle
-_Walk = namedtuple("_Walk", "g xb xj buf i0 m i1 half t_lo t_hi ex ey ec_end cell")
+# coordinates of alpha, the samples' window, the bearing interval holding the top zone, how far the walk may
+# go (half the circle; sample indices t_lo..t_hi; |e| cos down to ec_end; e in the bearing frame (ex, ey)),
+# the interval's angle
+_Walk = namedtuple("_Walk", "g xb xj i0 m i1 half t_lo t_hi ex ey ec_end cell")
 
 
 @njit(cache=True)
@@ -146,9 +147,9 @@ def _no_zone(psi):
 
 
 @njit(cache=True)
-def search_top_zone(g, curv, buf, i0, m):
-    """Contact direction of a worn journal in a worn bearing (the :class:`Gap` ``g``): where the two
-    surfaces overlap most.
+def search_top_zone(tb, tj, g, curv, buf, i0, m):
+    """Contact direction of a worn journal in a worn bearing (the :class:`Gap` ``g``; ``tb``, ``tj``: the
+    ``midpoints.surface_tables`` of bearing and journal): where the two surfaces overlap most.
 
     The journal (radius R2 - h_j, journal frame) reaches, in global direction psi from the bearing
     centre, |e| cos(psi - alpha) + R2 - h_j; the bearing wall is at R1 + h_b. The penetration is the
@@ -167,7 +168,7 @@ def search_top_zone(g, curv, buf, i0, m):
     than an interval whose samples lie below the best one's can be missed, by at most the sag.
     Returns the :class:`Zone` at the contact direction.
     """
-    tb, tj, nb, nj, emag, alpha, thi, thj, clear = g
+    nb, nj, emag, alpha, thi, thj, clear = g
     xb, xj = region_coordinate(alpha - thi, nb), region_coordinate(alpha - thj, nj)
     if emag <= clear:
         ev = _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, alpha)
@@ -191,12 +192,12 @@ SECOND_ZONE_RATIO = 0.5  # a second zone counts once its overlap exceeds this fr
 
 
 @njit(cache=True)
-def _walk_side(w, sign, psi1, f1, best):
+def _walk_side(tb, tj, buf, w, sign, psi1, f1, best):
     """One side (``sign``) of the second zone's walk from the top zone (psi1, f1) over the midpoint
-    samples (see :func:`search_second_zone`): ``best`` = (psi, f, valley, valley's midpoint or nan) of
-    the highest peak passed so far, returned raised by this side's."""
-    tb, tj, nb, nj, emag, alpha, _, _, _ = w.g
-    buf, i0, m, i1, cell, thi = w.buf, w.i0, w.m, w.i1, w.cell, w.g.thi
+    samples ``buf`` (see :func:`search_second_zone`): ``best`` = (psi, f, valley, valley's midpoint or nan)
+    of the highest peak passed so far, returned raised by this side's."""
+    nb, nj, emag, alpha, thi = w.g.nb, w.g.nj, w.g.emag, w.g.alpha, w.g.thi
+    i0, m, i1, cell = w.i0, w.m, w.i1, w.cell
     best_psi, best_f, best_s, best_s_at = best
     valley, valley_at = f1, math.nan  # valley_at: the midpoint it was sampled at, if any
     prev, prev_psi = f1, psi1
@@ -231,10 +232,10 @@ def _walk_side(w, sign, psi1, f1, best):
 
 
 @njit(cache=True)
-def search_second_zone(g, top, buf, i0, m):
-    """The second contact zone of a worn joint (the :class:`Gap` ``g``): the highest local maximum of the
-    overlap f (see :func:`overlap_at`) other than the top one (the :class:`Zone` ``top``), and the lowest
-    overlap between the two.
+def search_second_zone(tb, tj, g, top, buf, i0, m):
+    """The second contact zone of a worn joint (the :class:`Gap` ``g``, tables ``tb``, ``tj``): the highest
+    local maximum of the overlap f (see :func:`overlap_at`) other than the top one (the :class:`Zone`
+    ``top``), and the lowest overlap between the two.
 
     Walks outward from the top zone over the bearing-interval midpoint samples (``buf``, window (i0, m),
     as :func:`search_top_zone`) on both sides, through valleys and over peaks, while |e| cos(max(0,
@@ -246,7 +247,7 @@ def search_second_zone(g, top, buf, i0, m):
     state, as a minimum of continuous samples, and never below the true saddle; only max(s, clear)
     matters), -inf when there is none.
     """
-    tb, tj, nb, nj, emag, alpha, thi, thj, clear = g
+    nb, nj, emag, alpha, thi, thj, clear = g
     psi1, f1 = top.psi, top.overlap
     none = (_no_zone(psi1), -math.inf)
     floor = clear + SECOND_ZONE_RATIO * (f1 - clear)
@@ -262,12 +263,11 @@ def search_second_zone(g, top, buf, i0, m):
     if m < nb:
         t_lo, t_hi = _above(buf, m, floor)
     # e in the bearing frame: |e| cos(dm) = e' . (cos, sin)(midpoint); the bearing interval holding psi1
-    w = _Walk(g=g, xb=xb, xj=xj, buf=buf, i0=i0, m=m, i1=math.floor((psi1 - thi) / cell - 0.5), half=nb // 2,
-              t_lo=t_lo, t_hi=t_hi, ex=emag * math.cos(alpha - thi), ey=emag * math.sin(alpha - thi), ec_end=ec_end,
-              cell=cell)
+    w = _Walk(g=g, xb=xb, xj=xj, i0=i0, m=m, i1=math.floor((psi1 - thi) / cell - 0.5), half=nb // 2, t_lo=t_lo,
+              t_hi=t_hi, ex=emag * math.cos(alpha - thi), ey=emag * math.sin(alpha - thi), ec_end=ec_end, cell=cell)
     best = (psi1, -math.inf, -math.inf, math.nan)
     for sign in (-1, 1):
-        best = _walk_side(w, sign, psi1, f1, best)
+        best = _walk_side(tb, tj, buf, w, sign, psi1, f1, best)
     best_psi, best_f, best_s, best_s_at = best
     if best_f <= floor:
         return none
@@ -283,8 +283,9 @@ def search_second_zone(g, top, buf, i0, m):
 
 
 @njit(cache=True)
-def contact_zones(g, curv, buf):
-    """Both contact zones of a worn joint (the :class:`Gap` ``g``): (top, second, saddle), the
+def contact_zones(tb, tj, g, curv, buf):
+    """Both contact zones of a worn joint (the :class:`Gap` ``g``; ``tb``, ``tj``: the
+    ``midpoints.surface_tables`` of bearing and journal): (top, second, saddle), the
     :class:`Zone` of :func:`search_top_zone` and the zone and saddle of :func:`search_second_zone`
     (second.overlap = -inf: none; searched only when the top zone's overlap exceeds the clearance).
     Samples the overlap at the bearing midpoints within reach once (``midpoints.fill_midpoints``
@@ -292,11 +293,11 @@ def contact_zones(g, curv, buf):
     ``midpoints.surface_curvature``)."""
     i0, m = midpoint_window(g.nb, g.emag, g.alpha, g.thi, g.clear)
     if g.emag > g.clear:  # else no direction can overlap the clearance: the top zone returns at once
-        fill_midpoints(g.tb, g.tj, g.nb, g.nj, g.emag, g.alpha, g.thi, g.thj, i0, m, buf)
-    top = search_top_zone(g, curv, buf, i0, m)
+        fill_midpoints(tb, tj, g.nb, g.nj, g.emag, g.alpha, g.thi, g.thj, i0, m, buf)
+    top = search_top_zone(tb, tj, g, curv, buf, i0, m)
     second, saddle = _no_zone(top.psi), -math.inf
     if top.overlap > g.clear:
-        second, saddle = search_second_zone(g, top, buf, i0, m)
+        second, saddle = search_second_zone(tb, tj, g, top, buf, i0, m)
     return top, second, saddle
 
 
@@ -306,8 +307,8 @@ def worn_contact(sb, nb, sj, nj, emag, alpha, thi, thj, clear):
     (psi*, f(psi*), h_b, h_j, h_b', h_j')."""
     tb, tj = surface_tables(sb, nb), surface_tables(sj, nj)
     curv = surface_curvature(tb, nb) + surface_curvature(tj, nj)
-    g = Gap(tb=tb, tj=tj, nb=nb, nj=nj, emag=emag, alpha=alpha, thi=thi, thj=thj, clear=clear)
-    return contact_zones(g, curv, np.empty(nb))[0]
+    g = Gap(nb=nb, nj=nj, emag=emag, alpha=alpha, thi=thi, thj=thj, clear=clear)
+    return contact_zones(tb, tj, g, curv, np.empty(nb))[0]
 
 
 @njit(cache=True)
@@ -318,9 +319,9 @@ def second_zone(sb, nb, sj, nj, emag, alpha, thi, thj, clear, psi1, f1):
     i0, m = midpoint_window(nb, emag, alpha, thi, clear)
     if emag > clear:
         fill_midpoints(tb, tj, nb, nj, emag, alpha, thi, thj, i0, m, buf)
-    g = Gap(tb=tb, tj=tj, nb=nb, nj=nj, emag=emag, alpha=alpha, thi=thi, thj=thj, clear=clear)
+    g = Gap(nb=nb, nj=nj, emag=emag, alpha=alpha, thi=thi, thj=thj, clear=clear)
     top = Zone(psi=psi1, overlap=f1, hb=0.0, hj=0.0, slope_b=0.0, slope_j=0.0)
-    zone, saddle = search_second_zone(g, top, buf, i0, m)
+    zone, saddle = search_second_zone(tb, tj, g, top, buf, i0, m)
     return zone.psi, zone.overlap, saddle
 
 
