@@ -18,7 +18,8 @@ The cost of one evaluation is measured on the run's own states (the table's samp
 positions, speeds and contacts) part by part: the constraint Jacobian (Phi, Phi_q, gamma), the
 force elements, the contact search and contact forces, the Schur complement Phi_q M^-1 Phi_q^T
 (the mass matrix is diagonal: this is where it enters), the linear solve (Cholesky) and the whole
-evaluation ``deriv``; the parts are timed in compiled loops, so call overhead is excluded.
+evaluation (``deriv``'s: ``kernel.accel_arrays`` on the model record's parts, as a step takes them); the
+parts are timed in compiled loops, so call overhead is excluded.
 
 All times are the process's CPU time (``time.process_time``; the loop is single-threaded), so a busy
 shared machine inflates them less than wall time would; ratios are still best measured in one run.
@@ -75,7 +76,6 @@ def _timed_runs(revolutions: float) -> dict:
 def _part_timers():
     """Compiled loops timing each part of one evaluation over a set of states (built on first use)."""
     from numba import njit
-    from wearbench.model import integrators as I
     from wearbench.model import kernel as K
 
     @njit
@@ -98,7 +98,7 @@ def _part_timers():
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K.clearance_forces(ys[i, :n], ys[i, n:], P, inc[i], v0i[i], W, cout)
+                K.clearance_arrays(ys[i, :n], ys[i, n:], P, W, inc[i], v0i[i], cout, False)
 
     @njit
     def contacts_in_rhs(reps, ts, ys, speed, P, W, inc, v0i, cout, css, sns):
@@ -109,20 +109,20 @@ def _part_timers():
                 for b in range(css.shape[1]):
                     W.cs[b] = css[i, b]
                     W.sn[b] = sns[i, b]
-                K._clearance_forces(ys[i, :n], ys[i, n:], P, inc[i], v0i[i], W, cout, True)
+                K.clearance_arrays(ys[i, :n], ys[i, n:], P, W, inc[i], v0i[i], cout, True)
 
     @njit
     def schur(reps, ts, ys, speed, P, W, Jvs):
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K._schur(P, Jvs[i], W.S)
+                K.schur(P, Jvs[i], W.S)
 
     @njit
     def solve(reps, Ss, rhs, S, lam, first):
         for _ in range(reps):
             for i in range(Ss.shape[0]):
                 S[:] = Ss[i]
-                K._cholesky_solve(S, rhs, lam, first)
+                K.cholesky_solve(S, rhs, lam, first)
 
     @njit
     def copy_only(reps, Ss, rhs, S, lam, first):
@@ -132,14 +132,18 @@ def _part_timers():
 
     @njit
     def evaluation(reps, ts, ys, speed, P, W, inc, v0i, dy, lam, cout):
+        """A right-hand side as the step evaluates it (integrators.deriv on the model record's parts)."""
+        n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                I.deriv(ts[i], ys[i], speed, P, 0.0, 0.0, inc[i], v0i[i], dy, lam, cout, W)
+                K.accel_arrays(ts[i], ys[i, :n], ys[i, n:], speed, P, W, (0.0, 0.0), inc[i], v0i[i], dy[n:], lam, cout)
+                for j in range(n):
+                    dy[j] = ys[i, n + j]
 
     return constraints, elements, contacts, contacts_in_rhs, schur, solve, copy_only, evaluation
 
 
-def _clock(fn, *args, budget: float = 0.3, best_of: int = 3) -> float:
+def clock(fn, *args, budget: float = 0.3, best_of: int = 3) -> float:
     """CPU seconds per call of fn(reps, *args), reps grown until a call takes ``budget / 3``; the best of
     ``best_of`` timings at that count."""
     fn(1, *args)
@@ -162,7 +166,8 @@ def _clock(fn, *args, budget: float = 0.3, best_of: int = 3) -> float:
 @contextmanager
 def watched_loop():
     """Patch the compiled integration loop for the runs inside: yields a dict with the CPU seconds
-    spent in it (``cpu``), its calls (``calls``) and the last call's output samples (``t``, ``y``)."""
+    spent in it (``cpu``), its calls (``calls``) and the last call's output samples (``t``, ``y``: its
+    ``Output`` record, the eighth argument)."""
     from wearbench.model import integrators as I
 
     inner, spent = I.run_loop, {"cpu": 0.0, "calls": 0}
@@ -216,21 +221,21 @@ def _profile(name: str, scene, revolutions: float) -> dict:
         K.constraints(ts[i], ys[i, :n].copy(), ys[i, n:].copy(), speed, P, W)
         Jvs[i] = W.Jv
         css[i], sns[i] = W.cs, W.sn
-        K._schur(P, W.Jv, W.S)
+        K.schur(P, W.Jv, W.S)
         Ss[i] = W.S
     constraints, elements, contacts, contacts_in_rhs, schur, solve, copy_only, evaluation = _part_timers()
     solve_args = (Ss, np.ones(m), np.zeros((m, m)), np.zeros(m), P.s_first)
     per = ts.size
     cost = {
-        "constraint Jacobian (Phi, Phi_q, gamma)": _clock(constraints, ts, ys, speed, P, W) / per,
-        "force elements (gravity, springs)": _clock(elements, ts, ys, speed, P, W) / per,
-        "contact search + contact forces": _clock(contacts_in_rhs, ts, ys, speed, P, W, inc, v0i, cout, css, sns)
+        "constraint Jacobian (Phi, Phi_q, gamma)": clock(constraints, ts, ys, speed, P, W) / per,
+        "force elements (gravity, springs)": clock(elements, ts, ys, speed, P, W) / per,
+        "contact search + contact forces": clock(contacts_in_rhs, ts, ys, speed, P, W, inc, v0i, cout, css, sns)
                                            / per,
-        "Schur complement Phi_q M^-1 Phi_q^T": _clock(schur, ts, ys, speed, P, W, Jvs) / per,
-        "linear solve (Cholesky, m x m)": max(0.0, (_clock(solve, *solve_args) - _clock(copy_only, *solve_args))
+        "Schur complement Phi_q M^-1 Phi_q^T": clock(schur, ts, ys, speed, P, W, Jvs) / per,
+        "linear solve (Cholesky, m x m)": max(0.0, (clock(solve, *solve_args) - clock(copy_only, *solve_args))
                                                 / per),
     }
-    one = _clock(evaluation, ts, ys, speed, P, W, inc, v0i, np.zeros(2 * n), np.zeros(m), cout) / per
+    one = clock(evaluation, ts, ys, speed, P, W, inc, v0i, np.zeros(2 * n), np.zeros(m), cout) / per
     cost["rest of an evaluation (a = M^-1 (g - Phi_q^T lam), rhs)"] = max(0.0, one - sum(cost.values()))
     stages = 6  # DOPRI5 with FSAL: six new evaluations per attempted step
     steps, rej, nfev = s["steps"], s["rejected_steps"], s["function_evaluations"]
@@ -242,9 +247,9 @@ def _profile(name: str, scene, revolutions: float) -> dict:
     loop = spent["cpu"]
     # table samples and the peak search's points (golden section on the same continuous extension): the
     # contact force law each, no right-hand side
-    law = _clock(contacts, ts, ys, speed, P, W, inc, v0i, cout) / per  # with the bodies' cos/sin computed
+    law = clock(contacts, ts, ys, speed, P, W, inc, v0i, cout) / per  # with the bodies' cos/sin computed
     table = res.table.shape[0] * law
-    peaks = s["peak_searches"] * (2 * I._GOLDEN_ITERATIONS + 4) * law
+    peaks = s["peak_searches"] * (2 * I.GOLDEN_ITERATIONS + 4) * law
     evals = sum(counts.values()) * one + table + peaks
     return {"state": name, "wall": wall, "loop": loop, "calls": spent["calls"], "python": wall - loop,
             "one": one, "cost": cost, "counts": counts, "table": table, "samples": res.table.shape[0],

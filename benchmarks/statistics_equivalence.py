@@ -35,7 +35,6 @@ Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolu
 from __future__ import annotations
 
 import argparse
-import contextlib
 import itertools
 import math
 import os
@@ -114,38 +113,14 @@ def _cycle_features(bench, table, keep, joints) -> dict[str, np.ndarray]:
     return out
 
 
-@contextlib.contextmanager
-def absolute_scales(position: float, velocity: float):
-    """Within the block, every simulation's error scales are absolute and set per kind of component:
-    ``position`` (m) on body positions, ``position`` / 0.1 m on angles, ``velocity`` (m/s) on velocities
-    and ``velocity`` / 0.1 m on angular velocities (run with rtol 0). A tolerance shape the model's
-    (rtol, atol) pair cannot express (it ties velocities to 1e3 /s x atol and adds rtol x |y|); measured
-    here by replacing ``simulation._tolerances`` before anyone adds it to the model."""
-    from wearbench.model import simulation as S
-
-    inner = S._tolerances
-
-    def shaped(scene, atol):
-        bodies = scene.n // 3
-        return np.concatenate([np.tile([position, position, position / 0.1], bodies),
-                               np.tile([velocity, velocity, velocity / 0.1], bodies)])
-
-    S._tolerances = shaped
-    try:
-        yield
-    finally:
-        S._tolerances = inner
-
-
 def collect(seeds: int, revolutions: float, method: str, tolerances=None, scales=None, first_seed: int = 0
             ) -> tuple[dict[str, dict[str, np.ndarray]], dict, dict]:
     """Per-cycle features of every state (concatenated over seeds), the time spent per state and the
     cost of its simulations alone (:data:`COST` summed over the realisations); ``scales``: (position m,
-    velocity m/s) absolute error scales (:func:`absolute_scales`) instead of ``tolerances``; the seeds
-    ``first_seed`` .. ``first_seed + seeds - 1``."""
+    velocity m/s) absolute error scales (``simulate``'s atol pair, rtol 0) instead of ``tolerances``; the
+    seeds ``first_seed`` .. ``first_seed + seeds - 1``."""
     if scales is not None:
-        with absolute_scales(*scales):
-            return collect(seeds, revolutions, method, (0.0, scales[0]), first_seed=first_seed)
+        return collect(seeds, revolutions, method, (0.0, tuple(scales)), first_seed=first_seed)
     from wearbench.bench.load import load_bench, shipped_bench
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
@@ -232,7 +207,7 @@ def label(method: str, tolerances=None, scales=None) -> str:
 
 
 def setting(name: str) -> dict:
-    """The ``simulate`` options of a setting named by :func:`label` (scales: :func:`absolute_scales`)."""
+    """The options of a setting named by :func:`label` (scales: see :func:`keywords`)."""
     words = name.replace(",", "").split()
     if "scales" in words:
         i = words.index("scales")
@@ -243,16 +218,12 @@ def setting(name: str) -> dict:
     return {"method": words[0]}
 
 
-@contextlib.contextmanager
-def applied(options: dict):
-    """The ``simulate`` keywords of a :func:`setting` (its absolute scales in force within the block)."""
+def keywords(options: dict) -> dict:
+    """The ``simulate`` keywords of a :func:`setting`: its absolute scales (position m, velocity m/s) as the
+    atol pair with rtol 0 (absolute error scales per kind of component, ``simulation.error_scales``)."""
     options = dict(options)
     scales = options.pop("scales", None)
-    if scales is None:
-        yield options
-        return
-    with absolute_scales(*scales):
-        yield {**options, "rtol": 0.0, "atol": scales[0]}
+    return options if scales is None else {**options, "rtol": 0.0, "atol": tuple(scales)}
 
 
 def _timed(bench, settings: list[dict], revolutions: float, repeat: int) -> np.ndarray:
@@ -268,10 +239,9 @@ def _timed(bench, settings: list[dict], revolutions: float, repeat: int) -> np.n
         for j, name in enumerate(STATES):
             scene = state_scene(bench, by_name[name])
             for i, opt in enumerate(settings):
-                with applied(opt) as kw:
-                    t0 = time.process_time()
-                    simulate(scene, revolutions=revolutions, **kw)
-                    best[i, j] = min(best[i, j], (time.process_time() - t0) / revolutions * 1e3)
+                t0 = time.process_time()
+                simulate(scene, revolutions=revolutions, **keywords(opt))
+                best[i, j] = min(best[i, j], (time.process_time() - t0) / revolutions * 1e3)
     return best
 
 
@@ -294,25 +264,25 @@ def impacts(names: list[str], state: str, seeds: int, revolutions: float, rate: 
     for name in names:
         rows: dict[str, list] = {j: [] for j in joints}
         nfev = 0
-        with applied(setting(name)) as kw:
-            for seed in range(seeds):
-                run = R.simulate_state(bench, by_name[state], seed, revolutions=revolutions, settle=SETTLE,
-                                       output_rate=rate, **kw)
-                nfev += run.summary["function_evaluations"]
-                for j in joints:
-                    pen, vn = (run.table[f"{j}_{c}"].to_numpy() for c in ("pen", "vn"))
-                    inside = pen > 0
-                    on = np.flatnonzero(~inside[:-1] & inside[1:]) + 1
-                    off = np.flatnonzero(inside[:-1] & ~inside[1:]) + 1
-                    for a in on:
-                        later, before = off[off > a], off[off < a]
-                        if not later.size:
-                            continue
-                        b = later[0]
-                        v0 = vn[a - 1] + pen[a - 1] / (pen[a - 1] - pen[a]) * (vn[a] - vn[a - 1])
-                        v1 = vn[b - 1] + pen[b - 1] / (pen[b - 1] - pen[b]) * (vn[b] - vn[b - 1])
-                        gap = (a - before[-1]) / rate if before.size else math.inf
-                        rows[j].append((abs(v0), -v1 / v0 if v0 else math.nan, gap))
+        kw = keywords(setting(name))
+        for seed in range(seeds):
+            run = R.simulate_state(bench, by_name[state], seed, revolutions=revolutions, settle=SETTLE,
+                                   output_rate=rate, **kw)
+            nfev += run.summary["function_evaluations"]
+            for j in joints:
+                pen, vn = (run.table[f"{j}_{c}"].to_numpy() for c in ("pen", "vn"))
+                inside = pen > 0
+                on = np.flatnonzero(~inside[:-1] & inside[1:]) + 1
+                off = np.flatnonzero(inside[:-1] & ~inside[1:]) + 1
+                for a in on:
+                    later, before = off[off > a], off[off < a]
+                    if not later.size:
+                        continue
+                    b = later[0]
+                    v0 = vn[a - 1] + pen[a - 1] / (pen[a - 1] - pen[a]) * (vn[a] - vn[a - 1])
+                    v1 = vn[b - 1] + pen[b - 1] / (pen[b - 1] - pen[b]) * (vn[b] - vn[b - 1])
+                    gap = (a - before[-1]) / rate if before.size else math.inf
+                    rows[j].append((abs(v0), -v1 / v0 if v0 else math.nan, gap))
         per = seeds * revolutions
         print(f"  {name}: {nfev / seeds / (revolutions + SETTLE):.0f} right-hand sides per revolution")
         for j in joints:

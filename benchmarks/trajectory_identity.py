@@ -11,7 +11,10 @@ and, where recorded, the contact records. Cases (test bed ``ninebar-testbed``):
 - drawn realisations (seeds; tolerances, random journal start, motor speed ripple: the speed-profile
   path) on both surfaces, with contact records;
 - the paper's RK4 with Baumgarte stabilisation and table samples from full right-hand sides
-  (``evaluate_samples``), the tight method, and kinematics of the fully driven ideal bench.
+  (``evaluate_samples``), the tight method, and kinematics of the fully driven ideal bench;
+- wear: one short wear stage (``run_stages``: two surface updates from unworn surfaces, its surfaces,
+  volumes and counts) and the wear of a worn run's contact record under each footprint
+  (``accumulate_wear``: pressure, hertz, region).
 
 Prints one row per case and exits with status 1 if any output differs. The motion is chaotic, so one
 changed rounding anywhere shows within a revolution.
@@ -46,8 +49,40 @@ def _cases(revolutions: float, seeds: int) -> list[dict]:
         {"name": "default evaluated worn", "state": "worn", "seed": None, "revolutions": 0.2, "evaluate_samples": True},
         {"name": "accurate worn", "state": "worn", "seed": None, "revolutions": 0.2, "method": "accurate"},
         {"name": "kinematics ideal", "state": None, "seed": None, "revolutions": 1.0},
+        {"name": "wear stage new", "state": "new", "wear": "stages"},
+        {"name": "wear footprints worn", "state": "worn", "wear": "footprints", "revolutions": 0.2},
     ]
     return cases
+
+
+def _wear(case: dict, bench, state) -> dict[str, np.ndarray]:
+    """Every output of a wear case as named arrays: one short stage from unworn surfaces, or the wear of a
+    worn run's contacts under each footprint."""
+    from wearbench.model import simulate
+    from wearbench.model.realisation import state_scene
+    from wearbench.model.wear import WearLaw, accumulate_wear
+    from wearbench.model.wear_stages import StagePlan, run_stages
+
+    out = {}
+    clearances = dict(state.clearances)
+    if case["wear"] == "stages":
+        plan = StagePlan(stages=1, stage_cycles=2000.0, min_updates=2)
+        run = run_stages(bench, plan, clearances=clearances)
+        stage = run.stages[0]
+        for j, s in stage.surfaces.items():
+            out[f"surfaces/{j}/bearing"], out[f"surfaces/{j}/journal"] = s.bearing, s.journal
+            out[f"volume/{j}"] = np.array([stage.volume[j], stage.archard_volume[j]])
+        out["counts"] = np.array([stage.counted_time, stage.updates, stage.revolutions], dtype=float)
+        return out
+    scene = state_scene(bench, state)
+    res = simulate(scene, revolutions=case["revolutions"], record_contacts=True)
+    geometry = bench.with_clearances(clearances)
+    for j, record in res.contacts.items():
+        for footprint in ("pressure", "hertz", "region"):
+            law = WearLaw.from_bench(geometry, j, footprint=footprint)
+            worn = accumulate_wear(record, law, scene.surfaces[j].bearing.size, surfaces=scene.surfaces[j])
+            out[f"{footprint}/{j}/bearing"], out[f"{footprint}/{j}/journal"] = worn.bearing, worn.journal
+    return out
 
 
 def _run(case: dict) -> dict[str, np.ndarray]:
@@ -57,6 +92,8 @@ def _run(case: dict) -> dict[str, np.ndarray]:
     from wearbench.model.realisation import simulate_state, state_scene
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
+    if "wear" in case:
+        return _wear(case, bench, {s.name: s for s in bench.states}[STATES[case["state"]]])
     options = {k: case[k] for k in ("method", "step", "evaluate_samples", "record_contacts") if k in case}
     if case["state"] is None:  # the fully driven ideal bench: kinematics + inverse dynamics
         bench = bench.with_clearances({j.name: None for j in bench.clearance_joints})

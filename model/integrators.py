@@ -6,7 +6,9 @@ updates, dense output, contact records, peaks, each accepted step's bookkeeping 
 compiled helper. ``k[0] = f(t, y)`` on entry to a step and ``k[scheme.end] = f`` at its end (the
 tableau owns its stage count). :func:`kinematics_loop` serves fully driven scenes with ideal joints.
 The loop runs compiled, returning to Python only when done, when a record buffer is full or on
-failure, so a step costs no interpreter time. Imports numpy, numba and the model's kernel only.
+failure, so a step costs no interpreter time. What crosses into the loop are named records built by
+keyword on the Python side: the mechanism (``kernel.Model``), :class:`Control`, :class:`Output` and
+the peak tracker :func:`new_track` builds. Imports numpy, numba and the model's kernel only.
 
 State y = (q, v); f(t, y) = (v, a) with a from :func:`wearbench.model.kernel.accel`.
 """
@@ -20,9 +22,11 @@ import numpy as np
 from numba import njit
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
+from wearbench.model.methods import Scheme
 
-__all__ = ["STATS", "Control", "Model", "Output", "Track", "deriv", "erk_try", "kinematics_loop", "new_stats", "run_loop",
-           "sensor_acc"]
+__all__ = ["GOLDEN_ITERATIONS", "NREC", "PEAK_SEARCH_FRACTION", "PEAK_STATE", "STATS", "Control", "Output", "Track",
+           "deriv", "erk_try", "extension", "kinematics_loop", "new_stats", "new_track", "next_step", "run_loop",
+           "sensor_acc", "update_modes"]
 
 # loop status codes
 DONE, SINGULAR, NO_PROJECTION, NOT_FINITE, STEP_COLLAPSE, DRIFT, FULL, BLOW_UP, TOO_MANY_STEPS, PAUSED = range(10)
@@ -35,22 +39,39 @@ STATS = np.dtype([(name, np.float64) for name in ("steps", "rejected", "drift_p"
 # peak tracking: a local maximum of an endpoint sequence above this fraction of the running peak is
 # searched for on the dense output of the two steps around it
 PEAK_SEARCH_FRACTION = 0.8
-_GOLDEN_ITERATIONS = 24  # golden-section iterations per step searched: the bracket shrinks by 0.618**24
+GOLDEN_ITERATIONS = 24  # golden-section iterations per step searched: the bracket shrinks by 0.618**24
 NREC = 8  # t, dt, fn, vt, omega_rel, phi_bearing, phi_journal, pen
 
-# step control of run_loop: adaptive step, projection (and its tolerance), drift limit, atol (per
-# coordinate), rtol, smallest and largest step, accepted steps per call
-Control = namedtuple("Control", "adaptive project proj_tol drift_tol atol rtol hmin hmax max_steps")
-# peak tracking of run_loop (see its docstring): sensor, running peaks, previous step's pk, pe, pst
-Track = namedtuple("Track", "sensor peaks pk pe pst")
+# step control of run_loop: adaptive step, projection (and its tolerance), drift limit, blow-up penetration per
+# clearance joint (m), atol (per coordinate), rtol, smallest and largest step, accepted steps per call
+Control = namedtuple("Control", "adaptive project proj_tol drift_tol blow_pen atol rtol hmin hmax max_steps")
+# peak tracking of run_loop (see its docstring), carried across its calls; built by :func:`new_track`:
+# the sensor, the running peaks, and the previous accepted step: ``prev`` its arrays (rows PREV_*),
+# ``values`` the tracked values at the last two step ends (rows 0: the earlier, 1: the last), ``state`` a
+# :data:`PEAK_STATE` record
+Track = namedtuple("Track", "sensor peaks prev values state")
+# rows of Track.prev: the previous step's start state and f there, its end state and f there, then its
+# stages (the tableau's stage array k) from row PREV_STAGES on
+PREV_Y0, PREV_F0, PREV_Y1, PREV_F1, PREV_STAGES = range(5)
+# the previous step as the peak search knows it: its start and end times, how many steps are known
+# (0: none, not even the start's values; 1: the start's values; 2: a whole step) and whether the contact
+# modes changed at its end (its dense output then does not continue into the next step's)
+PEAK_STATE = np.dtype([("t0", np.float64), ("t1", np.float64), ("known", np.int64), ("changed", np.int64)])
 # what run_loop fills: output times and, per time, state, accelerations, contact outputs and multipliers;
 # contact records (one row per accepted step and clearance joint) when ``record``; ``evaluate``: each
 # sample's accelerations and multipliers from a right-hand side at the interpolated state (else from the
 # tableau's continuous extension, when it has one and the method no Baumgarte stabilisation)
 Output = namedtuple("Output", "t y a c lam rec record evaluate")
-# the mechanism as the loop evaluates it: parameters, motor speed, Baumgarte (alpha, beta), contact modes
-# (inc, v0i), blow-up penetration per joint, the kernel's workspace
-Model = namedtuple("Model", "P speed alpha beta inc v0i blow_pen W")
+# one step: start time, state and f there, end time, state and f there
+_Ends = namedtuple("_Ends", "t0 y0 f0 t1 y1 f1")
+# the loop's work arrays: a sample's state (yo) and f there (fo), multipliers (lam), contact outputs (csamp),
+# the tracked values at a step's end (enew) and at a search point (vals), continuous-extension weights (dbs)
+_Scratch = namedtuple("_Scratch", "yo fo lam csamp enew vals dbs")
+# what one call of run_loop works with: the tableau, step control, the mechanism as given and without
+# stabilisation (plain: the samples' and peaks' right-hand side), output, peak tracker, statistics, work
+# arrays, the continuous extension the peak search uses (no rows: cubic Hermite) and whether the output
+# samples come from it
+_Loop = namedtuple("_Loop", "scheme control mdl plain out track stats s D stages_out")
 
 
 def new_stats() -> np.ndarray:
@@ -58,31 +79,48 @@ def new_stats() -> np.ndarray:
     return np.zeros(1, STATS)
 
 
+def new_track(sensor: np.ndarray, joints: int, scheme: Scheme, size: int) -> Track:
+    """A fresh peak tracker (:class:`Track`) for :func:`run_loop`: ``sensor`` as in :func:`sensor_acc`,
+    ``joints`` clearance joints, the tableau's ``scheme`` (its stage rows) and the state's ``size``."""
+    return Track(sensor=sensor, peaks=np.zeros(joints + 1), prev=np.zeros((PREV_STAGES + scheme.end + 1, size)),
+                 values=np.zeros((2, joints + 1)), state=np.zeros(1, PEAK_STATE))
+
+
 @njit(cache=True)
-def deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
-    """f(t, y) = (v, a) into dy, the multipliers into lam, the contact outputs into cout; returns the
-    kernel's status (:func:`_deriv`, compiled into the stages of :func:`erk_try`)."""
-    return _deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W)
+def deriv(t, y, mdl, dy, lam, cout):
+    """f(t, y) = (v, a) of the mechanism ``mdl`` (``kernel.Model``) into dy, the multipliers into lam, the
+    contact outputs into cout; returns the kernel's status (:func:`_deriv` on the record's parts, which
+    :func:`erk_try` takes apart once per step)."""
+    return _deriv(t, y, mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i, dy, lam, cout)
 
 
 @njit(cache=True, inline="always")
-def _deriv(t, y, speed, P, alpha, beta, inc, v0i, dy, lam, cout, W):
+def _deriv(t, y, speed, P, W, stab, inc, v0i, dy, lam, cout):
     n = y.shape[0] // 2
     q = y[:n]
     v = y[n:]
-    st = K.accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, dy[n:], lam, cout, W)
+    st = K.accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, dy[n:], lam, cout)
     for i in range(n):
         dy[i] = v[i]
     return st
 
 
+@njit(cache=True, inline="always")
+def _unstabilised(mdl):
+    """``mdl`` without Baumgarte stabilisation (alpha = beta = 0), sharing its arrays."""
+    return K.Model(P=mdl.P, speed=mdl.speed, alpha=0.0, beta=0.0, inc=mdl.inc, v0i=mdl.v0i, W=mdl.W)
+
+
 @njit(cache=True)
-def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cout, W, atol, rtol):
-    """One step of an explicit Runge-Kutta tableau: ynew and k[scheme.end] = f(t + h, ynew), the
-    multipliers of stage s in lamk[s]; returns (status, error norm), the norm 0 for a method without an
-    embedded estimate."""
+def erk_try(scheme, control, mdl, t, y, h, k, ynew, ytmp, lamk, cout):
+    """One step of an explicit Runge-Kutta tableau for the mechanism ``mdl`` (``kernel.Model``): ynew and
+    k[scheme.end] = f(t + h, ynew), the multipliers of stage s in lamk[s]; returns (status, error norm)
+    under ``control``'s atol and rtol, the norm 0 for a method without an embedded estimate."""
     N = y.shape[0]
     A, B, C, last = scheme.a, scheme.b, scheme.c, scheme.end
+    atol, rtol = control.atol, control.rtol
+    # the record's parts once per step (taking a record of arrays apart counts a reference to each array)
+    speed, P, W, stab, inc, v0i = mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i
     # the stages, then (without FSAL) f at the new state as stage ``last``: one evaluation site, compiled in
     for s in range(1, last + 1):
         if s < scheme.stages:
@@ -99,7 +137,7 @@ def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam
                     acc += B[r] * k[r, i]
                 ynew[i] = y[i] + h / scheme.b_den * acc
             ts, ys = t + h, ynew
-        st = _deriv(ts, ys, speed, P, alpha, beta, inc, v0i, k[s], lamk[s], cout, W)
+        st = _deriv(ts, ys, speed, P, W, stab, inc, v0i, k[s], lamk[s], cout)
         if st != 0:
             return st, 0.0
     if scheme.fsal:
@@ -119,7 +157,9 @@ def erk_try(scheme, t, y, h, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lam
 
 
 @njit(cache=True)
-def _hermite(t0, y0, f0, t1, y1, f1, t, out):
+def _hermite(e, t, out):
+    """Cubic Hermite interpolation of the step ``e`` (:data:`_Ends`) at t into out."""
+    t0, y0, f0, t1, y1, f1 = e
     h = t1 - t0
     s = (t - t0) / h
     h00 = (1 + 2 * s) * (1 - s) ** 2
@@ -145,47 +185,49 @@ def sensor_acc(y, f, sensor):
 
 
 @njit(cache=True)
-def _peak_values(t, y, speed, P, inc, v0i, f, lam, cout, W, sensor, vals):
-    """The tracked quantities at (t, y) without stabilisation, as the output table has them:
-    normal contact force per clearance joint, then |sensor acceleration|."""
-    deriv(t, y, speed, P, 0.0, 0.0, inc, v0i, f, lam, cout, W)
-    nc = cout.shape[0]
+def _peak_values(t, y, plain, sensor, s, vals):
+    """The tracked quantities at (t, y) into vals, without stabilisation (``plain``), as the output table
+    has them: normal contact force per clearance joint, then |sensor acceleration| (f, multipliers and
+    contact outputs into the work arrays ``s``)."""
+    deriv(t, y, plain, s.fo, s.lam, s.csamp)
+    nc = s.csamp.shape[0]
     for c in range(nc):
-        vals[c] = cout[c, K.CO_FN]
-    vals[nc] = sensor_acc(y, f, sensor)
+        vals[c] = s.csamp[c, K.CO_FN]
+    vals[nc] = sensor_acc(y, s.fo, sensor)
 
 
 @njit(cache=True)
-def _golden_max(j, t0, y0, f0, t1, y1, f1, speed, P, inc, v0i, yo, fo, lam, cout, W, sensor, vals):
-    """Largest value of tracked quantity j on the step's dense output (cubic Hermite on [t0, t1])
+def _golden_max(j, e, plain, sensor, s):
+    """Largest value of tracked quantity j on the step's dense output (cubic Hermite on the step ``e``)
     by golden-section search (one evaluation per iteration)."""
     g = 0.6180339887498949
-    a, b = t0, t1
+    a, b = e.t0, e.t1
     c, d = b - g * (b - a), a + g * (b - a)
-    _hermite(t0, y0, f0, t1, y1, f1, c, yo)
-    _peak_values(c, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+    vals = s.vals
+    _hermite(e, c, s.yo)
+    _peak_values(c, s.yo, plain, sensor, s, vals)
     fc = vals[j]
-    _hermite(t0, y0, f0, t1, y1, f1, d, yo)
-    _peak_values(d, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+    _hermite(e, d, s.yo)
+    _peak_values(d, s.yo, plain, sensor, s, vals)
     fd = vals[j]
-    for _ in range(_GOLDEN_ITERATIONS):
+    for _ in range(GOLDEN_ITERATIONS):
         if fc > fd:
             b, d, fd = d, c, fc
             c = b - g * (b - a)
-            _hermite(t0, y0, f0, t1, y1, f1, c, yo)
-            _peak_values(c, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+            _hermite(e, c, s.yo)
+            _peak_values(c, s.yo, plain, sensor, s, vals)
             fc = vals[j]
         else:
             a, c, fc = c, d, fd
             d = a + g * (b - a)
-            _hermite(t0, y0, f0, t1, y1, f1, d, yo)
-            _peak_values(d, yo, speed, P, inc, v0i, fo, lam, cout, W, sensor, vals)
+            _hermite(e, d, s.yo)
+            _peak_values(d, s.yo, plain, sensor, s, vals)
             fd = vals[j]
     return max(fc, fd)
 
 
 @njit(cache=True)
-def _extension(D, y, h, k, th, yo, fo, dbs):
+def extension(D, y, h, k, th, yo, fo, dbs):
     """The continuous extension (coefficients D) of a step of length h from y with stages k at theta:
     the state y + h sum_i b_i(theta) k_i into yo, its time derivative sum_i b_i'(theta) k_i into fo (the
     velocities: the state's own), the b_i'(theta) into dbs. Returns nothing; b_i, b_i' of a stage that is
@@ -218,44 +260,46 @@ def _extension(D, y, h, k, th, yo, fo, dbs):
 
 
 @njit(cache=True)
-def _extension_values(D, mdl, t0, y0, h, k, ts, yo, fo, cout, sensor, vals, dbs):
-    """The tracked quantities (as :func:`_peak_values`) at ts on a step's continuous extension: normal
-    contact forces from the force law at the interpolated state, |sensor acceleration| from its derivative."""
-    _extension(D, y0, h, k, (ts - t0) / h, yo, fo, dbs)
+def _extension_values(D, plain, t0, y0, h, k, ts, sensor, s):
+    """The tracked quantities (as :func:`_peak_values`, into s.vals) at ts on a step's continuous extension:
+    normal contact forces from the force law at the interpolated state, |sensor acceleration| from its
+    derivative."""
+    extension(D, y0, h, k, (ts - t0) / h, s.yo, s.fo, s.dbs)
     n = y0.shape[0] // 2
-    K.clearance_forces(yo[:n], yo[n:], mdl.P, mdl.inc, mdl.v0i, mdl.W, cout)
-    nc = cout.shape[0]
+    K.clearance_forces(s.yo[:n], s.yo[n:], plain, s.csamp, False)
+    nc = s.csamp.shape[0]
     for c in range(nc):
-        vals[c] = cout[c, K.CO_FN]
-    vals[nc] = sensor_acc(yo, fo, sensor)
+        s.vals[c] = s.csamp[c, K.CO_FN]
+    s.vals[nc] = sensor_acc(s.yo, s.fo, sensor)
 
 
 @njit(cache=True)
-def _golden_max_ext(j, D, mdl, t0, y0, h, k, yo, fo, cout, sensor, vals, dbs):
+def _golden_max_ext(j, D, plain, t0, y0, h, k, sensor, s):
     """Largest value of tracked quantity j on a step's continuous extension (as :func:`_golden_max`)."""
     g = 0.6180339887498949
     a, b = t0, t0 + h
     c, d = b - g * (b - a), a + g * (b - a)
-    _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals, dbs)
+    vals = s.vals
+    _extension_values(D, plain, t0, y0, h, k, c, sensor, s)
     fc = vals[j]
-    _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals, dbs)
+    _extension_values(D, plain, t0, y0, h, k, d, sensor, s)
     fd = vals[j]
-    for _ in range(_GOLDEN_ITERATIONS):
+    for _ in range(GOLDEN_ITERATIONS):
         if fc > fd:
             b, d, fd = d, c, fc
             c = b - g * (b - a)
-            _extension_values(D, mdl, t0, y0, h, k, c, yo, fo, cout, sensor, vals, dbs)
+            _extension_values(D, plain, t0, y0, h, k, c, sensor, s)
             fc = vals[j]
         else:
             a, c, fc = c, d, fd
             d = a + g * (b - a)
-            _extension_values(D, mdl, t0, y0, h, k, d, yo, fo, cout, sensor, vals, dbs)
+            _extension_values(D, plain, t0, y0, h, k, d, sensor, s)
             fd = vals[j]
     return max(fc, fd)
 
 
 @njit(cache=True)
-def _update_modes(cout_old, cout_new, inc, v0i):
+def update_modes(cout_old, cout_new, inc, v0i):
     """Contact onset/loss per clearance joint after an accepted step; True if a mode changed.
 
     The impact speed is the normal speed interpolated to the zero crossing of the penetration."""
@@ -316,7 +360,7 @@ def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
         ps = K.project(t_new, ynew[:n], ynew[n:], mdl.speed, P, W, control.proj_tol, 4)
         if ps != 0:
             return _fail(st, NO_PROJECTION if ps == K.NO_CONVERGENCE else SINGULAR, t_new, -1, math.nan)
-        status = deriv(t_new, ynew, mdl.speed, P, mdl.alpha, mdl.beta, mdl.inc, mdl.v0i, k[scheme.end], lam, cnew, W)
+        status = deriv(t_new, ynew, mdl, k[scheme.end], lam, cnew)
         st.nfev += 1
         if status != 0:
             return _fail(st, SINGULAR, t_new, -1, math.nan)
@@ -326,67 +370,67 @@ def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
     if dp > control.drift_tol:
         return _fail(st, DRIFT, t_new, -1, dp)
     for c in range(cnew.shape[0]):
-        if cnew[c, K.CO_PEN] > mdl.blow_pen[c]:
+        if cnew[c, K.CO_PEN] > control.blow_pen[c]:
             return _fail(st, BLOW_UP, t_new, c, cnew[c, K.CO_PEN])
     return DONE
 
 
+@njit(cache=True, inline="always")
+def _search_step(j, D, plain, e, k, sensor, s, st):
+    """Largest value of tracked quantity j over the step ``e``: on the continuous extension D with the
+    step's stages k where D has rows (the tableau's own interpolant), else on cubic Hermite with a
+    right-hand side per point (counted in st.nfev)."""
+    if D.shape[0] > 0:
+        return _golden_max_ext(j, D, plain, e.t0, e.y0, e.t1 - e.t0, k, sensor, s)
+    st.nfev += GOLDEN_ITERATIONS + 2
+    return _golden_max(j, e, plain, sensor, s)
+
+
 @njit(cache=True)
-def _track_peaks(mdl, track, t, y, f0, t_new, ynew, f1, lam, cnew, st, yo, fo, csamp, enew, vals, D, k, dbs):
-    """Running peaks over the step just accepted: the tracked values at its end (evaluated again under
-    Baumgarte stabilisation), and where the previous end was a local maximum near the running peak, the
-    golden-section search of the dense output of this step and (modes unchanged) the previous one: the
-    continuous extension D with the stages k where D has rows (the table's own interpolant), else cubic
-    Hermite with a right-hand side per point. pk keeps the previous step's ends, f there and stages."""
-    sensor, peaks, pk, pe, pst = track
-    P, W, speed, inc, v0i = mdl.P, mdl.W, mdl.speed, mdl.inc, mdl.v0i
+def _track_peaks(mdl, plain, track, e, cnew, st, s, D, k):
+    """Running peaks over the step ``e`` just accepted: the tracked values at its end (evaluated again
+    under Baumgarte stabilisation), and where the previous end was a local maximum near the running peak,
+    the golden-section search (:func:`_search_step`) of the dense output of this step and (modes
+    unchanged) the previous one. ``track.prev`` keeps the previous step's ends, f there and stages."""
+    sensor, peaks, prev, pe = track.sensor, track.peaks, track.prev, track.values
+    ps = track.state[0]
     nc = cnew.shape[0]
     nq = nc + 1
+    enew = s.enew
     # values at the step's end with its modes, without stabilisation (as the output samples)
     if mdl.alpha == 0.0 and mdl.beta == 0.0:
         for c in range(nc):
             enew[c] = cnew[c, K.CO_FN]
-        enew[nc] = sensor_acc(ynew, f1, sensor)
+        enew[nc] = sensor_acc(e.y1, e.f1, sensor)
     else:
-        _peak_values(t_new, ynew, speed, P, inc, v0i, fo, lam, csamp, W, sensor, enew)
+        _peak_values(e.t1, e.y1, plain, sensor, s, enew)
         st.nfev += 1
     for j in range(nq):
         peaks[j] = max(peaks[j], enew[j])
-        e = pe[1, j]
-        if (e > enew[j] and e > 0.0 and e >= PEAK_SEARCH_FRACTION * peaks[j]
-                and (pst[2] < 2 or e >= pe[0, j])):
-            # a local maximum at t: the peak lies in this step or, modes unchanged, the previous one
-            if D.shape[0] > 0:
-                v = _golden_max_ext(j, D, mdl, t, y, t_new - t, k, yo, fo, csamp, sensor, vals, dbs)
-            else:
-                v = _golden_max(j, t, y, f0, t_new, ynew, f1, speed, P, inc, v0i, yo, fo, lam, csamp, W, sensor,
-                                vals)
-                st.nfev += _GOLDEN_ITERATIONS + 2
-            peaks[j] = max(peaks[j], v)
-            if pst[2] >= 2 and pst[3] == 0.0:
-                if D.shape[0] > 0:
-                    v = _golden_max_ext(j, D, mdl, pst[0], pk[0], pst[1] - pst[0], pk[4:], yo, fo, csamp, sensor,
-                                        vals, dbs)
-                else:
-                    v = _golden_max(j, pst[0], pk[0], pk[1], pst[1], pk[2], pk[3], speed, P, inc, v0i, yo, fo,
-                                    lam, csamp, W, sensor, vals)
-                    st.nfev += _GOLDEN_ITERATIONS + 2
-                peaks[j] = max(peaks[j], v)
+        last = pe[1, j]
+        if (last > enew[j] and last > 0.0 and last >= PEAK_SEARCH_FRACTION * peaks[j]
+                and (ps.known < 2 or last >= pe[0, j])):
+            # a local maximum at the step's start: the peak lies in this step or, modes unchanged, the previous one
+            peaks[j] = max(peaks[j], _search_step(j, D, plain, e, k, sensor, s, st))
+            if ps.known >= 2 and ps.changed == 0:
+                before = _Ends(t0=ps.t0, y0=prev[PREV_Y0], f0=prev[PREV_F0], t1=ps.t1, y1=prev[PREV_Y1],
+                               f1=prev[PREV_F1])
+                peaks[j] = max(peaks[j], _search_step(j, D, plain, before, prev[PREV_STAGES:], sensor, s, st))
             st.peak_searches += 1
     for j in range(nq):
         pe[0, j] = pe[1, j]
         pe[1, j] = enew[j]
-    for i in range(y.shape[0]):
-        pk[0, i] = y[i]
-        pk[1, i] = f0[i]
-        pk[2, i] = ynew[i]
-        pk[3, i] = f1[i]
+    for i in range(e.y0.shape[0]):
+        prev[PREV_Y0, i] = e.y0[i]
+        prev[PREV_F0, i] = e.f0[i]
+        prev[PREV_Y1, i] = e.y1[i]
+        prev[PREV_F1, i] = e.f1[i]
     for r in range(D.shape[0]):
-        for i in range(y.shape[0]):
-            pk[4 + r, i] = k[r, i]
-    pst[0] = t
-    pst[1] = t_new
-    pst[2] = min(pst[2] + 1.0, 2.0)
+        for i in range(e.y0.shape[0]):
+            prev[PREV_STAGES + r, i] = k[r, i]
+    ps.t0 = e.t0
+    ps.t1 = e.t1
+    ps.known = min(ps.known + 1, 2)
 
 
 @njit(cache=True, inline="always")
@@ -398,8 +442,10 @@ def _copy_rows(dst, src):
 
 
 @njit(cache=True, inline="always")
-def _store_sample(out, iout, yo, fo, csamp, peaks, sensor):
-    """Output sample iout: state, accelerations, contact outputs; the running peaks raised by its values."""
+def _store_sample(out, iout, s, track):
+    """Output sample iout from the work arrays: state, accelerations, contact outputs; the running peaks
+    raised by its values."""
+    yo, fo, csamp, peaks = s.yo, s.fo, s.csamp, track.peaks
     n = yo.shape[0] // 2
     nc = csamp.shape[0]
     oy, oa = out.y[iout], out.a[iout]
@@ -410,40 +456,43 @@ def _store_sample(out, iout, yo, fo, csamp, peaks, sensor):
     _copy_rows(out.c[iout], csamp)
     for c in range(nc):
         peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
-    peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
+    peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, track.sensor))
 
 
 @njit(cache=True)
-def _dense_output(mdl, out, sensor, peaks, iout, t, y, f0, t_new, ynew, f1, yo, fo, csamp):
-    """Output samples on (t, t_new] by cubic Hermite interpolation of y with the modes of the step, f and
-    the contact outputs evaluated there (their peaks tracked too); returns the next sample's index."""
-    N = y.shape[0]
+def _dense_output(plain, out, track, iout, e, s):
+    """Output samples on the step ``e`` (t0, t1] by cubic Hermite interpolation of y with the modes of the
+    step, f and the contact outputs evaluated there (their peaks tracked too); returns the next sample's
+    index."""
+    N = e.y0.shape[0]
+    yo = s.yo
     out_t = out.t
-    while iout < out_t.shape[0] and out_t[iout] <= t_new:
+    while iout < out_t.shape[0] and out_t[iout] <= e.t1:
         ts = out_t[iout]
-        if ts <= t:
+        if ts <= e.t0:
             for i in range(N):
-                yo[i] = y[i]
-        elif ts >= t_new:
+                yo[i] = e.y0[i]
+        elif ts >= e.t1:
             for i in range(N):
-                yo[i] = ynew[i]
+                yo[i] = e.y1[i]
         else:
-            _hermite(t, y, f0, t_new, ynew, f1, ts, yo)
-        deriv(ts, yo, mdl.speed, mdl.P, 0.0, 0.0, mdl.inc, mdl.v0i, fo, out.lam[iout], csamp, mdl.W)
-        _store_sample(out, iout, yo, fo, csamp, peaks, sensor)
+            _hermite(e, ts, yo)
+        deriv(ts, yo, plain, s.fo, out.lam[iout], s.csamp)
+        _store_sample(out, iout, s, track)
         iout += 1
     return iout
 
 
 @njit(cache=True)
-def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, ynew, k, lamk, yo, fo, csamp,
-                         dbs):
-    """Output samples on (t, t_new] from the tableau's continuous extension (``scheme.d``) of the step
-    of length h: the state y + h sum_i b_i(theta) k_i, the accelerations and multipliers as its time
+def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
+    """Output samples on the step ``e`` (t0, t1] of length h from the tableau's continuous extension
+    (``scheme.d``): the state y + h sum_i b_i(theta) k_i, the accelerations and multipliers as its time
     derivative sum_i b_i'(theta) (k_i, lamk_i) (the stages' values combined: no solve), the contact
     outputs from the force law at the state with the step's modes (their peaks tracked too); the step's
-    end itself takes its evaluated values. Returns the next sample's index. dbs: work array, one entry per row of
-    ``scheme.d``."""
+    end itself takes its evaluated values. Returns the next sample's index."""
+    t, y, t_new, ynew = e.t0, e.y0, e.t1, e.y1
+    yo, fo, dbs = s.yo, s.fo, s.dbs
+    P, W, inc, v0i = plain.P, plain.W, plain.inc, plain.v0i  # once for the step's samples
     N = y.shape[0]
     n = N // 2
     m = lamk.shape[1]
@@ -464,16 +513,16 @@ def _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, h, t_new, 
                 lo[r] = lamk[src, r]
         else:
             th = (ts - t) / h
-            _extension(D, y, h, k, th, yo, fo, dbs)
+            extension(D, y, h, k, th, yo, fo, dbs)
             for r in range(m):
                 lo[r] = 0.0
-            for s in range(ns):
-                db = dbs[s]
+            for s_ in range(ns):
+                db = dbs[s_]
                 if db != 0.0:
                     for r in range(m):
-                        lo[r] += db * lamk[s, r]
-        K.clearance_forces(yo[:n], yo[n:], mdl.P, mdl.inc, mdl.v0i, mdl.W, csamp)
-        _store_sample(out, iout, yo, fo, csamp, peaks, sensor)
+                        lo[r] += db * lamk[s_, r]
+        K.clearance_arrays(yo[:n], yo[n:], P, W, inc, v0i, s.csamp, False)
+        _store_sample(out, iout, s, track)
         iout += 1
     return iout
 
@@ -500,7 +549,7 @@ def _raise_peaks(peaks, values):
 
 
 @njit(cache=True, inline="always")
-def _next_step(hh, err, err_old, factor_max, hmax, expo_pi):
+def next_step(hh, err, err_old, factor_max, hmax, expo_pi):
     """PI step control after an accepted step (Hairer, Wanner: Solving ODE I, sec. II.4, beta = 0.04):
     the next step and the error remembered for the next one."""
     e = max(err, 1e-10)
@@ -508,63 +557,101 @@ def _next_step(hh, err, err_old, factor_max, hmax, expo_pi):
     return min(hmax, hh * min(factor_max, max(0.2, f))), max(e, 1e-4)
 
 
+@njit(cache=True, inline="always")
+def _begin(L, t, y, lamk):
+    """At a call's start: the tracked values at the run's start (on its first call) and, for samples from
+    the stages, the multipliers at t (k[0] holds f there) into lamk[0]."""
+    track, s, st = L.track, L.s, L.stats[0]
+    ps = track.state[0]
+    if ps.known == 0:  # values at the start
+        _peak_values(t, y, L.plain, track.sensor, s, track.values[1])
+        _raise_peaks(track.peaks, track.values[1])
+        ps.known = 1
+    if L.stages_out:  # the multipliers at the start (k[0] holds f there)
+        deriv(t, y, L.mdl, s.fo, lamk[0], s.csamp)
+        st.nfev += 1
+
+
+@njit(cache=True, inline="always")
+def _after_accept(L, iout, irec, e, hh, k, lamk, cout_old, cnew):
+    """An accepted step ``e`` of length hh, checked and projected: its peaks, output samples, contact-mode
+    changes (f and the multipliers at its end evaluated again with the new modes) and contact records.
+    Returns the next output sample's and contact record's indices."""
+    st, end = L.stats[0], L.scheme.end
+    _track_peaks(L.mdl, L.plain, L.track, e, cnew, st, L.s, L.D, k)
+    if L.stages_out:
+        iout = _dense_output_stages(L.scheme, L.plain, L.out, L.track, iout, e, hh, k, lamk, L.s)
+    else:
+        iout = _dense_output(L.plain, L.out, L.track, iout, e, L.s)
+    ps = L.track.state[0]
+    ps.changed = 0
+    if update_modes(cout_old, cnew, L.mdl.inc, L.mdl.v0i):
+        deriv(e.t1, e.y1, L.mdl, k[end], lamk[end], cnew)
+        st.nfev += 1
+        ps.changed = 1
+    if L.out.record:
+        _record(L.out.rec, irec, e.t0, e.t1, cnew)
+        irec += 1
+    return iout, irec
+
+
+@njit(cache=True, inline="always")
+def _advance(end, y, ynew, k, lamk, cout_old, cnew):
+    """The accepted step's end becomes the next step's start: y, k[0] = f, the multipliers, the contact outputs."""
+    for i in range(y.shape[0]):
+        y[i] = ynew[i]
+        k[0, i] = k[end, i]
+    for r in range(lamk.shape[1]):
+        lamk[0, r] = lamk[end, r]
+    _copy_rows(cout_old, cnew)
+
+
 @njit(cache=True)
 def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, track):
     """Integrate from t to t_end (in place on y, the modes mdl.inc and mdl.v0i, and ``stats``) with the
     tableau ``scheme`` (:class:`~wearbench.model.methods.Scheme`) under the step control ``control``
-    (:class:`Control`) for the mechanism ``mdl`` (:class:`Model`), filling ``out`` (:class:`Output`) and
-    tracking peaks in ``track`` (:class:`Track`).
+    (:class:`Control`) for the mechanism ``mdl`` (``kernel.Model``), filling ``out`` (:class:`Output`) and
+    tracking peaks in ``track`` (:class:`Track`, from :func:`new_track`).
 
     Output samples out.t[stats.out:] falling in each accepted step are filled by cubic Hermite
-    interpolation of y, then f and the contact outputs are evaluated there. With ``out.record`` each
-    accepted step appends one row per clearance joint to out.rec (stops with FULL when it is full).
-    peaks (in/out): running maxima of the normal force per clearance joint and of |sensor
-    acceleration| (``sensor`` as in :func:`sensor_acc`) over the dense output, not only the output
-    samples: where the values at the step ends have a local maximum (above PEAK_SEARCH_FRACTION of
-    the running peak), the two steps around it are searched (:func:`_golden_max`). pk, pe, ps carry
-    the previous step (its ends and f there, the end values, [t0, t1, steps known, mode changed])
-    across calls; pst starts at zeros. k[0] holds f(t, y) on entry, k[scheme.end] f at a step's end.
+    interpolation of y, then f and the contact outputs are evaluated there (or from the tableau's
+    continuous extension, see :class:`Output`). With ``out.record`` each accepted step appends one row
+    per clearance joint to out.rec (stops with FULL when it is full). track.peaks (in/out): running
+    maxima of the normal force per clearance joint and of |sensor acceleration| (``track.sensor`` as in
+    :func:`sensor_acc`) over the dense output, not only the output samples: where the values at the
+    step ends have a local maximum (above PEAK_SEARCH_FRACTION of the running peak), the two steps
+    around it are searched (:func:`_golden_max`). The rest of ``track`` carries the previous step across
+    calls. k[0] holds f(t, y) on entry, k[scheme.end] f at a step's end.
     After ``control.max_steps`` accepted steps it returns PAUSED with its state saved (call again to go
     on: the steps taken do not depend on the pauses). Returns a status code; stats' detail holds the
     joint or coordinate involved, its value the offending value.
     """
     st = stats[0]
-    sensor, peaks, pe, pst = track.sensor, track.peaks, track.pe, track.pst
-    P, W, speed, alpha, beta, inc, v0i = mdl.P, mdl.W, mdl.speed, mdl.alpha, mdl.beta, mdl.inc, mdl.v0i
     N = y.shape[0]
     end = scheme.end
     ynew = np.empty(N)
     ytmp = np.empty(N)
-    yo = np.empty(N)
-    fo = np.empty(N)
-    lam = np.empty(out.lam.shape[1])
+    nq = mdl.inc.shape[0] + 1
+    s = _Scratch(yo=np.empty(N), fo=np.empty(N), lam=np.empty(out.lam.shape[1]), csamp=np.empty_like(cout_old),
+                 enew=np.empty(nq), vals=np.empty(nq), dbs=np.empty(scheme.d.shape[0]))
     lamk = np.empty((end + 1, out.lam.shape[1]))
-    stages_out = scheme.d.shape[0] > 0 and alpha == 0.0 and beta == 0.0 and not out.evaluate
-    no_stages = np.zeros((0, scheme.d.shape[1]))
+    stages_out = scheme.d.shape[0] > 0 and mdl.alpha == 0.0 and mdl.beta == 0.0 and not out.evaluate
+    D = scheme.d if stages_out else np.zeros((0, scheme.d.shape[1]))
+    L = _Loop(scheme=scheme, control=control, mdl=mdl, plain=_unstabilised(mdl), out=out, track=track, stats=stats,
+              s=s, D=D, stages_out=stages_out)
     cnew = np.empty_like(cout_old)
-    csamp = np.empty_like(cout_old)
     iout = int(st.out)
     irec = int(st.rec)
     nsteps = 0
     factor_max = 5.0
     err_old = st.err_old if st.err_old > 0.0 else 1e-4
-    enew = np.empty(inc.shape[0] + 1)
-    vals = np.empty(inc.shape[0] + 1)
-    dbs = np.empty(scheme.d.shape[0])
-    if pst[2] == 0:  # values at the start
-        _peak_values(t, y, speed, P, inc, v0i, fo, lam, csamp, W, sensor, pe[1])
-        _raise_peaks(peaks, pe[1])
-        pst[2] = 1
-    if stages_out:  # the multipliers at the start (k[0] holds f there)
-        deriv(t, y, speed, P, alpha, beta, inc, v0i, fo, lamk[0], csamp, W)
-        st.nfev += 1
+    _begin(L, t, y, lamk)
     while t < t_end:
         if out.record and irec >= out.rec.shape[0]:
             return _save(st, FULL, t, h, iout, irec, err_old)
         hh = min(h, t_end - t)
         last = hh >= t_end - t
-        status, err = erk_try(scheme, t, y, hh, k, speed, P, alpha, beta, inc, v0i, ynew, ytmp, lamk, cnew, W,
-                              control.atol, control.rtol)
+        status, err = erk_try(scheme, control, mdl, t, y, hh, k, ynew, ytmp, lamk, cnew)
         st.nfev += scheme.nfev
         if status != 0:
             return _fail(st, SINGULAR, t, -1, math.nan)
@@ -582,32 +669,14 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
         status = _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lamk[end], cnew, st)
         if status != DONE:
             return status
-        _track_peaks(mdl, track, t, y, k[0], t_new, ynew, k[end], lam, cnew, st, yo, fo, csamp, enew, vals,
-                     scheme.d if stages_out else no_stages, k, dbs)
-        if stages_out:
-            iout = _dense_output_stages(scheme, mdl, out, sensor, peaks, iout, t, y, hh, t_new, ynew, k, lamk, yo,
-                                        fo, csamp, dbs)
-        else:
-            iout = _dense_output(mdl, out, sensor, peaks, iout, t, y, k[0], t_new, ynew, k[end], yo, fo, csamp)
-        pst[3] = 0.0
-        if _update_modes(cout_old, cnew, inc, v0i):
-            deriv(t_new, ynew, speed, P, alpha, beta, inc, v0i, k[end], lamk[end], cnew, W)
-            st.nfev += 1
-            pst[3] = 1.0
-        if out.record:
-            _record(out.rec, irec, t, t_new, cnew)
-            irec += 1
-        for i in range(N):
-            y[i] = ynew[i]
-            k[0, i] = k[end, i]
-        for r in range(lamk.shape[1]):
-            lamk[0, r] = lamk[end, r]
-        _copy_rows(cout_old, cnew)
+        step = _Ends(t0=t, y0=y, f0=k[0], t1=t_new, y1=ynew, f1=k[end])
+        iout, irec = _after_accept(L, iout, irec, step, hh, k, lamk, cout_old, cnew)
+        _advance(end, y, ynew, k, lamk, cout_old, cnew)
         t = t_new
         nsteps += 1
         st.steps += 1
         if control.adaptive:
-            h, err_old = _next_step(hh, err, err_old, factor_max, control.hmax, scheme.expo_pi)
+            h, err_old = next_step(hh, err, err_old, factor_max, control.hmax, scheme.expo_pi)
             factor_max = 5.0
         if nsteps >= control.max_steps and t < t_end:  # back to Python now and then (Ctrl-C); call again
             return _save(st, PAUSED, t, h, iout, irec, err_old)
@@ -624,8 +693,7 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
     """
     record = stats[0]
     n = q.shape[0]
-    inc = np.zeros(0, np.int64)
-    v0i = np.zeros(0)
+    mdl = K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=np.zeros(0, np.int64), v0i=np.zeros(0), W=W)
     a = np.zeros(n)
     t_prev = times[0] if times.shape[0] else 0.0
     for i in range(times.shape[0]):
@@ -638,7 +706,7 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
         if st != 0:
             record.t = t
             return st
-        st = K.accel(t, q, v, speed, P, 0.0, 0.0, inc, v0i, a, out_lam[i], out_c[i], W)
+        st = K.accel(t, q, v, mdl, a, out_lam[i], out_c[i])
         if st != 0:
             record.t = t
             return st

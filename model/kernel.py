@@ -2,7 +2,11 @@
 
 Holds numba-compiled (``@njit(cache=True)``) functions on flat arrays; the scene (``scene.py``)
 packs a mechanism into the named record ``P`` (:class:`Params`) described below and the integrators (``integrators.py``)
-call :func:`accel` and :func:`project`. Imports numpy, numba, ``contact`` and ``worn_contact`` only.
+call :func:`accel` and :func:`project`. What the kernels evaluate travels as named records (namedtuples numba
+compiles, built by keyword): :class:`Params`, the work arrays :class:`Workspace`, the mechanism at a run's
+settings :class:`Model` (P, motor speed, Baumgarte coefficients, contact modes, workspace) and, inside the
+contact force, one clearance joint at the state (:class:`Pair`) and a contact zone
+(``worn_contact.Zone``). Imports numpy, numba, ``contact`` and ``worn_contact`` only.
 
 Coordinates: q = (x, y, theta) of each moving body's centre of mass (absolute coordinates), v = dq/dt.
 Equations of motion (paper eq. 29-30) with a diagonal mass matrix M:
@@ -45,7 +49,7 @@ from wearbench.model.contact import (
     impact_speed,
     normal_force,
 )
-from wearbench.model.worn_contact import contact_zones, zone_penetrations
+from wearbench.model.worn_contact import Gap, Zone, contact_zones, zone_penetrations
 
 Params = namedtuple("Params", "minv fext rev_b rev_s pri_b pri_s drv_b drv_p clr_b clr_p surf surf_n surf_t "
                                "spr_b spr_p trq_b trq_p jb body_rows body_nrows s_first profile")
@@ -53,6 +57,13 @@ Params = namedtuple("Params", "minv fext rev_b rev_s pri_b pri_s drv_b drv_p clr
 # gamma, nu = -Phi_t), generalised forces g, the Schur complement S with its right-hand side and solution
 # lam, an n-vector tmp, the bodies' cos/sin and the worn-contact search's midpoint samples buf
 Workspace = namedtuple("Workspace", "phi Jv gam nu g S rhs lam tmp cs sn buf")
+# the mechanism as the kernels evaluate it: parameters P, motor speed (rad/s; a speed profile is P's), Baumgarte
+# (alpha, beta), contact modes per clearance joint (inc: in contact, v0i: impact speed), the workspace W
+Model = namedtuple("Model", "P speed alpha beta inc v0i W")
+# one clearance joint at the state: bearing and journal bodies, bearing and journal centres, angular velocities,
+# contact mode (in contact, impact speed); scalars only (its parameter row travels as an argument: a record
+# holding an array costs reference counting in the contact force)
+Pair = namedtuple("Pair", "bi bj pix piy pjx pjy wi wj inc v0")
 
 # clearance parameter columns (CLR_WORN: 1 for worn surfaces; CLR_CURV: their largest |h_b''| + |h_j''|)
 CLR_SIX, CLR_SIY, CLR_SJX, CLR_SJY, CLR_R1, CLR_R2, CLR_K, CLR_N, CLR_CE, CLR_LAW, CLR_CF, \
@@ -68,9 +79,9 @@ OK, SINGULAR, NO_CONVERGENCE = 0, 1, 2
 def workspace(P: Params) -> Workspace:
     """Fresh work arrays for the kernels of the mechanism packed in ``P``."""
     n, m = P.minv.shape[0], P.jb.shape[0]
-    return Workspace(np.zeros(m), np.zeros((m, 2, 3)), np.zeros(m), np.zeros(m), np.zeros(n), np.zeros((m, m)),
-                     np.zeros(m), np.zeros(m), np.zeros(n), np.zeros(n // 3), np.zeros(n // 3),
-                     np.zeros(P.surf.shape[2]))
+    return Workspace(phi=np.zeros(m), Jv=np.zeros((m, 2, 3)), gam=np.zeros(m), nu=np.zeros(m), g=np.zeros(n),
+                     S=np.zeros((m, m)), rhs=np.zeros(m), lam=np.zeros(m), tmp=np.zeros(n), cs=np.zeros(n // 3),
+                     sn=np.zeros(n // 3), buf=np.zeros(P.surf.shape[2]))
 
 
 @njit(cache=True, inline="always")
@@ -263,13 +274,16 @@ def _vel(q, v, b, px, py):
 
 
 @njit(cache=True)
-def _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, nx, ny, pen, hb, hj, slope_b, slope_j,
-                inck, v0k, scale, g):
-    """Apply the normal and friction force of one contact zone (normal (nx, ny) from the bearing's centre,
-    penetration pen, worn depths hb, hj and their slopes there, zero for new surfaces; force scaled by
-    ``scale`` in [0, 1]) to g; returns (fn, ft, vn, vt). The contact points on each body are the
+def _zone_force(q, v, pair, p, nx, ny, pen, zone, scale, g):
+    """Apply the normal and friction force of one contact zone of the joint ``pair`` (:class:`Pair`, its
+    parameter row ``p``) to g;
+    returns (fn, ft, vn, vt). (nx, ny): the zone's normal from the bearing's centre; pen: its penetration;
+    ``zone``: its :class:`~wearbench.model.worn_contact.Zone` (worn depths and their slopes there, zero for
+    new surfaces); the force scaled by ``scale`` in [0, 1]. The contact points on each body are the
     surface points along the normal; the penetration rate is the normal speed of the journal's centre
     relative to the bearing's (rolling terms are tangential) plus the worn surfaces' sweep."""
+    bi, bj, pix, piy, pjx, pjy, wi, wj, inck, v0k = pair
+    hb, hj = zone.hb, zone.hj
     tx, ty = -ny, nx
     qix, qiy = pix + (p[CLR_R1] + hb) * nx, piy + (p[CLR_R1] + hb) * ny
     qjx, qjy = pjx + (p[CLR_R2] - hj) * nx, pjy + (p[CLR_R2] - hj) * ny
@@ -277,7 +291,7 @@ def _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, nx, ny, pen, hb, hj
     vjx, vjy = _vel(q, v, bj, qjx, qjy)
     cix, ciy = _vel(q, v, bi, pix, piy)
     cjx, cjy = _vel(q, v, bj, pjx, pjy)
-    vn = nx * (cjx - cix) + ny * (cjy - ciy) + slope_b * wi + slope_j * wj
+    vn = nx * (cjx - cix) + ny * (cjy - ciy) + zone.slope_b * wi + zone.slope_j * wj
     vt = (vjx - vix) * tx + (vjy - viy) * ty
     fn = 0.0
     ft = 0.0
@@ -325,15 +339,37 @@ def eccentricity(q, bi, bj, p, W, trig):
 
 
 @njit(cache=True, inline="always")
-def clearance_forces(q, v, P, inc, v0i, W, cout):
-    """Add the clearance contact forces to W.g; fill cout (nc, NCO) (see :func:`_clearance_forces`)."""
-    _clearance_forces(q, v, P, inc, v0i, W, cout, False)
+def _worn_zones(q, v, pair, p, tb, tj, gap, buf, g):
+    """The contact forces of a worn joint (``pair``, its parameter row ``p``, the surface tables ``tb``, ``tj``
+    of bearing and journal and its :class:`~wearbench.model.worn_contact.Gap` ``gap``) into g, the second
+    zone's first (see :func:`clearance_forces`; ``buf``: the midpoint samples' work array); returns the top
+    zone's direction and penetration, the summed normal and friction forces and its (vn, vt)."""
+    top, second, sad = contact_zones(tb, tj, gap, p[CLR_CURV], buf)
+    pen = top.overlap - gap.clear
+    pen1 = pen
+    fn2 = 0.0
+    ft2 = 0.0
+    if second.overlap > -math.inf:  # searched only in contact
+        pen1, pen2, r = zone_penetrations(top.overlap, second.overlap, sad, gap.clear)
+        fn2, ft2, _, _ = _zone_force(q, v, pair, p, math.cos(second.psi), math.sin(second.psi), pen2, second, r, g)
+    fn, ft, vn, vt = _zone_force(q, v, pair, p, math.cos(top.psi), math.sin(top.psi), pen1, top, 1.0, g)
+    return top.psi, pen, fn + fn2, ft + ft2, vn, vt
 
 
 @njit(cache=True, inline="always")
-def _clearance_forces(q, v, P, inc, v0i, W, cout, trig):
-    """Add the clearance contact forces to W.g; fill cout (nc, NCO). ``trig``: W.cs and W.sn hold the bodies'
-    cos/sin at q (inside :func:`accel`, after :func:`constraints`), else they are computed.
+def clearance_forces(q, v, mdl, cout, trig):
+    """Add the clearance contact forces of the mechanism ``mdl`` (:class:`Model`: its parameters, contact
+    modes and workspace) to W.g; fill cout (nc, NCO). ``trig``: W.cs and W.sn hold the bodies' cos/sin at q
+    (inside :func:`accel`, after :func:`constraints`), else they are computed. The law is
+    :func:`clearance_arrays`'s, on the record's parts."""
+    clearance_arrays(q, v, mdl.P, mdl.W, mdl.inc, mdl.v0i, cout, trig)
+
+
+@njit(cache=True, inline="always")
+def clearance_arrays(q, v, P, W, inc, v0i, cout, trig):
+    """:func:`clearance_forces` on the parts of the mechanism record (parameters P, workspace W, contact
+    modes inc, v0i): for a caller that takes them from the record once for many evaluations (a record of
+    arrays taken apart counts a reference to each array, in and out, every time).
 
     Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
@@ -350,10 +386,10 @@ def _clearance_forces(q, v, P, inc, v0i, W, cout, trig):
     (smoothstep) between overlap ratios 0.5 and 1 and the first zone's share blends with it.
     The record (cout) keeps the top zone's direction, penetration and speeds, and the summed
     normal and friction force magnitudes. Both surfaces go through one zone force (:func:`_zone_force`).
-    ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while
-    the flag is off the current normal speed stands in for the impact speed (contact onset).
+    ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while the flag
+    is off the current normal speed stands in for the impact speed (contact onset).
     """
-    clr_b, clr_p, surf_n, surf_t, g = P.clr_b, P.clr_p, P.surf_n, P.surf_t, W.g
+    clr_b, clr_p, surf_n, surf_t, g, buf = P.clr_b, P.clr_p, P.surf_n, P.surf_t, W.g, W.buf
     for k in range(clr_b.shape[0]):
         bi, bj = clr_b[k, 0], clr_b[k, 1]
         p = clr_p[k]
@@ -361,34 +397,21 @@ def _clearance_forces(q, v, P, inc, v0i, W, cout, trig):
         emag = math.sqrt(ex * ex + ey * ey)
         thi = 0.0 if bi < 0 else q[3 * bi + 2]
         thj = 0.0 if bj < 0 else q[3 * bj + 2]
-        wi, wj = _omega(v, bi), _omega(v, bj)
+        pair = Pair(bi=bi, bj=bj, pix=pix, piy=piy, pjx=pjx, pjy=pjy, wi=_omega(v, bi), wj=_omega(v, bj),
+                    inc=inc[k], v0=v0i[k])
         if emag > 0.0:
             ux, uy = ex / emag, ey / emag
         else:  # journal exactly centred: any direction, no contact
             ux, uy = math.cos(thi), math.sin(thi)
         alpha = math.atan2(uy, ux)
         clear = p[CLR_R1] - p[CLR_R2]
-        psi = alpha
-        pen = emag - clear
         if p[CLR_WORN] > 0.0 and emag > 0.0:
-            psi, overlap, hb, hj, slope_b, slope_j, psi2, f2, sad, hb2, hj2, sb2, sj2 = contact_zones(
-                surf_t[k, 0], surf_t[k, 1], surf_n[k, 0], surf_n[k, 1], emag, alpha, thi, thj, clear,
-                p[CLR_CURV], W.buf)
-            pen = overlap - clear
-            pen1 = pen
-            fn2 = 0.0
-            ft2 = 0.0
-            if f2 > -math.inf:  # searched only in contact
-                pen1, pen2, r = zone_penetrations(overlap, f2, sad, clear)
-                fn2, ft2, _, _ = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, math.cos(psi2),
-                                             math.sin(psi2), pen2, hb2, hj2, sb2, sj2, inc[k], v0i[k], r, g)
-            fn, ft, vn, vt = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, math.cos(psi),
-                                         math.sin(psi), pen1, hb, hj, slope_b, slope_j, inc[k], v0i[k], 1.0, g)
-            fn += fn2
-            ft += ft2
+            gap = Gap(nb=surf_n[k, 0], nj=surf_n[k, 1], emag=emag, alpha=alpha, thi=thi, thj=thj, clear=clear)
+            psi, pen, fn, ft, vn, vt = _worn_zones(q, v, pair, p, surf_t[k, 0], surf_t[k, 1], gap, buf, g)
         else:
-            fn, ft, vn, vt = _zone_force(q, v, bi, bj, p, pix, piy, pjx, pjy, wi, wj, ux, uy, pen, 0.0, 0.0,
-                                         0.0, 0.0, inc[k], v0i[k], 1.0, g)
+            psi, pen = alpha, emag - clear
+            even = Zone(psi=psi, overlap=emag, hb=0.0, hj=0.0, slope_b=0.0, slope_j=0.0)  # no depths, no slopes
+            fn, ft, vn, vt = _zone_force(q, v, pair, p, ux, uy, pen, even, 1.0, g)
         c = cout[k]
         c[CO_EX] = ex
         c[CO_EY] = ey
@@ -397,7 +420,7 @@ def _clearance_forces(q, v, P, inc, v0i, W, cout, trig):
         c[CO_FT] = ft
         c[CO_VN] = vn
         c[CO_VT] = vt
-        c[CO_OMEGA] = wj - wi
+        c[CO_OMEGA] = pair.wj - pair.wi
         c[CO_PHIB] = (psi - thi) % (2.0 * math.pi)
         c[CO_PHIJ] = (psi - thj) % (2.0 * math.pi)
 
@@ -430,9 +453,9 @@ def element_forces(q, v, P, g):
 
 
 @njit(cache=True, inline="always")
-def _schur(P, Jv, S):
+def schur(P, Jv, S):
     """S = Phi_q M^-1 Phi_q^T from the compact Jacobian: its lower triangle within the envelope (row k from
-    column ``s_first[k]``), all that :func:`_cholesky_solve` reads; the rest of S is left as it is."""
+    column ``s_first[k]``), all that :func:`cholesky_solve` reads; the rest of S is left as it is."""
     minv, body_rows, body_nrows, first = P.minv, P.body_rows, P.body_nrows, P.s_first
     for k in range(S.shape[0]):
         for l in range(first[k], k + 1):
@@ -451,7 +474,7 @@ def _schur(P, Jv, S):
 
 
 @njit(cache=True)
-def _cholesky_solve(S, rhs, x, first):
+def cholesky_solve(S, rhs, x, first):
     """Solve S x = rhs in place (S's lower triangle overwritten by its Cholesky factor; the upper one is not
     read). Returns OK or SINGULAR.
 
@@ -521,23 +544,26 @@ def _j_times(P, Jv, x, k):
 
 
 @njit(cache=True)
-def accel(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
-    """Accelerations a (n) and multipliers lam (m) of eq. 30; contact outputs into cout.
-
-    alpha, beta: Baumgarte coefficients (0, 0 for none). W: the :class:`Workspace`.
-    Returns OK or SINGULAR. (:func:`accel_inline` is the same, compiled into its caller.)
+def accel(t, q, v, mdl, a, lam, cout):
+    """Accelerations a (n) and multipliers lam (m) of eq. 30 for the mechanism ``mdl`` (:class:`Model`:
+    parameters, motor speed, Baumgarte coefficients alpha, beta (0, 0 for none), contact modes and
+    workspace) at (t, q, v); contact outputs into cout. Returns OK or SINGULAR. The equations are
+    :func:`accel_arrays`'s, on the record's parts.
     """
-    return accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W)
+    return accel_arrays(t, q, v, mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i, a, lam, cout)
 
 
 @njit(cache=True, inline="always")
-def accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
-    """:func:`accel` compiled into its caller (the right-hand side of the integrators: one call less)."""
+def accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, a, lam, cout):
+    """:func:`accel` on the parts of the mechanism record (motor speed, parameters P, workspace W,
+    stab = (alpha, beta), contact modes inc, v0i), compiled into its caller: the integrators take the
+    parts from the record once per step, not once per right-hand side (see :func:`clearance_arrays`)."""
+    alpha, beta = stab
     minv = P.minv
     phi, Jv, gam, nu, g, S, rhs, tmp = W.phi, W.Jv, W.gam, W.nu, W.g, W.S, W.rhs, W.tmp
     constraints(t, q, v, speed, P, W)
     element_forces(q, v, P, g)
-    _clearance_forces(q, v, P, inc, v0i, W, cout, True)
+    clearance_arrays(q, v, P, W, inc, v0i, cout, True)
     m = phi.shape[0]
     n = q.shape[0]
     for i in range(n):
@@ -548,8 +574,8 @@ def accel_inline(t, q, v, speed, P, alpha, beta, inc, v0i, a, lam, cout, W):
             r -= 2.0 * alpha * (_j_times(P, Jv, v, k) - nu[k]) + beta * beta * phi[k]
         rhs[k] = _j_times(P, Jv, tmp, k) - r
     if m > 0:
-        _schur(P, Jv, S)
-        if _cholesky_solve(S, rhs, lam, P.s_first) != OK:
+        schur(P, Jv, S)
+        if cholesky_solve(S, rhs, lam, P.s_first) != OK:
             return SINGULAR
     _jt_times(P, Jv, lam, tmp)
     for i in range(n):
@@ -599,18 +625,18 @@ def project(t, q, v, speed, P, W, tol, maxit):
             break
         if it == maxit:
             return NO_CONVERGENCE
-        _schur(P, Jv, S)
+        schur(P, Jv, S)
         for k in range(m):
             rhs[k] = phi[k]
-        if _cholesky_solve(S, rhs, lam, P.s_first) != OK:
+        if cholesky_solve(S, rhs, lam, P.s_first) != OK:
             return SINGULAR
         _jt_times(P, Jv, lam, tmp)
         for i in range(q.shape[0]):
             q[i] -= minv[i] * tmp[i]
-    _schur(P, Jv, S)
+    schur(P, Jv, S)
     for k in range(m):
         rhs[k] = _j_times(P, Jv, v, k) - nu[k]
-    if _cholesky_solve(S, rhs, lam, P.s_first) != OK:
+    if cholesky_solve(S, rhs, lam, P.s_first) != OK:
         return SINGULAR
     _jt_times(P, Jv, lam, tmp)
     for i in range(v.shape[0]):

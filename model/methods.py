@@ -16,8 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DOPRI5", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Kinematics", "Method", "RK4Paper", "Scheme",
+__all__ = ["DOPRI5", "DRIFT_TOLERANCE", "METHODS", "RK4", "TABLEAUS", "Accurate", "Dopri5", "Kinematics", "Method", "RK4Paper", "Scheme",
            "Tableau", "get_method"]
+
+DRIFT_TOLERANCE = 1e-4  # m (or rad): largest position-constraint violation before a run stops
 
 # a tableau as the compiled step reads it: ``end`` is the row of the stage array k (end + 1 rows) holding f
 # at the end of the step; expo and expo_pi # the step controller's exponents (1 / (q + 1) with q the order of
@@ -78,9 +80,10 @@ class Tableau:
             a[s, :len(row)] = row
         q1 = self.error_order + 1 if self.error_order else 5
         d = np.array(self.dense, dtype=float) if self.dense else np.zeros((0, 1))
-        return Scheme(a, np.array(self.c, dtype=float), np.array(self.b, dtype=float), float(self.b_den),
-                      np.array(self.e, dtype=float), self.fsal, stages, stages - 1 + (0 if self.fsal else 1), end,
-                      1.0 / q1, round(1.0 / q1 - 0.75 * 0.04, 12), d)
+        return Scheme(a=a, c=np.array(self.c, dtype=float), b=np.array(self.b, dtype=float), b_den=float(self.b_den),
+                      e=np.array(self.e, dtype=float), fsal=self.fsal, stages=stages,
+                      nfev=stages - 1 + (0 if self.fsal else 1), end=end, expo=1.0 / q1,
+                      expo_pi=round(1.0 / q1 - 0.75 * 0.04, 12), d=d)
 
 
 DOPRI5 = Tableau(
@@ -116,7 +119,8 @@ class Method:
     tableau: the explicit Runge-Kutta tableau the compiled loop steps with (None: no time integration,
     the kinematics method); adaptive: error-controlled
     step (the tableau's embedded estimate; else fixed ``step``); project: coordinate projection onto the position and velocity constraints after
-    every accepted step (drift-free); baumgarte: (alpha, beta) of eq. 30.
+    every accepted step (drift-free); baumgarte: (alpha, beta) of eq. 30; drift_tolerance: the largest
+    position-constraint violation (m or rad) before a run stops with an error.
     """
 
     name: str
@@ -127,6 +131,7 @@ class Method:
     rtol: float = 1e-6
     atol: float = 1e-9
     step: float | None = None  # s, fixed step (or first step of an adaptive method)
+    drift_tolerance: float = DRIFT_TOLERANCE  # m (or rad): the run stops with an error beyond this drift
     doc: str = ""
 
 

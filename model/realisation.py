@@ -152,8 +152,8 @@ def simulate_state(bench: Bench, state: WearState | None, seed: int | None, *, r
         w, r, phi = true_speed, real.ripple, real.ripple_phase
         profile = (lambda t: w * (1.0 + r * np.sin(abs(w) * t + phi)))
     initial = realisation_start(real, scene, float(profile(0.0)) if profile else true_speed)
-    result: SimulationResult = simulate(scene, t_end=t_end, speed=true_speed, output_rate=output_rate,
-                                        initial=initial, speed_profile=profile, **options)
+    result: SimulationResult = simulate(scene, t_end=t_end, speed=true_speed if profile is None else profile,
+                                        output_rate=output_rate, initial=initial, **options)
     table = result.table
     driver = bench.encoder_driver
     t = table["t"].to_numpy()

@@ -20,7 +20,7 @@ from wearbench.model import kernel as K
 from wearbench.model.packing import Spring, Torque, pack_params
 from wearbench.model.surfaces import JointSurfaces, surfaces_from_bench
 
-__all__ = ["LOW_RESTITUTION", "Scene", "build_scene"]
+__all__ = ["LOW_RESTITUTION", "Scene", "build_scene", "dense_jacobian"]
 
 LOW_RESTITUTION = 0.7  # below this the Lankarani-Nikravesh law is not valid (it assumes ce near 1)
 _ASSEMBLY_TOL = 1e-10  # m, rad
@@ -83,7 +83,9 @@ class Scene:
         return K.workspace(self.params)
 
 
-def _dense_jacobian(P, Jv: np.ndarray, n: int) -> np.ndarray:
+def dense_jacobian(P: K.Params, Jv: np.ndarray, n: int) -> np.ndarray:
+    """Phi_q (m x n) as a dense matrix from the kernel's compact Jacobian values ``Jv`` (``Workspace.Jv``,
+    filled by ``kernel.constraints``) and the body pattern of ``P``."""
     jb = P.jb
     J = np.zeros((jb.shape[0], n))
     for k in range(jb.shape[0]):
@@ -93,8 +95,9 @@ def _dense_jacobian(P, Jv: np.ndarray, n: int) -> np.ndarray:
     return J
 
 
-def _guess(bench: Bench, index: dict[str, int]) -> np.ndarray:
-    """Initial positions from the bench's assembly points, ground points and driver phases."""
+def _anchors(bench: Bench) -> tuple[dict[str, tuple[float, float]], dict[str, float]]:
+    """What fixes the first bodies' places: joint positions known beforehand (the bench's assembly points
+    and the pins to the frame) and body angles known beforehand (driver phases, sliders on frame guides)."""
     known: dict[str, tuple[float, float]] = dict(bench.assembly)
     for j in bench.joints:
         if j.kind == "revolute" and GROUND in j.bodies and j.name not in known:
@@ -105,6 +108,12 @@ def _guess(bench: Bench, index: dict[str, int]) -> np.ndarray:
     for j in bench.joints:
         if j.kind == "prismatic" and j.bodies[0] == GROUND:
             angle[j.bodies[1]] = j.axis
+    return known, angle
+
+
+def _guess(bench: Bench, index: dict[str, int]) -> np.ndarray:
+    """Initial positions from the bench's assembly points, ground points and driver phases."""
+    known, angle = _anchors(bench)
     q = np.zeros(3 * len(index))
     placed: set[str] = set()
 
@@ -153,7 +162,7 @@ def _assemble(bench: Bench, P, row_joints, n: int, q: np.ndarray) -> np.ndarray:
         K.constraints(0.0, q, v, bench.speed, P, W)
         if np.max(np.abs(W.phi), initial=0.0) <= _ASSEMBLY_TOL:
             return q
-        J = _dense_jacobian(P, W.Jv, n)
+        J = dense_jacobian(P, W.Jv, n)
         dq = np.linalg.lstsq(J, -W.phi, rcond=None)[0]
         step = np.max(np.abs(dq))
         q = q + (dq if step < 0.2 else dq * (0.2 / step))
@@ -201,7 +210,7 @@ def build_scene(bench: Bench, *, clearances: Mapping[str, float | None] | None =
     m = len(row_joints)
     Wd = K.workspace(P)
     K.constraints(0.0, q0, v0 * bench.speed, bench.speed, P, Wd)
-    rank = int(np.linalg.matrix_rank(_dense_jacobian(P, Wd.Jv, n))) if m else 0
+    rank = int(np.linalg.matrix_rank(dense_jacobian(P, Wd.Jv, n))) if m else 0
     dof = n - rank
     notes = []
     for j in bench.clearance_joints:

@@ -19,18 +19,18 @@ import pandas as pd
 from wearbench.model import integrators as I
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
-from wearbench.model.methods import Method, get_method
-from wearbench.model.scene import Scene
+from wearbench.model.methods import DRIFT_TOLERANCE, Method, get_method
+from wearbench.model.scene import Scene, dense_jacobian
 
-__all__ = ["DEFAULT_OUTPUT_RATE", "DRIFT_TOLERANCE", "SimulationError", "SimulationResult", "simulate"]
+__all__ = ["CONTACT_COLUMNS", "DEFAULT_OUTPUT_RATE", "DRIFT_TOLERANCE", "STEPS_PER_CALL", "SimulationError",
+           "SimulationResult", "error_scales", "simulate", "step_cap"]
 
 DEFAULT_OUTPUT_RATE = 20_000.0  # samples/s of the table (20 points per ms)
-DRIFT_TOLERANCE = 1e-4  # m (or rad): largest position-constraint violation before we stop
 _PROJECTION_TOL = 1e-11  # m
 _STILL_STEP_CAP = 1e-3  # s, largest adaptive step when the motor does not turn
 _BLOW_UP = 0.05  # penetration above this fraction of the journal radius is a blow-up
 _MAX_STEPS = 50_000_000  # accepted steps before a run gives up
-_STEPS_PER_CALL = 2_000  # accepted steps per call of the compiled loop (~0.1 s, worn surfaces ~1 s)
+STEPS_PER_CALL = 2_000  # accepted steps per call of the compiled loop (~0.1 s, worn surfaces ~1 s): Ctrl-C acts between
 CONTACT_COLUMNS = ("t", "dt", "fn", "vt", "omega_rel", "phi_bearing", "phi_journal", "pen")
 
 
@@ -128,12 +128,10 @@ def _state(scene: Scene, y: np.ndarray, cout: np.ndarray) -> dict:
 def _singular_joints(scene: Scene, t: float, y: np.ndarray, speed: float) -> str:
     """Joints whose constraint rows are (nearly) dependent at the state: from the left singular
     vector of the smallest singular value of Phi_q."""
-    from wearbench.model.scene import _dense_jacobian
-
     m, n = scene.m, scene.n
     W = scene.work()
     K.constraints(t, y[:n].copy(), y[n:].copy(), speed, scene.params, W)
-    u, _, _ = np.linalg.svd(_dense_jacobian(scene.params, W.Jv, n))
+    u, _, _ = np.linalg.svd(dense_jacobian(scene.params, W.Jv, n))
     weights = np.abs(u[:, -1]) if m else np.zeros(0)
     names = []
     for k in np.argsort(-weights):
@@ -185,23 +183,23 @@ def _fail(scene: Scene, status: int, stats: np.ndarray, y: np.ndarray, cout: np.
     return SimulationError(f"integration failed with status {status} {where}", t=t, state=state)
 
 
-def _profile(speed_profile, t_end: float) -> np.ndarray:
+def _profile(profile, t_end: float) -> np.ndarray:
     """Rows (time, motor angle, speed) of a speed profile, the angle integrated exactly (trapezoid)."""
-    if callable(speed_profile):
+    if callable(profile):
         count = max(2, math.ceil(t_end / 1e-4) + 2)  # one sample past t_end: no end effect
         times = np.arange(count) * 1e-4  # a fixed grid: the same profile samples for any t_end
-        speeds = np.asarray(speed_profile(times), dtype=float) * np.ones_like(times)
+        speeds = np.asarray(profile(times), dtype=float) * np.ones_like(times)
     else:
-        times, speeds = (np.asarray(x, dtype=float) for x in speed_profile)
+        times, speeds = (np.asarray(x, dtype=float) for x in profile)
     if times.ndim != 1 or times.shape != speeds.shape or times.size < 1 or times[0] != 0.0:
-        raise ValueError("speed_profile: expected arrays (times, speeds) of equal length starting at t = 0")
+        raise ValueError("speed profile: expected arrays (times, speeds) of equal length starting at t = 0")
     if np.any(np.diff(times) <= 0) or not np.isfinite(speeds).all():
-        raise ValueError("speed_profile: times must increase strictly and speeds be finite")
+        raise ValueError("speed profile: times must increase strictly and speeds be finite")
     angles = np.concatenate([[0.0], np.cumsum(0.5 * (speeds[1:] + speeds[:-1]) * np.diff(times))])
     return np.column_stack([times, angles, speeds])
 
 
-def _step_cap(scene: Scene, speed: float, profiled: bool) -> float:
+def step_cap(scene: Scene, speed: float, profiled: bool) -> float:
     """Largest step of an adaptive method (s): 1/100 of a motor revolution at the run's speed (with a
     speed profile: the faster of its initial speed and the bench's), 1 ms for a still motor. It
     depends on the scene and speed only, never on the duration asked for, so a run's first
@@ -210,33 +208,156 @@ def _step_cap(scene: Scene, speed: float, profiled: bool) -> float:
     return 2 * math.pi / top / 100.0 if top > 0 else _STILL_STEP_CAP
 
 
-def _tolerances(scene: Scene, atol: float) -> np.ndarray:
-    """Absolute tolerance per state component: atol (m) on positions, atol / 0.1 m on angles,
-    and the same times a contact frequency scale (1e3 /s) on velocities."""
-    n = scene.n
-    base = np.tile([atol, atol, atol / 0.1], n // 3)
+def error_scales(scene: Scene, atol: float | tuple[float, float]) -> np.ndarray:
+    """Absolute error scale per state component (positions, then velocities) of an adaptive method.
+
+    A number: atol (m) on positions, atol / 0.1 m on angles, and the same times a contact frequency
+    scale (1e3 /s) on velocities. A pair (position m, velocity m/s): absolute scales per kind of
+    component, position on positions, position / 0.1 m on angles, velocity on velocities and
+    velocity / 0.1 m on angular velocities (a shape one number cannot express; with rtol 0 the
+    scales alone control the step)."""
+    bodies = scene.n // 3
+    if isinstance(atol, (tuple, list)):
+        position, velocity = (float(x) for x in atol)
+        return np.concatenate([np.tile([position, position, position / 0.1], bodies),
+                               np.tile([velocity, velocity, velocity / 0.1], bodies)])
+    atol = float(atol)
+    base = np.tile([atol, atol, atol / 0.1], bodies)
     return np.concatenate([base, base * 1e3])
 
 
+def _duration(scene: Scene, speed, t_end: float | None, revolutions: float):
+    """(motor speed, t_end, profile): the constant speed (rad/s; 0 for a profile) and the run's duration
+    (s), and the speed profile or None."""
+    profile = speed if callable(speed) or isinstance(speed, (tuple, list)) else None
+    if profile is not None:
+        if t_end is None:
+            raise ValueError("a speed profile needs t_end (s): revolutions are not defined for a varying speed")
+        speed = 0.0
+    else:
+        speed = scene.bench.speed if speed is None else float(speed)
+    if t_end is None:
+        if speed == 0:
+            raise ValueError("t_end is needed when the motor speed is 0 (revolutions are undefined)")
+        t_end = revolutions * 2 * math.pi / abs(speed)
+    if not t_end > 0:
+        raise ValueError(f"t_end = {t_end}: expected a positive duration (s)")
+    return speed, t_end, profile
+
+
+def _output(scene: Scene, times: np.ndarray, record_contacts: bool, evaluate_samples: bool) -> I.Output:
+    """The arrays the loop fills (zeros), one row per output time; a contact record buffer when recording."""
+    n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
+    return I.Output(t=times, y=np.zeros((times.size, 2 * n)), a=np.zeros((times.size, n)),
+                    c=np.zeros((times.size, nc, K.NCO)), lam=np.zeros((times.size, m)),
+                    rec=np.zeros((4096 if record_contacts else 1, nc, I.NREC)), record=record_contacts,
+                    evaluate=evaluate_samples)
+
+
+def _kinematics(scene: Scene, P, speed: float, q: np.ndarray, v: np.ndarray, out: I.Output, wall0: float
+                ) -> SimulationResult:
+    """Kinematics + inverse dynamics at the output times (a fully driven scene with ideal joints)."""
+    if scene.dof != 0 or scene.clearance_joints:
+        raise ValueError(f"method 'kinematics' needs a fully driven scene with ideal joints; this one "
+                         f"has {scene.dof} DOF ({scene.description})")
+    stats = I.new_stats()
+    status = I.kinematics_loop(out.t, q, v, speed, P, scene.work(), _PROJECTION_TOL, out.y, out.a, out.lam, out.c,
+                               stats)
+    if status != 0:
+        code = I.SINGULAR if status == K.SINGULAR else I.NO_PROJECTION
+        raise _fail(scene, code, stats, np.concatenate([q, v]), np.zeros((0, K.NCO)), speed, "kinematics",
+                    DRIFT_TOLERANCE)
+    contacts = {} if out.record else None
+    table = _table(scene, out.t, out.y, out.a, out.c, out.lam)
+    return SimulationResult(table, _summary(scene, "kinematics", stats, table, wall0, speed), contacts, scene)
+
+
+def _sensor(scene: Scene) -> np.ndarray:
+    """The accelerometer as the loop reads it (see ``integrators.sensor_acc``): body -1 without one."""
+    sensor = np.array([-1.0, 0.0, 0.0, 0.0])
+    if scene.sensor is not None:
+        b, (sx, sy), axis = scene.sensor
+        sensor[:] = (b, sx, sy, axis)
+    return sensor
+
+
+def _start(scene: Scene, meth: Method, P, speed: float, y: np.ndarray, proj_tol: float):
+    """The mechanism record (``kernel.Model``) at t = 0 and f there: the state projected onto the
+    constraints (if the method projects), f(0, y) into k[0], the contact modes of the joints already in
+    contact. Returns (mdl, k, cout)."""
+    n, nc = scene.n, len(scene.clearance_joints)
+    W = scene.work()
+    if meth.project and K.project(0.0, y[:n], y[n:], speed, P, W, proj_tol, 20) != 0:
+        raise SimulationError("the initial state does not satisfy the constraints (projection failed at "
+                              "t = 0)", t=0.0, quantity="initial state")
+    alpha, beta = meth.baumgarte
+    mdl = K.Model(P=P, speed=speed, alpha=float(alpha), beta=float(beta), inc=np.zeros(nc, dtype=np.int64),
+                  v0i=np.zeros(nc), W=W)
+    k = np.zeros((meth.tableau.scheme().end + 1, 2 * n))
+    cout = np.zeros((nc, K.NCO))
+    if I.deriv(0.0, y, mdl, k[0], np.zeros(scene.m), cout) != 0:
+        raise _fail(scene, I.SINGULAR, I.new_stats(), y, cout, speed, meth.name, meth.drift_tolerance)
+    for c in range(nc):
+        if cout[c, K.CO_PEN] > 0:
+            mdl.inc[c] = 1
+            mdl.v0i[c] = impact_speed(cout[c, K.CO_VN])
+    return mdl, k, cout
+
+
+def _integrate(scene: Scene, meth: Method, mdl: K.Model, y: np.ndarray, out: I.Output, tolerances: tuple,
+               t_end: float, profiled: bool, start: tuple) -> tuple[I.Output, np.ndarray, I.Track]:
+    """Run the compiled loop from t = 0 to t_end in calls of STEPS_PER_CALL steps (the contact record
+    buffer doubled when full). ``tolerances``: (rtol, error scales, projection tolerance); ``start``: k and
+    cout from :func:`_start`. Returns the output (its record buffer possibly grown), the statistics and
+    the peak tracker; raises SimulationError on failure."""
+    rtol, scales, proj_tol = tolerances
+    k, cout = start
+    scheme = meth.tableau.scheme()
+    h = meth.step if meth.step is not None else 1e-6
+    hmax = step_cap(scene, mdl.speed, profiled) if meth.adaptive else h
+    blow = np.array([_BLOW_UP * scene.clearance_params(j)["journal_radius"] for j in scene.clearance_joints])
+    control = I.Control(adaptive=meth.adaptive, project=meth.project, proj_tol=proj_tol,
+                        drift_tol=meth.drift_tolerance, blow_pen=blow, atol=scales, rtol=rtol, hmin=1e-13, hmax=hmax,
+                        max_steps=STEPS_PER_CALL)
+    track = I.new_track(_sensor(scene), len(scene.clearance_joints), scheme, y.size)
+    stats = I.new_stats()
+    while True:
+        status = I.run_loop(scheme, control, mdl, float(stats[0]["t"]), y, h, t_end, out, k, cout, stats, track)
+        h = float(stats[0]["h"])
+        if status == I.FULL:
+            out = out._replace(rec=np.concatenate([out.rec, np.zeros_like(out.rec)]))
+            continue
+        if status == I.PAUSED:  # Python runs between calls: Ctrl-C acts within a call's time
+            if stats[0]["steps"] < _MAX_STEPS:
+                continue
+            status = I.TOO_MANY_STEPS
+        if status != I.DONE:
+            raise _fail(scene, status, stats, y, cout, mdl.speed, meth.name, meth.drift_tolerance)
+        return out, stats, track
+
+
 def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = None,
-             method: str | Method = "default", rtol: float | None = None, atol: float | None = None,
-             speed: float | None = None, output_rate: float | None = None, record_contacts: bool = False,
-             step: float | None = None, initial: tuple[np.ndarray, np.ndarray] | None = None,
-             speed_profile: Callable[[np.ndarray], np.ndarray] | tuple[np.ndarray, np.ndarray] | None = None,
-             drift_tolerance: float = DRIFT_TOLERANCE, evaluate_samples: bool = False) -> SimulationResult:
+             method: str | Method = "default", rtol: float | None = None,
+             atol: float | tuple[float, float] | None = None,
+             speed: float | Callable[[np.ndarray], np.ndarray] | tuple[np.ndarray, np.ndarray] | None = None,
+             output_rate: float | None = None, record_contacts: bool = False, step: float | None = None,
+             initial: tuple[np.ndarray, np.ndarray] | None = None, evaluate_samples: bool = False
+             ) -> SimulationResult:
     """Simulate ``scene`` from t = 0 (the bench's driver phases) to ``t_end``.
 
     revolutions: duration in motor revolutions when ``t_end`` (s) is None.
     method: "default" (kinematics + inverse dynamics for a fully driven ideal scene, else adaptive
     DOPRI5 with projection), a name registered in ``methods.METHODS`` ("kinematics", "dopri5", "accurate",
-    "rk4-paper") or a :class:`Method`.
-    rtol, atol: tolerances of an adaptive method (atol in m; see ``_tolerances``).
+    "rk4-paper") or a :class:`Method` (which also sets the drift limit, ``Method.drift_tolerance``).
+    rtol, atol: tolerances of an adaptive method (atol in m, or a pair (position m, velocity m/s) of
+    absolute scales; see :func:`error_scales`).
     step: fixed step (s) of a fixed-step method (rk4-paper: 1e-4).
-    speed: motor speed (rad/s), default the bench's. output_rate: table samples/s (default 20 kHz).
+    speed: motor speed (rad/s), default the bench's; or a speed profile instead of a constant speed:
+    a function speed(t) (rad/s, vectorised; sampled every 0.1 ms) or arrays (times s, speeds rad/s),
+    linear in between, held after the last time; the drivers turn at ratio x the integrated motor
+    angle. A profile needs ``t_end``.
+    output_rate: table samples/s (default 20 kHz).
     initial: (q, v) at t = 0 instead of the assembled state (journals centred, ideal velocities).
-    speed_profile: motor speed against time instead of a constant speed: a function speed(t) (rad/s,
-    vectorised; sampled every 0.1 ms) or arrays (times s, speeds rad/s), linear in between, held after
-    the last time; the drivers turn at ratio x the integrated motor angle. Needs ``t_end``.
     evaluate_samples: each table sample's accelerations and joint reactions from a full right-hand side
     at the interpolated state, as before issue 27 (slower); by default they come from the step's
     continuous extension (the derivative of the DOPRI5 dense output: the stages' values combined, no
@@ -244,110 +365,48 @@ def simulate(scene: Scene, *, revolutions: float = 3.0, t_end: float | None = No
     Raises SimulationError on numerical failure (naming time, joint, quantity and state).
     """
     wall0 = time.perf_counter()
-    speed = scene.bench.speed if speed is None else float(speed)
-    if speed_profile is not None and t_end is None:
-        raise ValueError("a speed profile needs t_end (s): revolutions are not defined for a varying speed")
-    if t_end is None:
-        if speed == 0:
-            raise ValueError("t_end is needed when the motor speed is 0 (revolutions are undefined)")
-        t_end = revolutions * 2 * math.pi / abs(speed)
-    if not t_end > 0:
-        raise ValueError(f"t_end = {t_end}: expected a positive duration (s)")
+    speed, t_end, profile = _duration(scene, speed, t_end, revolutions)
     rate = DEFAULT_OUTPUT_RATE if output_rate is None else float(output_rate)
     if not rate > 0:
         raise ValueError(f"output_rate = {output_rate}: expected samples/s > 0")
-    times = _output_times(t_end, rate)
-    n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
     P = scene.params
-    if speed_profile is not None:
-        P = P._replace(profile=_profile(speed_profile, t_end))
+    if profile is not None:
+        P = P._replace(profile=_profile(profile, t_end))
         speed = float(P.profile[0, 2])
     q = scene.q0.copy() if initial is None else np.array(initial[0], dtype=float)
     v = scene.v_unit * speed if initial is None else np.array(initial[1], dtype=float)
-    out_y = np.zeros((times.size, 2 * n))
-    out_a = np.zeros((times.size, n))
-    out_c = np.zeros((times.size, nc, K.NCO))
-    out_lam = np.zeros((times.size, m))
-    stats = I.new_stats()
-    W = scene.work()
+    out = _output(scene, _output_times(t_end, rate), record_contacts, evaluate_samples)
     meth = get_method(method) if isinstance(method, str) else method
     name = method if isinstance(method, str) else method.name  # the alias "dopri5" never means kinematics
-    if meth.tableau is None or (name == "default" and scene.dof == 0 and nc == 0 and initial is None):
-        if scene.dof != 0 or nc:
-            raise ValueError(f"method 'kinematics' needs a fully driven scene with ideal joints; this one "
-                             f"has {scene.dof} DOF ({scene.description})")
-        status = I.kinematics_loop(times, q, v, speed, P, W, _PROJECTION_TOL, out_y, out_a, out_lam, out_c, stats)
-        if status != 0:
-            code = I.SINGULAR if status == K.SINGULAR else I.NO_PROJECTION
-            raise _fail(scene, code, stats, np.concatenate([q, v]), np.zeros((0, K.NCO)), speed, "kinematics",
-                        drift_tolerance)
-        contacts = {} if record_contacts else None
-        table = _table(scene, times, out_y, out_a, out_c, out_lam)
-        return SimulationResult(table, _summary(scene, "kinematics", stats, table, wall0, speed), contacts, scene)
-
+    if meth.tableau is None or (name == "default" and scene.dof == 0 and not scene.clearance_joints
+                                and initial is None):
+        return _kinematics(scene, P, speed, q, v, out, wall0)
     if step is not None:
         meth = dataclasses.replace(meth, step=float(step))
-    rtol_ = meth.rtol if rtol is None else float(rtol)
-    atol_ = meth.atol if atol is None else float(atol)
-    atolv = _tolerances(scene, atol_)
-    y = np.concatenate([q, v])
+    atol_ = meth.atol if atol is None else atol
+    positions = float(atol_[0] if isinstance(atol_, (tuple, list)) else atol_)
     # projection tolerance follows the integration tolerance (never looser than 1e-11 m)
-    proj_tol = max(2e-15, min(_PROJECTION_TOL, 1e-2 * atol_))
-    if meth.project and K.project(0.0, y[:n], y[n:], speed, P, W, proj_tol, 20) != 0:
-        raise SimulationError("the initial state does not satisfy the constraints (projection failed at "
-                              "t = 0)", t=0.0, quantity="initial state")
-    inc = np.zeros(nc, dtype=np.int64)
-    v0i = np.zeros(nc)
-    scheme = meth.tableau.scheme()
-    k = np.zeros((scheme.end + 1, 2 * n))
-    cout = np.zeros((nc, K.NCO))
-    lam = np.zeros(m)
-    alpha, beta = meth.baumgarte
-    if I.deriv(0.0, y, speed, P, alpha, beta, inc, v0i, k[0], lam, cout, W) != 0:
-        raise _fail(scene, I.SINGULAR, stats, y, cout, speed, meth.name, drift_tolerance)
-    for c in range(nc):
-        if cout[c, K.CO_PEN] > 0:
-            inc[c] = 1
-            v0i[c] = impact_speed(cout[c, K.CO_VN])
-    h = meth.step if meth.step is not None else 1e-6
-    hmax = _step_cap(scene, speed, speed_profile is not None) if meth.adaptive else h
-    blow = np.array([_BLOW_UP * scene.clearance_params(j)["journal_radius"] for j in scene.clearance_joints])
-    cap = 4096 if record_contacts else 1
-    rec = np.zeros((cap, nc, I.NREC))
-    sensor = np.array([-1.0, 0.0, 0.0, 0.0])
-    if scene.sensor is not None:
-        b, (sx, sy), axis = scene.sensor
-        sensor[:] = (b, sx, sy, axis)
-    peaks = np.zeros(nc + 1)
-    pk, pe, ps = np.zeros((4 + scheme.end + 1, 2 * n)), np.zeros((2, nc + 1)), np.zeros(4)
-    control = I.Control(meth.adaptive, meth.project, proj_tol, drift_tolerance, atolv, rtol_, 1e-13, hmax,
-                        _STEPS_PER_CALL)
-    track = I.Track(sensor, peaks, pk, pe, ps)
-    mdl = I.Model(P, speed, alpha, beta, inc, v0i, blow, W)
-    out = I.Output(times, out_y, out_a, out_c, out_lam, rec, record_contacts, evaluate_samples)
-    while True:
-        status = I.run_loop(scheme, control, mdl, float(stats[0]["t"]), y, h, t_end, out, k, cout, stats, track)
-        if status == I.FULL:
-            rec = np.concatenate([rec, np.zeros_like(rec)])
-            out = out._replace(rec=rec)
-            h = float(stats[0]["h"])
-            continue
-        if status == I.PAUSED:  # Python runs between calls: Ctrl-C acts within a call's time
-            h = float(stats[0]["h"])
-            if stats[0]["steps"] < _MAX_STEPS:
-                continue
-            status = I.TOO_MANY_STEPS
-        if status != I.DONE:
-            raise _fail(scene, status, stats, y, cout, speed, meth.name, drift_tolerance)
-        break
+    proj_tol = max(2e-15, min(_PROJECTION_TOL, 1e-2 * positions))
+    y = np.concatenate([q, v])
+    mdl, k, cout = _start(scene, meth, P, speed, y, proj_tol)
+    tolerances = (meth.rtol if rtol is None else float(rtol), error_scales(scene, atol_), proj_tol)
+    out, stats, track = _integrate(scene, meth, mdl, y, out, tolerances, t_end, profile is not None, (k, cout))
+    return _result(scene, meth, mdl.speed, out, stats, track, y, wall0)
+
+
+def _result(scene: Scene, meth: Method, speed: float, out: I.Output, stats: np.ndarray, track: I.Track,
+            y: np.ndarray, wall0: float) -> SimulationResult:
+    """The result of an integrated run: the table, the summary with the peaks from the dense output (the
+    table's samples miss the tops of impacts by ~1 %), the contact records, the final state."""
+    n, nc = scene.n, len(scene.clearance_joints)
     contacts = None
-    if record_contacts:
-        used = rec[: int(stats[0]["rec"])]
+    if out.record:
+        used = out.rec[: int(stats[0]["rec"])]
         contacts = {j: pd.DataFrame(used[:, c, :], columns=list(CONTACT_COLUMNS))
                     for c, j in enumerate(scene.clearance_joints)}
-    table = _table(scene, times, out_y, out_a, out_c, out_lam)
+    table = _table(scene, out.t, out.y, out.a, out.c, out.lam)
     summary = _summary(scene, meth.name, stats, table, wall0, speed)
-    # peaks from the dense output (the table's samples miss the tops of impacts by ~1 %)
+    peaks = track.peaks
     summary["peak_fn"] = {j: float(peaks[c]) for c, j in enumerate(scene.clearance_joints)}
     if scene.sensor is not None and math.isfinite(summary["peak_slider_acc"]):
         summary["peak_slider_acc"] = float(peaks[nc])

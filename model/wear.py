@@ -43,6 +43,7 @@ __all__ = [
     "WearLaw",
     "accumulate_wear",
     "contact_pressure",
+    "deposit_arcs",
     "hertz_half_width",
     "sliding_distance",
     "worn_volume",
@@ -166,7 +167,7 @@ class WearLaw:
         return self.coefficient * np.where(fn > 0, self.pressure(fn), 0.0) * ds
 
 
-def _deposit(n: int, centre_regions: np.ndarray, half_regions: np.ndarray, depth: np.ndarray) -> np.ndarray:
+def deposit_arcs(n: int, centre_regions: np.ndarray, half_regions: np.ndarray, depth: np.ndarray) -> np.ndarray:
     """Spread ``depth`` (m) evenly over arcs [c - w, c + w] (region units, periodic over ``n``).
 
     Each region gets depth times the fraction of it the arc covers, so sum(result) * region width
@@ -205,12 +206,13 @@ def _swept_deposit(n: int, start: np.ndarray, sweep: np.ndarray, half: np.ndarra
     rows = np.repeat(np.arange(m.size), m)
     j = np.arange(rows.size) - np.repeat(np.cumsum(m) - m, m)
     centre = start[rows] + sweep[rows] * (j + 0.5) / m[rows]
-    return _deposit(n, np.mod(centre, n), half[rows], depth[rows] / m[rows])
+    return deposit_arcs(n, np.mod(centre, n), half[rows], depth[rows] / m[rows])
 
 
 @njit(cache=True)
-def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, length, out_b, out_j):
-    """Spread the worn volumes ``vol_b``, ``vol_j`` (m^3 per row) over each row's overlap arc.
+def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, dims, out_b, out_j):
+    """Spread the worn volumes ``vol_b``, ``vol_j`` (m^3 per row) over each row's overlap arc, on a joint of
+    dimensions ``dims`` = (bearing radius, journal radius, axial length) (m).
 
     Each row is an accepted step with penetration ``pen`` (m) at the contact direction, ``phib``,
     ``phij`` in each body's frame. The contact kernel puts it where the overlap
@@ -222,6 +224,7 @@ def _overlap_deposit(sb, sj, clear, pen, phib, phij, vol_b, vol_j, r1, r2, lengt
     Samples step through region coordinates and rotate |e| (cos, sin) by the step: no angle is
     divided, wrapped or passed to cos per sample.
     """
+    r1, r2, length = dims
     nb, nj = sb.size, sj.size
     mb, mj = node_slopes(sb, nb), node_slopes(sj, nj)  # depth_eval's values, without its divisions
     step = 0.5 * np.pi / max(nb, nj)
@@ -314,7 +317,7 @@ def accumulate_wear(record: pd.DataFrame, law: WearLaw, regions: int = 1000, *,
         _overlap_deposit(base.bearing, base.journal, law.bearing_radius - law.journal_radius,
                          rec["pen"].to_numpy(float), rec["phi_bearing"].to_numpy(float),
                          rec["phi_journal"].to_numpy(float), law.split * vol, (1 - law.split) * vol,
-                         law.bearing_radius, law.journal_radius, law.axial_length, out_b, out_j)
+                         (law.bearing_radius, law.journal_radius, law.axial_length), out_b, out_j)
         return JointSurfaces(np.maximum(out_b, 0.0), np.maximum(out_j, 0.0), cycles, label)
     scale = regions / (2 * np.pi)
     sides = []

@@ -179,6 +179,88 @@ def _mean_pressure(rec, law: WearLaw) -> float:
     return float(np.sum(law.pressure(fn) * ds) / w) if w > 0 else 0.0
 
 
+def _simulate_update(scene, plan: StagePlan, speed: float, fresh: bool, state):
+    """Simulate one update: ``plan.update_revolutions`` revolutions (after ``plan.settle`` more when
+    ``fresh``, the run's start) from ``state`` (None: the assembled start), recording the contacts; a run
+    that cannot continue from the last state (its projection fails: driver ratios) settles afresh.
+    Returns (result, settle revolutions run)."""
+    from wearbench.model import SimulationError, simulate
+
+    revs = float(plan.update_revolutions)
+    settle = plan.settle if fresh else 0
+    try:
+        return simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method, record_contacts=True,
+                        output_rate=_TABLE_RATE, initial=state), settle
+    except SimulationError as exc:
+        if fresh or exc.quantity != "initial state":
+            raise
+    settle = plan.settle  # cannot continue (driver ratios): settle afresh
+    return simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method, record_contacts=True,
+                    output_rate=_TABLE_RATE), settle
+
+
+def _rates(result, laws: Mapping[str, WearLaw], current: Mapping[str, JointSurfaces], plan: StagePlan,
+           counted_from: float):
+    """Per joint, from the contacts recorded after ``counted_from`` (s) over ``plan.update_revolutions``
+    revolutions: the wear per cycle (surfaces), the Archard volume per cycle (m^3, eq. 15) and the
+    sliding-weighted mean pressure (Pa)."""
+    revs = float(plan.update_revolutions)
+    rate, volume_rate, pressure = {}, {}, {}
+    for j, law in laws.items():
+        rec = result.contacts[j]
+        rec = rec[rec["t"].to_numpy() >= counted_from - 1e-12]
+        inc = accumulate_wear(rec, law, current[j].bearing.size, surfaces=current[j])
+        rate[j] = inc.scaled(1.0 / revs)
+        fn = np.maximum(rec["fn"].to_numpy(), 0.0)
+        ds = sliding_distance(rec["dt"].to_numpy(), rec["omega_rel"].to_numpy(), rec["vt"].to_numpy(),
+                              law.bearing_radius, plan.sliding)
+        volume_rate[j] = float(law.coefficient * np.sum(fn * ds)) / revs  # eq. 15 per cycle
+        pressure[j] = _mean_pressure(rec, law)
+    return rate, volume_rate, pressure
+
+
+def _gain(gain: float, pressure: Mapping[str, float], last_p: Mapping[str, float] | None, plan: StagePlan) -> float:
+    """The depth cap's gain after an update: halved (down to _MIN_GAIN) when the mean pressure changed by
+    more than ``plan.pressure_change`` since the last update, else grown back by half (up to 1)."""
+    if last_p is None:
+        return gain
+    change = max((abs(pressure[j] / last_p[j] - 1) for j in pressure if last_p[j] > 0), default=0.0)
+    return max(_MIN_GAIN, gain / 2) if change > plan.pressure_change else min(1.0, gain * 1.5)
+
+
+def _update_cycles(rate: Mapping[str, JointSurfaces], left: float, gain: float, plan: StagePlan) -> float:
+    """Cycles one update represents: at most 1/(min_updates x refinement) of a stage and the depth cap
+    (times the gain) at the fastest-wearing surface, the rest of the stage when only a sliver would stay."""
+    peak_rate = max(max(r.max_depth) for r in rate.values())
+    cycles = min(left, plan.stage_cycles / (plan.min_updates * plan.refinement))
+    if peak_rate > 0:
+        cycles = min(cycles, gain * plan.depth_cap / peak_rate)
+    if left - cycles < 1e-6 * plan.stage_cycles:  # no sliver of a last update
+        cycles = left
+    return cycles
+
+
+def _close_stage(run: WearRun, k: int, current: dict[str, JointSurfaces], start: Mapping[str, JointSurfaces],
+                 laws: Mapping[str, WearLaw], total: Mapping[str, float], bench_name: str) -> tuple:
+    """The surfaces after stage k (labelled, with their provenance) into ``current``; returns (increment,
+    after, volume) per joint: the stage's wear, the surfaces after it, the increment's worn volume."""
+    label, plan = stage_label(k), run.plan
+    increment, after, volume = {}, {}, {}
+    for j, law in laws.items():
+        after[j] = JointSurfaces(current[j].bearing, current[j].journal, total[j], label,
+                                 {"joint": j, "bench": bench_name, "speed_rad_s": f"{run.speed:.6g}",
+                                  "clearance_m": f"{run.clearances[j]:.6g}", "sliding": plan.sliding,
+                                  "footprint": plan.footprint, "split": f"{law.split:g}",
+                                  "coefficient_per_pa": f"{law.coefficient:.6g}",
+                                  "update_depth_m": f"{plan.depth_cap:.3g}"})
+        current[j] = after[j]
+        increment[j] = JointSurfaces(np.maximum(after[j].bearing - start[j].bearing, 0.0),
+                                     np.maximum(after[j].journal - start[j].journal, 0.0),
+                                     plan.stage_cycles, label)
+        volume[j] = worn_volume(increment[j], law)
+    return increment, after, volume
+
+
 def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str, float] | None = None,
                speed: float | None = None, initial: Mapping[str, JointSurfaces] | None = None,
                on_stage: Callable[[Stage], None] | None = None,
@@ -194,7 +276,7 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
     state (a realisation's start, :func:`~wearbench.model.realisation.realisation_start`); the first
     ``plan.settle`` revolutions are still not counted. Raises the model's ``SimulationError`` unchanged.
     """
-    from wearbench.model import SimulationError, build_scene, simulate
+    from wearbench.model import SimulationError, build_scene
 
     plan = plan or StagePlan.from_bench(bench)
     speed = bench.speed if speed is None else float(speed)
@@ -220,7 +302,6 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
     worn_before = {j: s.cycles for j, s in current.items()}
     for k in range(1, plan.stages + 1):
         t0 = time.perf_counter()
-        label = stage_label(k)
         start = dict(current)
         left = plan.stage_cycles
         archard = dict.fromkeys(clear, 0.0)
@@ -231,16 +312,7 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
                                       f"to go (cap {plan.depth_cap:.3g} m per update)", t=counted,
                                       quantity="wear update")
             scene = build_scene(bench, clearances=clear, surfaces=current)
-            settle = plan.settle if fresh else 0
-            try:
-                result = simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method,
-                                  record_contacts=True, output_rate=_TABLE_RATE, initial=state)
-            except SimulationError as exc:
-                if fresh or exc.quantity != "initial state":
-                    raise
-                state, settle = None, plan.settle  # cannot continue (driver ratios): settle afresh
-                result = simulate(scene, revolutions=settle + revs, speed=speed, method=plan.method,
-                                  record_contacts=True, output_rate=_TABLE_RATE)
+            result, settle = _simulate_update(scene, plan, speed, fresh, state)
             state = _continue_from(scene, getattr(result, "final", None))
             fresh = state is None
             simulated += settle + revs
@@ -248,28 +320,10 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
             if first_summary is None:
                 first_summary = dict(result.summary)
                 first_summary["peak_fn"] = {j: float(result.contacts[j]["fn"].max()) for j in clear}
-            rate, volume_rate, pressure = {}, {}, {}
-            for j in clear:
-                rec = result.contacts[j]
-                rec = rec[rec["t"].to_numpy() >= settle * period - 1e-12]
-                law = laws[j]
-                inc = accumulate_wear(rec, law, current[j].bearing.size, surfaces=current[j])
-                rate[j] = inc.scaled(1.0 / revs)
-                fn = np.maximum(rec["fn"].to_numpy(), 0.0)
-                ds = sliding_distance(rec["dt"].to_numpy(), rec["omega_rel"].to_numpy(), rec["vt"].to_numpy(),
-                                      law.bearing_radius, plan.sliding)
-                volume_rate[j] = float(law.coefficient * np.sum(fn * ds)) / revs  # eq. 15 per cycle
-                pressure[j] = _mean_pressure(rec, law)
-            if last_p is not None:
-                change = max((abs(pressure[j] / last_p[j] - 1) for j in clear if last_p[j] > 0), default=0.0)
-                gain = max(_MIN_GAIN, gain / 2) if change > plan.pressure_change else min(1.0, gain * 1.5)
+            rate, volume_rate, pressure = _rates(result, laws, current, plan, settle * period)
+            gain = _gain(gain, pressure, last_p, plan)
             last_p = pressure
-            peak_rate = max(max(r.max_depth) for r in rate.values())
-            cycles = min(left, plan.stage_cycles / (plan.min_updates * plan.refinement))
-            if peak_rate > 0:
-                cycles = min(cycles, gain * plan.depth_cap / peak_rate)
-            if left - cycles < 1e-6 * plan.stage_cycles:  # no sliver of a last update
-                cycles = left
+            cycles = _update_cycles(rate, left, gain, plan)
             for j in clear:
                 after = current[j] + rate[j].scaled(cycles)
                 after.cycles = current[j].cycles + cycles
@@ -279,22 +333,9 @@ def run_stages(bench, plan: StagePlan | None = None, *, clearances: Mapping[str,
             updates += 1
             if on_update is not None:
                 on_update(plan.stage_cycles * k - left, current)
-        increment, after, volume = {}, {}, {}
-        for j in clear:
-            law = laws[j]
-            total = worn_before[j] + plan.stage_cycles * k
-            after[j] = JointSurfaces(current[j].bearing, current[j].journal, total, label,
-                                     {"joint": j, "bench": bench.name, "speed_rad_s": f"{speed:.6g}",
-                                      "clearance_m": f"{clear[j]:.6g}", "sliding": plan.sliding,
-                                      "footprint": plan.footprint, "split": f"{law.split:g}",
-                                      "coefficient_per_pa": f"{law.coefficient:.6g}",
-                                      "update_depth_m": f"{plan.depth_cap:.3g}"})
-            current[j] = after[j]
-            increment[j] = JointSurfaces(np.maximum(after[j].bearing - start[j].bearing, 0.0),
-                                         np.maximum(after[j].journal - start[j].journal, 0.0),
-                                         plan.stage_cycles, label)
-            volume[j] = worn_volume(increment[j], law)
-        stage = Stage(k, label, start, increment, after, first_summary or {}, counted, volume, archard,
+        total = {j: worn_before[j] + plan.stage_cycles * k for j in clear}
+        increment, after, volume = _close_stage(run, k, current, start, laws, total, bench.name)
+        stage = Stage(k, stage_label(k), start, increment, after, first_summary or {}, counted, volume, archard,
                       time.perf_counter() - t0, updates, simulated)
         run.stages.append(stage)
         if on_stage is not None:

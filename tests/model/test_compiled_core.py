@@ -49,20 +49,20 @@ def _pattern_spd(P, rng):
     m = P.jb.shape[0]
     Jv = rng.standard_normal((m, 2, 3))
     S = np.zeros((m, m))
-    K._schur(P, Jv, S)  # the lower triangle, all the factorisation reads
+    K.schur(P, Jv, S)  # the lower triangle, all the factorisation reads
     return np.tril(S) + np.tril(S, -1).T + 1e-3 * np.eye(m)
 
 
 def test_schur_complement_is_the_dense_product_in_its_lower_triangle():
-    from wearbench.model.scene import _dense_jacobian
+    from wearbench.model.scene import dense_jacobian
 
     scene = build_scene(load_bench(shipped_bench("ninebar-testbed")))
     P = scene.params
     W = scene.work()
     K.constraints(0.0, scene.q0.copy(), scene.v_unit * 10.0, 10.0, P, W)
-    J = _dense_jacobian(P, W.Jv, scene.n)
+    J = dense_jacobian(P, W.Jv, scene.n)
     S = np.full((scene.m, scene.m), np.nan)  # stale values in the envelope are overwritten, nothing else read
-    K._schur(P, W.Jv, S)
+    K.schur(P, W.Jv, S)
     dense = J @ np.diag(P.minv) @ J.T
     low = np.tril(np.ones_like(S, dtype=bool)) & (np.arange(scene.m)[None, :] >= P.s_first[:, None])
     np.testing.assert_allclose(S[low], dense[low], rtol=1e-12, atol=1e-12 * np.abs(dense).max())
@@ -81,8 +81,8 @@ def test_envelope_cholesky_is_the_dense_factorisation_bit_for_bit():
         assert all(not S[i, :first[i]].any() for i in range(m))  # nothing left of the envelope
         rhs = rng.standard_normal(m)
         x_env, x_dense = np.zeros(m), np.zeros(m)
-        assert K._cholesky_solve(S.copy(), rhs, x_env, first) == K.OK
-        assert K._cholesky_solve(S.copy(), rhs, x_dense, np.zeros(m, np.int64)) == K.OK
+        assert K.cholesky_solve(S.copy(), rhs, x_env, first) == K.OK
+        assert K.cholesky_solve(S.copy(), rhs, x_dense, np.zeros(m, np.int64)) == K.OK
         assert np.array_equal(x_env, x_dense)
         np.testing.assert_allclose(x_env, np.linalg.solve(S, rhs), rtol=1e-8, atol=1e-12)
 

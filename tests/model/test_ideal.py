@@ -105,7 +105,7 @@ def test_speed_profile_drives_the_crank_through_the_integrated_angle(slider_cran
     # motor ramped from rest at 2000 rad/s^2: theta = phase + a t^2 / 2 (exact for a linear speed)
     scene = build_scene(slider_crank, clearances={"S": None})
     a = 2000.0
-    res = simulate(scene, t_end=0.05, output_rate=2e4, speed_profile=lambda t: a * t)
+    res = simulate(scene, t_end=0.05, output_rate=2e4, speed=lambda t: a * t)
     t = res.table["t"].to_numpy()
     np.testing.assert_allclose(res.table["theta_O"], 0.5 * a * t**2, atol=1e-9)
     th, w, al = 0.5 * a * t**2, a * t, a
@@ -116,8 +116,12 @@ def test_speed_profile_drives_the_crank_through_the_integrated_angle(slider_cran
     ddx = -r * c - r**2 * (c**2 - s**2) / root - r**4 * s**2 * c**2 / root**3
     np.testing.assert_allclose(res.table["slider_pos"], r * c + root, atol=1e-9)
     np.testing.assert_allclose(res.table["slider_acc"], ddx * w**2 + dx * al, atol=1e-6 * np.abs(ddx * w**2).max())
+    # the same profile as arrays (times, speeds): linear in between, the same samples
+    times = np.arange(0.0, 0.06, 1e-4)
+    tabled = simulate(scene, t_end=0.05, output_rate=2e4, speed=(times, a * times))
+    np.testing.assert_array_equal(tabled.table["theta_O"], res.table["theta_O"])
     with pytest.raises(ValueError, match="t_end"):
-        simulate(scene, speed_profile=lambda t: a * t)
+        simulate(scene, speed=lambda t: a * t)
 
 
 def test_spring_damper_and_torque_elements(pendulum_bench):

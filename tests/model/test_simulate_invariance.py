@@ -57,7 +57,7 @@ def test_pausing_the_compiled_loop_changes_nothing(scene, half, monkeypatch):
 
     runs = []
     for every in (97, 10**9):
-        monkeypatch.setattr(S, "_STEPS_PER_CALL", every)
+        monkeypatch.setattr(S, "STEPS_PER_CALL", every)
         runs.append(simulate(scene, revolutions=0.5, record_contacts=True))
     paused, whole = runs
     assert paused.summary["steps"] == whole.summary["steps"] > 10 * 97

@@ -13,8 +13,8 @@ from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.contact import effective_modulus
 from wearbench.model.wear import (
     WearLaw,
-    _deposit,
     accumulate_wear,
+    deposit_arcs,
     worn_volume,
 )
 
@@ -134,7 +134,7 @@ def test_region_footprint_is_the_papers_single_region():
 @given(st.floats(0, 100, exclude_max=True), st.floats(0.001, 20), st.floats(1e-9, 1e-3))
 def test_deposit_matches_brute_force_overlap(centre, half, depth):
     n = 100
-    got = _deposit(n, np.array([centre]), np.array([half]), np.array([depth]))
+    got = deposit_arcs(n, np.array([centre]), np.array([half]), np.array([depth]))
     x = (np.arange(200_000) + 0.5) / 2000.0  # fine grid over [0, n), 2000 points per region
     inside = np.abs((x - centre + n / 2) % n - n / 2) <= half
     want = depth * inside.reshape(n, -1).mean(axis=1)

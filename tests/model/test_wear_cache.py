@@ -47,6 +47,9 @@ def test_editing_a_callee_recompiles_the_cached_kernel(tmp_path):
 
     pkg = tmp_path / "wearbench"
     shutil.copytree(src, pkg / "model", ignore=shutil.ignore_patterns("__pycache__"))
+    # a regular package: the checkout's own wearbench/ (the cwd, first on a `python -c` path) would win over a
+    # namespace portion and hide the copy
+    (pkg / "__init__.py").write_text("")
     # the model stands on the bench layer only (tests/test_architecture.py)
     shutil.copytree(Path(bench_pkg.__file__).parent, pkg / "bench", ignore=shutil.ignore_patterns("__pycache__"))
     first = _run(tmp_path)

@@ -10,12 +10,11 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
+import wearbench.model
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model.wear import WearLaw
 from wearbench.model.wear_stages import StagePlan, convergence, run_stages, stage_label, wear_zones
 from wearbench.studies.wear_report import load_states, run_summary, write_run
-
-from wearbench import model
 
 FN, OMEGA = 600.0, 3.0  # N, rad/s: steady load, journal turning relative to the bearing
 DT = 2e-4
@@ -43,8 +42,8 @@ def fake_model(monkeypatch):
         return SimpleNamespace(contacts=contacts, table=None, final=(np.zeros(3), np.zeros(3)),
                                summary={"method": method, "steps": t.size, "peak_fn": {}, "peak_slider_acc": 0.0})
 
-    monkeypatch.setattr(model, "build_scene", build_scene, raising=False)
-    monkeypatch.setattr(model, "simulate", simulate, raising=False)
+    monkeypatch.setattr(wearbench.model, "build_scene", build_scene, raising=False)
+    monkeypatch.setattr(wearbench.model, "simulate", simulate, raising=False)
     return calls
 
 

@@ -3,7 +3,9 @@
 Issue 27 asked whether "independent or partitioned coordinates for a closed-loop mechanism instead of
 a dense augmented solve per evaluation" would make a realisation cheaper. This script measures it
 without touching ``model/`` (it calls the compiled kernels of ``wearbench.model.kernel``: constraints,
-force elements, contact forces).
+force elements, contact forces). Measured: 0.99x / 1.12x per evaluation against the augmented solve,
+the same steps: not a route to the speed-up, so it lives here, an experiment no test run loads
+(``experiments/test_partitioned_coordinates.py`` checks it when run by hand: ``.venv/bin/pytest experiments``).
 
 The right-hand side in partitioned coordinates (Wehage-Haug): the 4 independent coordinates q_v are
 the columns left over by an LU with complete pivoting of Phi_q (20 x 24) at the start state; the 20
@@ -29,23 +31,27 @@ What it prints, on the test bed (0.3 mm, nominal) on new and 400,000-cycle worn 
    accepted / rejected steps, evaluations, CPU, and the slider acceleration's RMS error over the first
    20 and 40 ms against a tight reference (rtol 1e-10), for both, and of the one against the other.
 
-Run:  .venv/bin/python benchmarks/partitioned_coordinates.py [--repeat 3] [--states new worn]
+Run:  .venv/bin/python experiments/partitioned_coordinates.py [--repeat 3] [--states new worn]
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from collections import namedtuple
+from pathlib import Path
 
 import numpy as np
 from numba import njit
-from profile_revolution import _clock, contact_modes, watched_loop  # benchmarks/ on sys.path
 from wearbench.model import integrators as I
 from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
-from wearbench.model.scene import _dense_jacobian
+from wearbench.model.scene import dense_jacobian
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the profile's clock and loop watch
+from profile_revolution import clock, contact_modes, watched_loop
 
 STATES = {"new": "0.3 mm new", "worn": "0.3 mm second wear"}
 NEWTON_TOL = 1e-12  # m (or rad): largest |Phi| the position solve leaves
@@ -80,7 +86,7 @@ def _pattern(scene, t: float, q: np.ndarray, v: np.ndarray, speed: float) -> np.
         if r:
             qq[2::3] += rng.uniform(-math.pi, math.pi, n // 3)
         K.constraints(t, qq, v.copy(), speed, P, W)
-        pat |= _dense_jacobian(P, W.Jv, n) != 0.0
+        pat |= dense_jacobian(P, W.Jv, n) != 0.0
     return pat
 
 
@@ -89,7 +95,7 @@ def choose_partition(scene, t: float, q: np.ndarray, v: np.ndarray, speed: float
     of the dependent block Phi_u by threshold Markowitz (sparse and stable at this state) and its fill."""
     P, W, n, m = scene.params, scene.work(), scene.n, scene.m
     K.constraints(t, q.copy(), v.copy(), speed, P, W)
-    J = _dense_jacobian(P, W.Jv, n)
+    J = dense_jacobian(P, W.Jv, n)
     A, cols = J.copy(), np.arange(n)
     for k in range(m):
         i, j = np.unravel_index(np.argmax(np.abs(A[k:, k:])), (m - k, n - k))
@@ -390,7 +396,7 @@ def reduced_accel_inline(t, qv, vv, speed, P, part, Z, W, inc, v0i, cout, tol, m
         cu[rowpos[k]] = gam[k]
     solve_lu(lptr, lidx, uptr, uidx, A, cu)
     K.element_forces(q, v, P, W.g)
-    K._clearance_forces(q, v, P, inc, v0i, W, cout, True)
+    K.clearance_arrays(q, v, P, W, inc, v0i, cout, True)
     reduced_system(dep, indep, part.mass, X, cu, W.g, Z.Mr, Z.fr, Z.av, Z.a)
     Z.tlast[0] = t
     for i in range(q.shape[0]):
@@ -417,7 +423,7 @@ def check_states(ts, qs, vs, speed, P, part, Z, W, inc, v0i, cout, tol, maxit, a
             return i
         a_part[i] = Z.a
         q_part[i] = Z.q
-        K.accel(ts[i], Z.q.copy(), Z.v.copy(), speed, P, 0.0, 0.0, inc[i], v0i[i], a_aug[i], lam, cout, W2)
+        K.accel_arrays(ts[i], Z.q.copy(), Z.v.copy(), speed, P, W2, (0.0, 0.0), inc[i], v0i[i], a_aug[i], lam, cout)
     return ts.shape[0]
 
 
@@ -426,7 +432,7 @@ def _timers():
     def aug(reps, ts, qs, vs, speed, P, W, inc, v0i, a, lam, cout):
         for _ in range(reps):
             for i in range(ts.shape[0]):
-                K.accel(ts[i], qs[i], vs[i], speed, P, 0.0, 0.0, inc[i], v0i[i], a, lam, cout, W)
+                K.accel_arrays(ts[i], qs[i], vs[i], speed, P, W, (0.0, 0.0), inc[i], v0i[i], a, lam, cout)
 
     @njit
     def part_whole(reps, ts, qvs, vvs, speed, P, part, Z, W, inc, v0i, cout, tol, maxit):
@@ -448,7 +454,7 @@ def _timers():
                     W.cs[b] = css[i, b]
                     W.sn[b] = sns[i, b]
                 K.element_forces(qs[i], vs[i], P, W.g)
-                K._clearance_forces(qs[i], vs[i], P, inc[i], v0i[i], W, cout, True)
+                K.clearance_arrays(qs[i], vs[i], P, W, inc[i], v0i[i], cout, True)
 
     @njit
     def factor(reps, Jvs, P, part, A, V):
@@ -508,15 +514,15 @@ def _timers():
     def schur_solve(reps, Jvs, P, S, rhs, lam):
         for _ in range(reps):
             for i in range(Jvs.shape[0]):
-                K._schur(P, Jvs[i], S)
-                K._cholesky_solve(S, rhs, lam, P.s_first)
+                K.schur(P, Jvs[i], S)
+                K.cholesky_solve(S, rhs, lam, P.s_first)
 
     return {"aug": aug, "part": part_whole, "constraints": constraints, "forces": forces, "factor": factor,
             "substitution": substitution, "copy_only": copy_only, "columns": columns, "columns_copy": columns_copy,
             "reduced": reduced, "reduced_copy": reduced_copy, "schur_solve": schur_solve}
 
 
-def _sample_states(scene, speed, revolutions: float = 1.0):
+def sample_states(scene, speed, revolutions: float = 1.0):
     """The 20 kHz samples of one default revolution (y from the continuous extension), each projected
     onto the position and velocity constraints (tol 1e-13), with contact modes as the table shows them."""
     from wearbench.model import simulate
@@ -535,7 +541,7 @@ def _sample_states(scene, speed, revolutions: float = 1.0):
 def check_and_time(label: str, scene, repeat: int) -> dict:
     P, speed, n, m = scene.params, scene.bench.speed, scene.n, scene.m
     nc = len(scene.clearance_joints)
-    _, ts, qs, vs, inc, v0i = _sample_states(scene, speed)
+    _, ts, qs, vs, inc, v0i = sample_states(scene, speed)
     part = choose_partition(scene, 0.0, qs[0], vs[0], speed)
     names = [f"{scene.bodies[c // 3]}.{'xy'[c % 3] if c % 3 < 2 else 'theta'}" for c in part.indep]
     Z = new_reduced(scene, part, ts[0], qs[0], vs[0], speed)
@@ -588,7 +594,7 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
         Rus.append(Zr.Ru.copy())
         cus.append(Zr.cu.copy())
         K.element_forces(Zr.q, Zr.v, P, W.g)
-        K._clearance_forces(Zr.q, Zr.v, P, ii[i], vi[i], W, cout, True)
+        K.clearance_arrays(Zr.q, Zr.v, P, W, ii[i], vi[i], cout, True)
         gs.append(W.g.copy())
     # the parts on every k-th state (<= 400: their recorded arrays stay in cache, as a right-hand side's do)
     every = max(1, tt.size // 400)
@@ -616,7 +622,7 @@ def check_and_time(label: str, scene, repeat: int) -> dict:
                 ("reduced", T["reduced"], (Rus, cus, gs, part, Zr), ts_p.size),
                 ("reduced_copy", T["reduced_copy"], (Rus, cus, gs, part, Zr), ts_p.size),
                 ("schur_solve", T["schur_solve"], (Jvs, P, np.zeros((m, m)), np.ones(m), np.zeros(m)), ts_p.size)):
-            sec = _clock(fn, *args, budget=0.2, best_of=1) / per  # --repeat interleaves the best-of
+            sec = clock(fn, *args, budget=0.2, best_of=1) / per  # --repeat interleaves the best-of
             best[key] = min(best.get(key, math.inf), sec)
     sub = max(0.0, best["substitution"] - best["copy_only"])
     cols = max(0.0, best["columns"] - best["columns_copy"])
@@ -741,7 +747,7 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P,
         Xacc[:] = Z.Ru
         Aacc[:] = Z.A
         while iout < ts_out.shape[0] and ts_out[iout] <= t_new:
-            I._extension(scheme.d, y, hh, k, (ts_out[iout] - t) / hh, yo, fo, dbs)
+            I.extension(scheme.d, y, hh, k, (ts_out[iout] - t) / hh, yo, fo, dbs)
             reduced_accel(ts_out[iout], yo[:nv], yo[nv:], speed, P, part, Z2, W2, inc, v0i, c2, NEWTON_TOL,
                           NEWTON_MAXIT)
             b = int(sensor[0])
@@ -750,7 +756,7 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P,
                                       sensor[2], sensor[3])
             acc_out[iout] = acc
             iout += 1
-        if I._update_modes(cout_old, cnew, inc, v0i):
+        if I.update_modes(cout_old, cnew, inc, v0i):
             st = _rhs(t_new, ynew, speed, P, part, Z, W, inc, v0i, cnew, k[end])
             if st != OK:
                 stats[2], stats[3], stats[4], stats[5] = t, h, err_old, iout
@@ -763,7 +769,7 @@ def reduced_loop(scheme, t, y, h, t_end, err_old, k, atol, rtol, hmax, speed, P,
                 cout_old[c, j] = cnew[c, j]
         t = t_new
         stats[0] += 1
-        h, err_old = I._next_step(hh, err, err_old, factor_max, hmax, scheme.expo_pi)
+        h, err_old = I.next_step(hh, err, err_old, factor_max, hmax, scheme.expo_pi)
         factor_max = 5.0
     stats[2], stats[3], stats[4], stats[5] = t, h, err_old, iout
     return OK
@@ -773,13 +779,13 @@ def run_reduced(scene, t_end: float, ts_out: np.ndarray) -> dict:
     """One run of the reduced DOPRI5 from the default's start (projected assembly, journals centred):
     counts, CPU and the slider acceleration at ts_out. Re-partitions in Python when asked."""
     from wearbench.model.methods import Dopri5
-    from wearbench.model.simulation import _step_cap, _tolerances
+    from wearbench.model.simulation import error_scales, step_cap
 
     P, speed, n = scene.params, scene.bench.speed, scene.n
     nc = len(scene.clearance_joints)
     scheme = Dopri5.tableau.scheme()
-    atol_full = _tolerances(scene, Dopri5.atol)
-    hmax = _step_cap(scene, speed, False)
+    atol_full = error_scales(scene, Dopri5.atol)
+    hmax = step_cap(scene, speed, False)
     q, v = scene.q0.copy(), scene.v_unit * speed
     W = scene.work()
     K.project(0.0, q, v, speed, P, W, max(2e-15, min(1e-11, 1e-2 * Dopri5.atol)), 20)

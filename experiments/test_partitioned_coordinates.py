@@ -1,10 +1,12 @@
-"""benchmarks/partitioned_coordinates.py's reduced right-hand side (issue 27's partitioned coordinates): on the
+"""experiments/partitioned_coordinates.py's reduced right-hand side (issue 27's partitioned coordinates): on the
 test bed's states from a real run (contacts included) the 24 accelerations equal those of the augmented solve
-``kernel.accel`` at the same state, and the position solve lands on the run's (projected) positions."""
+``kernel.accel`` at the same state, and the position solve lands on the run's (projected) positions.
+
+The experiment's own check, beside it: no test run loads it (``testpaths`` is tests/); run it by hand with
+``.venv/bin/pytest experiments``."""
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -14,12 +16,8 @@ from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.model import kernel as K
 from wearbench.model.realisation import state_scene
 
-PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "partitioned_coordinates.py"
-sys.path.insert(0, str(PATH.parent))  # as when the script runs: it takes its clock from profile_revolution.py
-spec = importlib.util.spec_from_file_location("partitioned_coordinates", PATH)
-pc = importlib.util.module_from_spec(spec)
-sys.modules[spec.name] = pc  # numba's cache finds the module's functions by its name
-spec.loader.exec_module(pc)
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # as when the script runs from its folder
+import partitioned_coordinates as pc
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +29,7 @@ def scene():
 @pytest.mark.slow  # ~35 s of numba compilation on a cold cache (3 s warm)
 def test_partitioned_accelerations_equal_the_augmented_ones(scene):
     speed = scene.bench.speed
-    _, ts, qs, vs, inc, v0i = pc._sample_states(scene, speed, revolutions=0.05)  # 50 ms at 20 kHz
+    _, ts, qs, vs, inc, v0i = pc.sample_states(scene, speed, revolutions=0.05)  # 50 ms at 20 kHz
     assert inc.any(), "expected contacts among the states (the contact forces must enter the check)"
     part = pc.choose_partition(scene, 0.0, qs[0], vs[0], speed)
     assert part.indep.size == scene.dof == 4
