@@ -50,8 +50,8 @@ from wearbench.model import kernel as K
 from wearbench.model.contact import impact_speed
 from wearbench.model.scene import dense_jacobian
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the profile's clock and loop watch
-from profile_revolution import clock, contact_modes, watched_loop
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository: the profile's clock and loop watch
+from benchmarks.model.profile_revolution import clock, contact_modes, watched_loop
 
 STATES = {"new": "0.3 mm new", "worn": "0.3 mm second wear"}
 NEWTON_TOL = 1e-12  # m (or rad): largest |Phi| the position solve leaves

@@ -1,19 +1,13 @@
-"""benchmarks/statistics_equivalence.py's own parts: the Holm correction on hand-computed values and a
+"""The statistics-equivalence gate's own parts (``wearbench.studies.equivalence``, what
+benchmarks/model/statistics_equivalence.py runs): the Holm correction on hand-computed values and a
 setting's name read back into ``simulate``'s keywords (the absolute error scales themselves are the
 model's, tested in test_tolerances.py)."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "statistics_equivalence.py"
-spec = importlib.util.spec_from_file_location("statistics_equivalence", PATH)
-equivalence = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(equivalence)
+from wearbench.studies import equivalence
 
 
 def test_holm_against_hand_values():

@@ -1,5 +1,5 @@
 """An adaptive method's error scales and drift limit: absolute scales per kind of state component (the
-atol pair, issue 47 moved it from benchmarks/statistics_equivalence.py into the model) and the
+atol pair, issue 47 moved it from benchmarks/model/statistics_equivalence.py into the model) and the
 method's drift tolerance reach the compiled loop."""
 
 from __future__ import annotations

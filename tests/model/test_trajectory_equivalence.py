@@ -1,7 +1,7 @@
 """model/equivalence.toml: a stated equivalence is a checked claim, and it keys results as stated.
 
 The slow test extracts the stated commit with git, checks its model digest, and runs
-benchmarks/trajectory_identity.py against it: every output must be bit for bit the same.
+benchmarks/model/trajectory_identity.py against it: every output must be bit for bit the same.
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ def test_the_stated_equivalence_holds_bit_for_bit(tmp_path):
     assert package_source_digest(base / "wearbench" / "model") == entry["results_of"], (
         f"model/equivalence.toml: commit {entry['commit'][:12]}'s model/ does not have digest "
         f"{entry['results_of'][:12]}")
-    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "trajectory_identity.py"), "--baseline", str(base),
-                          "--revolutions", "1", "--seeds", "1"], check=False, capture_output=True, text=True,
-                         timeout=1800)
+    run = subprocess.run([sys.executable, "-m", "benchmarks.model.trajectory_identity", "--baseline", str(base),
+                          "--revolutions", "1", "--seeds", "1"], cwd=ROOT, check=False, capture_output=True,
+                         text=True, timeout=1800)
     assert run.returncode == 0 and "IDENTICAL" in run.stdout, run.stdout + run.stderr

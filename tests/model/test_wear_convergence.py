@@ -11,7 +11,7 @@ from wearbench.model.wear_stages import StagePlan, convergence, run_stages
 
 # Short case (20,000 cycles, 8 um deep): each update samples one revolution of a chaotic motion, so
 # depths carry sampling noise of about 1/sqrt(updates) (15 % measured at 17 vs 25 updates; at
-# 400,000 cycles see benchmarks/wear_convergence.py). Volume is robust.
+# 400,000 cycles see benchmarks/model/wear_convergence.py). Volume is robust.
 DEPTH_TOL = 0.25   # max and reachable depth, N vs 2N refinement
 VOLUME_TOL = 0.05  # worn volume
 

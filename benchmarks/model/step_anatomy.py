@@ -14,7 +14,7 @@ and splits the steps after the settle into
 - **rejected steps** per contact onset: the difference of two runs from the same start, one to the
   settle and one to the end (rejections are not recorded step by step).
 
-Run:  .venv/bin/python benchmarks/step_anatomy.py [--revolutions 2] [--settle 0.5] [--method accurate] [--rtol 1e-6]
+Run:  .venv/bin/python -m benchmarks.model.step_anatomy [--revolutions 2] [--settle 0.5] [--method accurate] [--rtol 1e-6]
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ Prints one row per case and exits with status 1 if any output differs. The motio
 changed rounding anywhere shows within a revolution.
 
 Run:  git archive main | tar -x -C /tmp/wb_main/wearbench   (mkdir -p it first)
-      .venv/bin/python benchmarks/trajectory_identity.py --baseline /tmp/wb_main [--revolutions 3] [--seeds 2]
+      .venv/bin/python -m benchmarks.model.trajectory_identity --baseline /tmp/wb_main [--revolutions 3] [--seeds 2]
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ O(100 %). The table therefore reports errors both over the whole revolution and 
 where horizon is where the two references first differ by 1 % of the RMS acceleration, and the time
 each run tracks the reference to within 1 % of the RMS acceleration ("tracks ms").
 
-Run:  .venv/bin/python benchmarks/work_precision.py [--repeat 3] [--stiffness paper]
+Run:  .venv/bin/python -m benchmarks.model.work_precision [--repeat 3] [--stiffness paper]
 """
 
 from __future__ import annotations

@@ -6,9 +6,9 @@ and joint: max depth and reachable depth (what a circular counter-body can touch
 journal, worn volume, surface updates, simulated revolutions, CPU time and wall time, and the
 largest change against the next coarser refinement (target: < 10 % between the two finest).
 
-    .venv/bin/python benchmarks/wear_convergence.py [--refinements 1,2,4] [--out DIR]
-    .venv/bin/python benchmarks/wear_convergence.py --refinements 4 --out DIR   # one run, e.g. in parallel
-    .venv/bin/python benchmarks/wear_convergence.py --table --out DIR          # table of the runs in DIR
+    .venv/bin/python -m benchmarks.model.wear_convergence [--refinements 1,2,4] [--out DIR]
+    .venv/bin/python -m benchmarks.model.wear_convergence --refinements 4 --out DIR   # one run, e.g. in parallel
+    .venv/bin/python -m benchmarks.model.wear_convergence --table --out DIR          # table of the runs in DIR
 
 Each run is written to DIR/k<refinement>/ (surfaces, summary.json with CPU time), so refinements
 can run as separate processes and be tabulated together.

@@ -6,7 +6,7 @@ REVOLUTIONS revolutions at 10 kHz through several sensor chains (no clipping, no
 rows give the largest |acceleration| of each chain over all seeds (median and max of the per-session
 peaks), and the raw model run's peak at the table's 20 kHz resolution.
 
-    .venv/bin/python benchmarks/accelerometer_peaks.py [SEEDS] [REVOLUTIONS]
+    .venv/bin/python -m benchmarks.model.accelerometer_peaks [SEEDS] [REVOLUTIONS]
 """
 
 from __future__ import annotations

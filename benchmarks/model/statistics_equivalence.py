@@ -16,20 +16,20 @@ versions by the two-sample Kolmogorov-Smirnov test; the p-values are Holm-correc
 of features of a state, and a state passes when no corrected p is below 0.01.
 
 Three samples per state: this version at the default tolerance, the baseline version (numbers
-stored in ``benchmarks/data/statistics_baseline.npz``, written by running this script with the old
+stored in ``benchmarks/model/data/statistics_baseline.npz``, written by running this script with the old
 code importable, ``--dump``) and this version at the tight tolerance (method "accurate": rtol 1e-8,
 atol 1e-11 m). It also prints the reference against the baseline, the yardstick of what a
 tolerance alone changes.
 
-Run:  .venv/bin/python benchmarks/statistics_equivalence.py [--seeds 16 --revolutions 14]
+Run:  .venv/bin/python -m benchmarks.model.statistics_equivalence [--seeds 16 --revolutions 14]
       (or its parts in parallel: --dump this.npz; --dump ref.npz --method accurate; then --this this.npz
       --reference ref.npz)
       Which tolerance keeps the statistics at the fewest right-hand sides: one dump per setting
       (--dump F --tolerances RTOL ATOL, or --scales POSITION VELOCITY for absolute error scales), then
       --sweep F... --reference ref.npz [--timing 3 5] prints the table; --impacts SETTING... shows how a
       setting changes the impacts (by impact speed, with their restitution).
-      PYTHONPATH=/tmp/wb_base_f183162 .venv/bin/python benchmarks/statistics_equivalence.py \
-          --dump benchmarks/data/statistics_baseline.npz        (the baseline, once, with the old code)
+      PYTHONPATH=/tmp/wb_base_f183162 .venv/bin/python -m benchmarks.model.statistics_equivalence \
+          --dump benchmarks/model/data/statistics_baseline.npz        (the baseline, once, with the old code)
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
+from wearbench.studies.equivalence import compare, keywords, label, setting
 
 STATES = ("0.3 mm new", "0.3 mm second wear")
 SECTORS = 4
@@ -169,26 +169,6 @@ def _unflat(data) -> dict[str, dict[str, np.ndarray]]:
     return out
 
 
-def holm(p: np.ndarray) -> np.ndarray:
-    """Holm-Bonferroni adjusted p-values (monotone, capped at 1)."""
-    p = np.asarray(p, dtype=float)
-    order = np.argsort(p)
-    adj = np.empty_like(p)
-    running = 0.0
-    for rank, i in enumerate(order):
-        running = max(running, (p.size - rank) * p[i])
-        adj[i] = min(1.0, running)
-    return adj
-
-
-def compare(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> list[tuple[str, float, float, float, float]]:
-    """(feature, mean a, mean b, KS p, Holm-adjusted p) per feature."""
-    keys = sorted(set(a) & set(b))
-    p = np.array([stats.ks_2samp(a[k], b[k]).pvalue for k in keys])
-    adj = holm(p)
-    return [(k, float(np.mean(a[k])), float(np.mean(b[k])), float(p[i]), float(adj[i])) for i, k in enumerate(keys)]
-
-
 def _report(title: str, rows) -> bool:
     worst = min(r[4] for r in rows)
     ok = worst >= ALPHA
@@ -197,33 +177,6 @@ def _report(title: str, rows) -> bool:
     for k, ma, mb, p, adj in rows:
         print(f"    {k:<28} {ma:12.4g} {mb:12.4g}   p {p:6.3f}  adj {adj:6.3f}")
     return ok
-
-
-def label(method: str, tolerances=None, scales=None) -> str:
-    """A --dump file's name for its setting: the method, then "rtol R atol A" or "absolute scales P m, V m/s"."""
-    if scales:
-        return method + " absolute scales {:g} m, {:g} m/s".format(*scales)
-    return method + (" rtol {:g} atol {:g}".format(*tolerances) if tolerances else "")
-
-
-def setting(name: str) -> dict:
-    """The options of a setting named by :func:`label` (scales: see :func:`keywords`)."""
-    words = name.replace(",", "").split()
-    if "scales" in words:
-        i = words.index("scales")
-        return {"method": words[0], "scales": (float(words[i + 1]), float(words[i + 3]))}
-    if "rtol" in words:
-        return {"method": words[0], "rtol": float(words[words.index("rtol") + 1]),
-                "atol": float(words[words.index("atol") + 1])}
-    return {"method": words[0]}
-
-
-def keywords(options: dict) -> dict:
-    """The ``simulate`` keywords of a :func:`setting`: its absolute scales (position m, velocity m/s) as the
-    atol pair with rtol 0 (absolute error scales per kind of component, ``simulation.error_scales``)."""
-    options = dict(options)
-    scales = options.pop("scales", None)
-    return options if scales is None else {**options, "rtol": 0.0, "atol": tuple(scales)}
 
 
 def _timed(bench, settings: list[dict], revolutions: float, repeat: int) -> np.ndarray:

@@ -21,7 +21,7 @@ take no joint constraints) at fixed steps, wearbench its default DOPRI5 + projec
 tolerances. The script prints each run's CPU time and error and, per error level, the ratio of the
 CPU times of each code's cheapest run at least that accurate.
 
-Run:  .venv/bin/python benchmarks/peer_exudyn.py [--repeat 2]
+Run:  .venv/bin/python -m benchmarks.model.peer_exudyn [--repeat 2]
 """
 
 from __future__ import annotations

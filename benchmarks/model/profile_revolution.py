@@ -28,7 +28,7 @@ With ``--baseline DIR [DIR ...]`` (scratch copies of earlier versions whose ``we
 ``DIR/wearbench``, e.g. main and f183162 exported by ``git archive``) it also times each of them in a
 subprocess, interleaved with this one (best of ``--repeat``), and prints the ratio per state.
 
-Run:  .venv/bin/python benchmarks/profile_revolution.py [--revolutions 3] [--repeat 3]
+Run:  .venv/bin/python -m benchmarks.model.profile_revolution [--revolutions 3] [--repeat 3]
           [--baseline /tmp/wb_main /tmp/wb_base_f183162]
 """
 

@@ -8,7 +8,7 @@ Times ``--steps`` update steps on new surfaces and on deeply worn ones (by defau
 integrator steps, rejected steps, right-hand-side evaluations, CPU per right-hand side (the wear
 spreading included) and the ratio worn / new.
 
-    .venv/bin/python benchmarks/wear_stage.py [--worn DIR] [--steps 10]
+    .venv/bin/python -m benchmarks.model.wear_stage [--worn DIR] [--steps 10]
 """
 
 from __future__ import annotations
