@@ -218,7 +218,8 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
                                                     "settings": settings}, next(keys), f"{state.name} #{i}",
                               realisation_revolutions(settings)))
             owners.append(state.name)
-    results = compute.run(tasks, label=label, cache=cache, cost=Cost(bench, states[0], speed, settings.output_rate,
+    middle = states[len(states) // 2]  # priced on a middle state: worn surfaces cost more than new ones
+    results = compute.run(tasks, label=label, cache=cache, cost=Cost(bench, middle, speed, settings.output_rate,
                                                                      "realisations"))
     out: dict[str, Ensemble] = {}
     for state in states:

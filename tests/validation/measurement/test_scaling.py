@@ -140,19 +140,23 @@ def test_windows_of_six_cycle_realisations_at_5000_rpm_need_no_longer_rows():
     assert theory.null["z2"].size == m * 2 and np.all(np.isfinite(theory.reference.slow_mean))
 
 
-def _session(bench, revolutions=4, fs=100_000.0):
-    """A session of ``bench`` at its speed: a once-per-revolution impact in the acceleration."""
+def _session(bench, revolutions=4, fs=100_000.0, speed=None, full_scale=None, impact=5e3):
+    """A session of ``bench`` at its speed (or ``speed``): a once-per-revolution impact in the
+    acceleration; ``full_scale``: its recorded range (m/s^2)."""
     import pandas as pd
     from wearbench.validation.measurement.session import MeasuredSession
+
+    bench = bench if speed is None else bench.with_speed(speed)
 
     omega = abs(bench.speed)
     t = np.arange(int(revolutions * 2 * np.pi / omega * fs)) / fs
     angle = omega * t + 0.3
-    acc = 100.0 * np.sin(angle) + 5e3 * np.exp(-((np.mod(angle, 2 * np.pi) - 2.0) / 0.01) ** 2)
+    acc = 10.0 * np.sin(angle) + impact * np.exp(-((np.mod(angle, 2 * np.pi) - 2.0) / 0.01) ** 2)
     enc_t = t[::10]
+    calibration = {} if full_scale is None else {"acceleration.range": str(full_scale)}
     return MeasuredSession("s", pd.DataFrame({"time": t, "acc": acc}),
                            pd.DataFrame({"time": enc_t, "angle": omega * enc_t + 0.3}), bench=bench,
-                           metadata={"session": {"speed_rad_s": str(bench.speed)}})
+                           metadata={"session": {"speed_rad_s": str(bench.speed)}, "calibration": calibration})
 
 
 def test_features_read_the_accelerometer_at_its_stated_delay_where_it_moves_a_feature():
@@ -171,3 +175,16 @@ def test_features_read_the_accelerometer_at_its_stated_delay_where_it_moves_a_fe
     testbed = _session(TESTBED, revolutions=3, fs=10_000.0)
     assert testbed.feature_delay(FeatureSpec()) is None
     assert np.array_equal(testbed.features().values, cycle_features(*testbed.samples, FeatureSpec()).values)
+
+
+def test_a_range_too_coarse_for_the_motion_is_said():
+    """A 50,000 g range records in 15 m/s^2 steps: the 20 m/s^2 span of the slider-crank's motion at 120
+    rpm is about one of them; at 500 g it is 130."""
+    g = 9.80665
+    coarse = _session(SLIDER, revolutions=3, speed=120 * RPM, full_scale=50_000 * g, fs=20_000.0, impact=0.0)
+    note = coarse.resolution_note(coarse.features())
+    assert note and "steps of its 15 m/s^2 resolution (its 50,000 g range over 32768)" in note
+    fine = _session(SLIDER, revolutions=3, speed=120 * RPM, full_scale=500 * g, fs=20_000.0, impact=0.0)
+    assert fine.resolution_note(fine.features()) is None
+    unknown = _session(SLIDER, revolutions=3, speed=120 * RPM, fs=20_000.0, impact=0.0)  # no recorded range
+    assert unknown.resolution_note(unknown.features()) is None
