@@ -2,7 +2,7 @@
 
 Every cache of computed physics (ensembles, emulator tables, study and sweep tasks) keys a bench on
 :func:`bench_key`: everything the model's motion depends on, and the tolerances its draws come from;
-not the bench's name, file, text, description, hardware, emulator or compute settings, the motor's
+not the bench's name, file, text, description, hardware, emulator, compute or analysis settings, the motor's
 limits or what a sensor records (range, sensitivity, rate, the stated chain). Files (worn surfaces) count by the
 SHA-256 of what they hold, floats exactly.
 """
@@ -29,7 +29,7 @@ def cache_folder(kind: str) -> Path:
 
 # fields of the bench's dataclasses left out of its content (see the module docstring)
 NOT_PHYSICS = frozenset({"name", "path", "source", "sha256", "description", "emulator", "hardware", "states",
-                         "motor", "tolerances", "scheduler", "range", "sensitivity", "sample_rate", "chain"})
+                         "motor", "tolerances", "scheduler", "analysis", "range", "sensitivity", "sample_rate", "chain"})
 
 
 def file_digest(path: str | Path) -> str:

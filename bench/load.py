@@ -20,12 +20,14 @@ from wearbench.bench.schema import (
     CONTACT_LAWS,
     GROUND,
     STIFFNESS_FORMS,
+    AnalysisTable,
     Bench,
     BenchError,
     Body,
     Clearance,
     ContactLaw,
     Driver,
+    Frequency,
     Hardware,
     Joint,
     Material,
@@ -371,7 +373,7 @@ def _hardware(r: TomlReader, data: dict) -> Hardware:
 
 
 _TOP = {"bench", "operating", "motor", "materials", "contact", "wear", "frame", "body", "joint", "driver",
-        "assembly", "sensor", "hardware", "emulator", "tolerances", "state", "compute"}
+        "assembly", "sensor", "hardware", "emulator", "tolerances", "state", "compute", "analysis"}
 
 _RELATIVE = {"mass", "inertia", "friction", "restitution", "exponent", "speed", "ripple", "start"}
 
@@ -385,6 +387,61 @@ def _tolerances(r: TomlReader, data: dict) -> Tolerances:
     for name in ("length", "ground"):
         values[name] = r.quantity(data, key, name, "length", nonnegative=True, default=getattr(d, name))
     return Tolerances(**values)
+
+
+def _frequency(r: TomlReader, key: str, raw: Any) -> Frequency:
+    """A frequency of ``[analysis]``: a plain number is crank orders, a quantity ("50 Hz") fixed hertz."""
+    if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
+        raise r.fail(key, raw, "expected crank orders (a number, e.g. 50) or a frequency (e.g. '50 Hz')")
+    if isinstance(raw, str):
+        try:
+            value = parse_quantity(raw, "frequency")
+        except QuantityError as exc:
+            raise r.fail(key, raw, f"{exc}; or crank orders as a plain number, e.g. 50") from None
+        orders = False
+    else:
+        value, orders = float(raw), True
+    if not (math.isfinite(value) and value > 0):
+        raise r.fail(key, raw, "expected a positive number of crank orders or a positive frequency")
+    return Frequency(value, orders)
+
+
+def _analysis(r: TomlReader, data: dict) -> AnalysisTable:
+    """``[analysis]``: how the analysis scales with this bench (``bench.schema.AnalysisTable``)."""
+    key = "analysis"
+    r.keys(data, key, set(), {"bins", "lowpass", "lowpass_max", "bands", "window_lowpass", "speeds"})
+    bins = int(r.number(data, key, "bins", low=4, high=360, integer=True)) if "bins" in data else None
+    one = {name: _frequency(r, f"{key}.{name}", data[name]) if name in data else None
+           for name in ("lowpass", "lowpass_max", "window_lowpass")}
+    bands = None
+    if "bands" in data:
+        raw = data["bands"]
+        if not isinstance(raw, list) or not raw:
+            raise r.fail(f"{key}.bands", raw, "expected a list of [low, high] bands, e.g. [[50, 150], [150, 400]] "
+                         "(crank orders) or [['50 Hz', '150 Hz']]")
+        out = []
+        for i, band in enumerate(raw):
+            if not isinstance(band, list) or len(band) != 2:
+                raise r.fail(f"{key}.bands[{i}]", band, "expected [low, high]")
+            lo, hi = (_frequency(r, f"{key}.bands[{i}]", v) for v in band)
+            if lo.orders != hi.orders or not lo.value < hi.value:
+                raise r.fail(f"{key}.bands[{i}]", band, "expected low < high, both crank orders or both frequencies")
+            out.append((lo, hi))
+        bands = tuple(out)
+    speeds = None
+    if "speeds" in data:
+        raw = data["speeds"]
+        if not isinstance(raw, list) or len(raw) != 2:
+            raise r.fail(f"{key}.speeds", raw, "expected the crank speeds [lowest, highest] the analysis is "
+                         "validated for, e.g. ['60 rpm', '5000 rpm']")
+        try:
+            lo, hi = (abs(parse_quantity(v, "angular_speed")) for v in raw)
+        except QuantityError as exc:
+            raise r.fail(f"{key}.speeds", raw, str(exc)) from None
+        if not 0 < lo <= hi or not math.isfinite(hi):
+            raise r.fail(f"{key}.speeds", raw, "expected 0 < lowest <= highest crank speed")
+        speeds = (lo, hi)
+    return AnalysisTable(bins=bins, bands=bands, speeds=speeds, **one)
 
 
 def _compute(r: TomlReader, data: dict) -> str | None:
@@ -540,6 +597,7 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
     tolerances = _tolerances(r, r.table(data.get("tolerances", {}), "tolerances"))
     states = _states(r, data.get("state", []), joints, base_dir)
     scheduler = _compute(r, r.table(data.get("compute", {}), "compute"))
+    analysis = _analysis(r, r.table(data.get("analysis", {}), "analysis"))
 
     return Bench(
         name=r.text(head, "bench", "name"),
@@ -564,6 +622,7 @@ def parse_bench(text: str, path: str | Path = "<bench>") -> Bench:
         tolerances=tolerances,
         states=states,
         scheduler=scheduler,
+        analysis=analysis,
     )
 
 

@@ -14,12 +14,14 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "AnalysisTable",
     "Bench",
     "BenchError",
     "Body",
     "Clearance",
     "ContactLaw",
     "Driver",
+    "Frequency",
     "Hardware",
     "Joint",
     "Material",
@@ -188,6 +190,36 @@ class WearState:
 
 
 @dataclass(frozen=True)
+class Frequency:
+    """A frequency in the bench's own terms: ``value`` crank orders (``orders``: multiples of the
+    encoder crank's frequency, so it moves with the crank speed) or ``value`` Hz (fixed)."""
+
+    value: float
+    orders: bool = True
+
+    def hz(self, crank_hz: float) -> float:
+        """The frequency (Hz) at a crank turning ``crank_hz`` revolutions per second."""
+        return self.value * crank_hz if self.orders else self.value
+
+    def describe(self) -> str:
+        return f"{self.value:g} crank orders" if self.orders else f"{self.value:g} Hz"
+
+
+@dataclass(frozen=True)
+class AnalysisTable:
+    """The ``[analysis]`` table: how the analysis of this bench's sessions scales with it, each key
+    overriding one default rule of ``wearbench.validation.measurement.scaling`` (None: the rule's).
+    Not physics: left out of the bench's content key (bench/content.py)."""
+
+    bins: int | None = None                                      # crank-angle bins per revolution
+    lowpass: Frequency | None = None                             # the features' curve low-pass
+    lowpass_max: Frequency | None = None                         # ... at most this
+    bands: tuple[tuple[Frequency, Frequency], ...] | None = None  # the impact bands (low, high)
+    window_lowpass: Frequency | None = None                      # the windows' slow curves (delay fit, ISO)
+    speeds: tuple[float, float] | None = None  # rad/s: the encoder crank's speeds the analysis is validated for
+
+
+@dataclass(frozen=True)
 class Motor:
     max_speed: float = 62.83  # rad/s
     max_acceleration: float = 200.0  # rad/s^2
@@ -225,6 +257,8 @@ class Bench:
     # [compute] scheduler: where batches on this bench run ("local" or "tcp://HOST:PORT"); not physics,
     # so not part of the bench's content (bench/content.py)
     scheduler: str | None = field(default=None, repr=False)
+    # [analysis]: how the analysis scales with this bench (validation.measurement.scaling); not physics
+    analysis: AnalysisTable = field(default_factory=AnalysisTable, repr=False)
 
     def body(self, name: str) -> Body:
         for b in self.bodies:

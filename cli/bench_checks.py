@@ -11,9 +11,12 @@ in milliseconds. What needs the model or the emulator is checked here, before an
   cycle: refused naming the sensor's range.
 - :func:`check_emulator`: the ``[emulator]`` table validated as the emulator reads it (its truth names a
   declared ``[[state]]``, every key known).
+- the analysis at the bench's speed (``validation.measurement.scaling``): its bands, low-passes and
+  the speeds it is validated for, refused when no impact band fits below what the sensor chain passes.
 
 Each refusal is one :class:`~wearbench.bench.schema.BenchError` naming the file, key, value and what was
-expected. Imports the bench, the model's scene and kernel, and the emulator's configuration.
+expected. Imports the bench, the model's scene and kernel, the emulator's configuration and the analysis's
+scaling.
 """
 
 from __future__ import annotations
@@ -68,7 +71,7 @@ def _wrap(dq: np.ndarray) -> np.ndarray:
     return out
 
 
-def sweep_turns(bench: Bench) -> Sweep | None:
+def sweep_turns(bench: Bench, *, check_range: bool = True) -> Sweep | None:
     """Turn the motor through the motion's period with every joint ideal and check each pose closes.
 
     The period: until the slowest driver has turned one revolution (all of them a whole number of
@@ -76,8 +79,8 @@ def sweep_turns(bench: Bench) -> Sweep | None:
     of the fastest crank, each a predictor along the velocity and the model's Newton projection
     (``kernel.project``), halved where the projection fails or moves the pose far from the prediction.
     Returns None when the ideal mechanism is not fully driven (its motion is not kinematics alone).
-    Raises BenchError naming the driver when the cranks lock or the assembly flips, and naming the
-    accelerometer's range when the motion alone exceeds it.
+    Raises BenchError naming the driver when the cranks lock or the assembly flips, and (with
+    ``check_range``) naming the accelerometer's range when the motion alone exceeds it.
     """
     from wearbench.model import build_scene
     from wearbench.model import kernel as K
@@ -117,7 +120,7 @@ def sweep_turns(bench: Bench) -> Sweep | None:
                          "back in another assembly (it passes a dead centre, where the links line up and the "
                          "assembly can flip); check lengths, ground points and [assembly]")
     peak = _sensor_peak(bench, scene, np.array(poses), grid, periodic=whole)
-    if peak is not None:
+    if peak is not None and check_range:
         i, acc = next((i, s) for i, s in enumerate(bench.sensors) if s.kind == "accelerometer")
         if peak > acc.range:
             raise BenchError(bench.path or bench.name, f"sensor[{i}] ({acc.name}).range", f"{acc.range / G:.4g} g",
@@ -169,9 +172,13 @@ def check_emulator(bench: Bench):
 
 def check_bench(bench: Bench) -> list[str]:
     """Every check beyond loading; what each found, as notes for the ``ok`` line (BenchError on a refusal)."""
+    from wearbench.validation.measurement.scaling import resolve_analysis
+
     notes = []
     sweep = sweep_turns(bench)
     notes.append(sweep.describe(bench) if sweep is not None else
                  "not fully driven with its clearance joints ideal: no kinematic sweep")
     check_emulator(bench)
+    if bench.clearance_joints and any(s.kind == "accelerometer" for s in bench.sensors):
+        notes.extend(resolve_analysis(bench).describe())  # refused when no impact band fits the sensor chain
     return notes

@@ -8,7 +8,12 @@ from __future__ import annotations
 
 import argparse
 
-from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.compute import (
+    add_compute_arguments,
+    add_size_arguments,
+    compute_options,
+    ensemble_size,
+)
 from wearbench.cli.options import add_force_argument
 
 
@@ -44,6 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "~/.local/share/wearbench/calibrations)")
     add_force_argument(p, "replace a stored calibration of this bench, sensor and mount, and store one the sessions "
                        "doubt (far from --state, or identified as another state)")
+    add_size_arguments(p, design=False)
     add_compute_arguments(p)
     p.set_defaults(func=run)
 
@@ -56,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.validation.workflows.measure import calibrate_sessions
 
     cal = calibrate_sessions(args.sessions, args.state, candidates=args.candidates, ensembles=args.ensembles,
-                             mount=args.mount, before=lambda key: check_calibration_output(key, args.dir, force=args.force),
+                             settings=ensemble_size(args, window=None), mount=args.mount,
+                             before=lambda key: check_calibration_output(key, args.dir, force=args.force),
                              compute=compute_options(args), force=args.force)
     path = save_calibration(cal, args.dir, force=args.force)
     print(cal.describe())

@@ -12,6 +12,12 @@ import argparse
 import sys
 
 from wearbench.bench.output_file import check_output, output_folder
+from wearbench.cli.compute import (
+    add_compute_arguments,
+    add_size_arguments,
+    compute_options,
+    ensemble_size,
+)
 from wearbench.cli.options import (
     add_force_argument,
     nonnegative_number,
@@ -35,8 +41,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--theory", action="append", metavar="RUN.parquet",
                    help="simulation results table to compare with instead of simulating; once for all "
                         "sessions or once per session, in order")
-    p.add_argument("--filter", default="cfc180",
-                   help="cfc60|cfc180|cfc600|cfc1000, butter:CUTOFF_HZ[:ORDER] or none (default cfc180)")
+    p.add_argument("--filter", default=None,
+                   help="cfc60|cfc180|cfc600|cfc1000, butter:CUTOFF_HZ[:ORDER] or none (default: CFC 180 scaled to "
+                   "the session's crank, its kept curves' filter: cfc180 at 1 Hz)")
     p.add_argument("--windows", default="all", help="all | random:COUNT[:SEED] (default all)")
     p.add_argument("--cycles", type=positive_int, default=5, help="crank cycles per window (default 5)")
     p.add_argument("--max-shift", type=nonnegative_number, default=0.2, metavar="CYCLES",
@@ -62,6 +69,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="compare with the theory's last revolutions in a row (simulate at least a window "
                         "plus margins) instead of its last revolution repeated")
     p.add_argument("--label", action="append", help="label per session (default: file name)")
+    p.add_argument("--ensembles", metavar="FILE.npz",
+                   help="with candidate states: ensembles saved by 'wearbench ensemble' (no simulation); refused, with "
+                   "the reason, where their bench, speed or candidates do not fit")
+    add_size_arguments(p, design=False)
+    add_compute_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -77,6 +89,18 @@ def _with_states(paths) -> list | None:
     return sessions if all(s.bench is not None and s.bench.states for s in sessions) else None
 
 
+def session_options(session, options, args: argparse.Namespace):
+    """``options`` with the filter of ``session``: its kept curves' (CFC 180 scaled to its crank,
+    ``measurement.scaling``; the test bed's cfc180 at 1 Hz), from its bench and commanded speed."""
+    from dataclasses import replace
+
+    from wearbench.validation.measurement.filters import parse_filter
+    from wearbench.validation.measurement.scaling import resolve_analysis
+
+    text = resolve_analysis(session.bench, session.commanded_speed).curve_filter
+    return replace(options, filter=parse_filter(text, detrend=args.detrend, remove_bias=not args.keep_bias))
+
+
 def _assess(args: argparse.Namespace, options, sessions) -> int:
     from wearbench.reports.assessment import write_assessment_report
     from wearbench.validation.comparison.windows import WindowOptions
@@ -84,7 +108,8 @@ def _assess(args: argparse.Namespace, options, sessions) -> int:
 
     windows = WindowOptions(cycles=args.cycles, alpha=args.alpha, max_delay=options.max_delay)
     assessed = assess_sessions(sessions, candidates=None if args.candidates in (None, "bench") else args.candidates,
-                               window_options=windows)
+                               window_options=windows, settings=ensemble_size(args, window=args.cycles),
+                               ensembles=args.ensembles, compute=compute_options(args))
     with output_folder(args.out, force=args.force) as tmp:
         report = write_assessment_report(assessed, tmp)
     report = report.moved_to(args.out)
@@ -112,18 +137,21 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.validation.comparison.metrics import grade
     from wearbench.validation.measurement.cycles import parse_windows
     from wearbench.validation.measurement.filters import parse_filter
+    from wearbench.validation.measurement.session import load_session
 
     if args.cycles < 1:
         raise ValueError(f"--cycles {args.cycles}: expected at least 1")
     options = CompareOptions(
-        filter=parse_filter(args.filter, detrend=args.detrend, remove_bias=not args.keep_bias),
+        filter=parse_filter(args.filter or "cfc180", detrend=args.detrend, remove_bias=not args.keep_bias),
         windows=parse_windows(args.windows, cycles=args.cycles), max_shift_cycles=args.max_shift,
         dtw_band_cycles=args.dtw_band, apply_shift=not args.no_shift, revolutions=args.revolutions,
         periodic_theory=not args.contiguous_theory, max_delay=parse_quantity(args.max_delay, "time"))
     if args.candidates and args.theory:
         raise ValueError("--candidates and --theory exclude each other: the theory is the candidates' ensembles")
+    if args.ensembles and args.theory:
+        raise ValueError("--ensembles and --theory exclude each other: ensembles are the candidates' theory")
     check_output(args.out, force=args.force, folder=True)  # refused before anything is simulated
-    if args.candidates:
+    if args.candidates or args.ensembles:
         return _assess(args, options, args.sessions)
     if not args.theory and (loaded := _with_states(args.sessions)) is not None:
         return _assess(args, options, loaded)
@@ -141,8 +169,9 @@ def run(args: argparse.Namespace) -> int:
         for i, (path, theory) in enumerate(zip(args.sessions, theories)):
             bar.update(task, info=str(path))
             try:
-                comparisons.append(compare_session(path, theory, options=options,
-                                                   label=args.label[i] if args.label else None))
+                session = load_session(path, label=args.label[i] if args.label else None)
+                own = options if args.filter else session_options(session, options, args)
+                comparisons.append(compare_session(session, theory, options=own))
             except ValueError as exc:  # one session that cannot be scored does not cost the others
                 if len(args.sessions) == 1:
                     raise
@@ -159,7 +188,8 @@ def run(args: argparse.Namespace) -> int:
     with output_folder(args.out, force=args.force) as tmp:
         report = write_report(comparisons, tmp)
     report = report.moved_to(args.out)
-    table = Table(title=f"{options.filter.label}; {options.windows.label}")
+    filters = sorted({c.options.filter.label for c in comparisons})
+    table = Table(title=f"{', '.join(filters)}; {options.windows.label}")
     for col in ("session", "windows", "ISO R", "grade", "shift ms", "NRMSE", "corr", "S&G C"):
         table.add_column(col, justify="left" if col == "session" else "right")
     for c in comparisons:

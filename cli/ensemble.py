@@ -27,7 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", help="commanded motor speed, e.g. 2pi or 60rpm (default: the bench's)")
     add_ensemble_size_arguments(p)
     p.add_argument("--sensor-paths", choices=("drawn", "none"), default="drawn",
-                   help="each realisation seen through its own drawn sensor path: a mount/carriage mode 0.3-3 kHz, "
+                   help="each realisation seen through its own drawn sensor path: a mount/carriage mode 0.3-3 x the "
+                   "top impact band's edge (0.3-3 kHz for the test bed), "
                    "damping 0.02-0.1, sensitivity +/-5 %% (drawn, the default) or the model's acceleration as it is "
                    "(none: ensembles of versions before drawn paths; identification then trusts the bench file's "
                    "sensor path)")
@@ -52,7 +53,6 @@ def run(args: argparse.Namespace) -> int:
         ensembles_key,
         save_ensembles,
     )
-    from wearbench.validation.inference.sensor_path import PathSpread
 
     bench = load_bench(resolve_bench(args.bench))
     states = load_states(args.candidates, bench) if args.candidates else bench.states
@@ -60,8 +60,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{bench.name}: no [[state]] tables; give --candidates STATES.toml")
     speed = (motor_speed(args.speed, max_speed=bench.motor.max_speed, source=str(bench.path or bench.name))
              if args.speed else bench.speed)
-    settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.cycles,
-                                sensor_paths=PathSpread() if args.sensor_paths == "drawn" else None)
+    settings = EnsembleSettings.for_bench(bench, speed, realisations=check_realisations(args.realisations),
+                                          cycles=args.cycles, sensor_paths=args.sensor_paths == "drawn")
     replaced = None
     if args.ship:  # a maintainer's: only in a source checkout, replacing the shipped file only with --force
         out, replaced = artefacts.ship_target("ensembles", bench.name, force=args.force)

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
                                 **calibration_options(args), compute=compute_options(args))
     for e in results:
         print(f"{e.session} ({e.cycles} cycles): {e.verdict}")
-        if e.explains:
+        if e.explains and not e.flat:  # a flat estimate's intervals are its prior's: the verdict says so
             print(f"  clearance {e.clearance.median * 1e3:.3f} mm  50 % {e.clearance.lo50 * 1e3:.3f}-"
                   f"{e.clearance.hi50 * 1e3:.3f}  90 % {e.clearance.lo90 * 1e3:.3f}-{e.clearance.hi90 * 1e3:.3f}")
             print(f"  cycles run {e.cycles_run.median:,.0f}  50 % {e.cycles_run.lo50:,.0f}-{e.cycles_run.hi50:,.0f}"

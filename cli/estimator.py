@@ -12,27 +12,38 @@ from __future__ import annotations
 
 import argparse
 
-from wearbench.cli.compute import add_compute_arguments, compute_options
+from wearbench.cli.compute import add_compute_arguments, add_size_arguments, compute_options
 from wearbench.cli.options import add_force_argument, positive_int
 
 
 def add_design_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--design-clearances", default="0.25mm,0.35mm,0.45mm,0.55mm,0.65mm", metavar="C1,C2,...",
-                   help="design clearances, shared by the clearance joints (0.25mm,0.35mm,0.45mm,0.55mm,0.65mm)")
-    p.add_argument("--design-cycles", default="0,200000,400000,600000", metavar="0,N1,...",
-                   help="design cycles run, equally spaced from 0 (0,200000,400000,600000)")
-    p.add_argument("--realisations", type=positive_int, default=48, help="realisations per design point (48)")
-    p.add_argument("--ensemble-cycles", type=positive_int, default=8, help="settled cycles per realisation (8)")
+    """The estimator's design: its clearances and cycles run (default: the bench's own), and its size
+    (``--realisations``, ``--ensemble-cycles``, ``--small``: ``cli.compute.add_size_arguments``)."""
+    p.add_argument("--design-clearances", default=None, metavar="C1,C2,...",
+                   help="design clearances, shared by the clearance joints (default: five over the bench's nominal "
+                   "and candidate clearances, 0.25mm,0.35mm,0.45mm,0.55mm,0.65mm for the test bed)")
+    p.add_argument("--design-cycles", default=None, metavar="0,N1,...",
+                   help="design cycles run, equally spaced from 0 (default: 0 and three of the bench's [wear] "
+                   "stages, 0,200000,400000,600000 for the test bed)")
+    add_size_arguments(p, design=True)
 
 
 def design_from_args(args: argparse.Namespace):
-    from wearbench.validation.inference.estimate import EstimatorDesign
+    """The design a command asks for (``estimate.DesignRequest``; resolved for each bench and speed),
+    its sizes checked before anything is built (one ValueError naming the option)."""
+    from wearbench.validation.inference.estimate import DesignRequest
 
-    try:
-        return EstimatorDesign.parse(args.design_clearances, args.design_cycles, realisations=args.realisations,
-                                     ensemble_cycles=args.ensemble_cycles)
-    except ValueError as exc:
-        raise ValueError(f"--design-clearances / --design-cycles: {exc}") from None
+    if args.realisations is not None and args.realisations < 3:
+        raise ValueError(f"--realisations {args.realisations}: expected at least 3 realisations per design point "
+                         "(an ensemble's least)")
+    if args.ensemble_cycles is not None and args.ensemble_cycles < 2:
+        raise ValueError(f"--ensemble-cycles {args.ensemble_cycles}: expected at least 2 settled cycles per "
+                         "realisation (two cycles to tell a cycle's spread)")
+    return DesignRequest.parse(args.design_clearances, args.design_cycles, realisations=args.realisations,
+                               ensemble_cycles=args.ensemble_cycles, small=args.small)
+
+
+MIN_LIVES = 3  # inference.move.life_move: the move's mean and covariance over at least three benches
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,7 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "compute layer and store the benches' move from new to worn beyond the estimator's beside it "
                    "(FILE.move.npz), which 'wearbench track' then uses; an --out that already holds this design's "
                    "estimator is kept as it is (about 90 s of CPU per life; 20 or more)")
-    p.add_argument("--life-factor", type=float, default=1.3,
+    p.add_argument("--life-factor", type=float, default=1.3, metavar="FACTOR",
                    help="the lives' wear coefficient / the bench file's (1.3; up to 1.5)")
     p.add_argument("--life-sensor-paths", action="store_true",
                    help="draw each life's sensor path (a mount or carriage mode and sensitivity) instead of the "
@@ -80,7 +91,16 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.validation.inference.move import move_path, save_move
 
     bench = load_bench(resolve_bench(args.bench))
-    design = design_from_args(args)
+    design = design_from_args(args).resolve(bench)  # every value checked against the bench before any work
+    if args.lives is not None and args.lives < MIN_LIVES:
+        raise ValueError(f"--lives {args.lives}: expected at least {MIN_LIVES} lives (the move's mean and its error "
+                         "need three independent benches; 20 or more)")
+    if not 0 < args.life_factor <= 1.5:
+        raise ValueError(f"--life-factor {args.life_factor:g}: expected a wear factor in (0, 1.5] (the lives' last "
+                         "session must stay inside the design's cycles run)")
+    if args.life_seed <= design.settings.realisations:
+        raise ValueError(f"--life-seed {args.life_seed}: expected above the design's seeds "
+                         f"1..{design.settings.realisations}")
     out = artefacts.shipped_path("estimator", bench.name) if args.ship else Path(args.out or f"{bench.name}-estimator.npz")
     option = "--ship" if args.ship else "--out"
     key = estimator_key(bench, design, bench.speed)
@@ -95,7 +115,14 @@ def run(args: argparse.Namespace) -> int:
         if args.ship:
             artefacts.check_shipping(move_path(out))
         check_output(move_path(out), force=args.force, option="--lives")
-    est = kept or build_estimator(bench, design, compute=compute_options(args, bench))  # grows a shipped smaller one
+    compute = compute_options(args, bench)
+    if args.lives:  # the lives' cost said before anything starts, with the estimator's own plan
+        from wearbench.compute.cost import plan_line
+        from wearbench.synthetic.lives import life_cost, life_revolutions
+
+        compute.announce(plan_line("lives", [("lives", args.lives, life_revolutions(args.life_cycles))],
+                                   life_cost(bench, design, bench.speed), workers=compute.workers_known))
+    est = kept or build_estimator(bench, design, compute=compute)  # grows a shipped smaller one
     if kept is None:
         with output_file(out, force=args.force, option=option) as tmp:
             save_estimator(est, tmp)
@@ -108,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         from wearbench.synthetic.lives import measure_move
 
         move = measure_move(bench, est, lives=args.lives, factor=args.life_factor, spread=args.life_sensor_paths,
-                            cycles=args.life_cycles, seed=args.life_seed, compute=compute_options(args, bench))
+                            cycles=args.life_cycles, seed=args.life_seed, compute=compute)
         with output_file(move_path(out), force=args.force, option="--lives") as tmp:
             save_move(move, tmp)
         print(f"move from new to worn {move.describe()}: largest |mean| / its standard error "

@@ -8,12 +8,13 @@ from __future__ import annotations
 import argparse
 
 from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
-from wearbench.cli.compute import add_compute_arguments, compute_options
-from wearbench.cli.options import (
-    add_ensemble_size_arguments,
-    add_force_argument,
-    check_realisations,
+from wearbench.cli.compute import (
+    add_compute_arguments,
+    add_size_arguments,
+    compute_options,
+    ensemble_size,
 )
+from wearbench.cli.options import add_force_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,11 +33,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="ensembles saved by 'wearbench ensemble' (no simulation); refused, with the reason, where "
                    "their bench, speed or candidates (--candidates, else the session's bench's) do not fit")
     p.add_argument("--threshold", type=float, default=0.9, help="name the top state at this probability (0.9)")
-    add_ensemble_size_arguments(p, "--ensemble-cycles")
+    add_size_arguments(p, design=False)
     p.add_argument("--estimate", action="store_true",
                    help="also estimate each session's clearance and wear with credible intervals, as 'wearbench "
-                   "estimate' does (the bench's shipped estimator when its key matches, else its default design "
-                   "built on the compute layer and cached: slow the first time)")
+                   "estimate' does (the bench's shipped estimator when its key matches, else its default design, "
+                   "or with --small the small design, built on the compute layer and cached: slow the first time)")
     p.add_argument("--estimator", metavar="FILE.npz", help="estimate with this estimator (saved by 'wearbench "
                    "estimator'; implies --estimate)")
     add_calibration_arguments(p)
@@ -55,8 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.bench.output_file import check_output, output_file, output_folder
     from wearbench.cli.progress import console as progress_console
     from wearbench.reports.assessment import write_assessment_report
-    from wearbench.validation.inference.ensemble import EnsembleSettings
-    from wearbench.validation.inference.estimate import Estimator, EstimatorDesign, load_estimator
+    from wearbench.validation.inference.estimate import DesignRequest, Estimator, load_estimator
     from wearbench.validation.inference.identify import IdentifyOptions
     from wearbench.validation.workflows.assess import assess_sessions
     from wearbench.validation.workflows.measure import estimate_assessed
@@ -65,14 +65,17 @@ def run(args: argparse.Namespace) -> int:
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
         if path:  # refused before the ensembles are built
             check_output(path, force=args.force, option=option, folder=folder)
-    settings = EnsembleSettings(realisations=check_realisations(args.realisations), cycles=args.ensemble_cycles)
+    settings = ensemble_size(args)
     estimator = (load_estimator(args.estimator) if args.estimator
-                 else EstimatorDesign() if args.estimate else None)
+                 else DesignRequest(small=args.small) if args.estimate else None)
     options = IdentifyOptions(threshold=args.threshold)
     sessions = SessionSet(args.sessions, **calibration_options(args))
-    # ready-made theory is checked against every session before any is built
-    sessions.check_artefacts(ensembles=args.ensembles, candidates=args.candidates,
-                             estimator=estimator if isinstance(estimator, Estimator) else None)
+    # ready-made theory is checked against every session, and the theory to build resolved for each
+    # bench and speed, before any is built
+    sessions.check_artefacts(ensembles=args.ensembles, candidates=args.candidates, settings=settings,
+                             estimator=estimator if isinstance(estimator, Estimator) else None,
+                             design=estimator if isinstance(estimator, DesignRequest) else None,
+                             theory=("ensembles",) + (("estimator",) if estimator is not None else ()))
     compute = compute_options(args)
     assessed = assess_sessions(sessions, candidates=args.candidates, settings=settings, ensembles=args.ensembles,
                                options=options, compute=compute)

@@ -68,6 +68,9 @@ def run(args: argparse.Namespace) -> int:
     for option, path, folder in outputs:
         if path:  # refused before the simulation runs
             check_output(path, force=args.force, option=option, folder=folder)
+    from wearbench.cli.bench_checks import sweep_turns
+
+    sweep_turns(bench, check_range=False)  # a crank that cannot turn is refused in seconds, before the simulation
     try:
         scene = build_scene(bench, clearances=clearances or None, surfaces=surfaces)
     except KeyError as exc:  # an unknown joint name: a user error, one line
@@ -102,7 +105,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"method {s['method']}: {s['steps']} steps ({s['rejected_steps']} rejected) in "
               f"{s['wall_time_s']:.3g} s wall; {s['t_end']:.4g} s simulated at {s['speed']:.4g} rad/s "
               f"({s['speed'] * 30 / math.pi:.4g} rpm)")
-        print(f"peak slider acceleration {s['peak_slider_acc']:.4g} m/s^2; constraint drift "
+        sensor = next((f"{x.name} ({x.body}.{x.point})" for x in bench.sensors if x.kind == "accelerometer"),
+                      "the model's acceleration signal")
+        print(f"peak acceleration of {sensor} {s['peak_slider_acc']:.4g} m/s^2; constraint drift "
               f"{s['max_constraint_drift']:.2g}")
         for j, f in s["peak_fn"].items():
             print(f"peak contact force {j}: {f:.4g} N")

@@ -34,6 +34,7 @@ from wearbench.compute.task_cache import (
     cache_dir,
     cache_load,
     cache_store,
+    cached,
     task_key,
 )
 from wearbench.model.digest import model_source_digest
@@ -41,8 +42,8 @@ from wearbench.model.digest import model_source_digest
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["LAYOUT_VERSION", "ProgressLines", "Task", "TaskFailure", "cache_dir", "compute_client", "resolve_scheduler",
-           "run_tasks", "task_key", "usable_cores"]
+__all__ = ["LAYOUT_VERSION", "ProgressLines", "Task", "TaskFailure", "cache_dir", "cached", "compute_client",
+           "resolve_scheduler", "run_tasks", "task_key", "usable_cores"]
 
 RETRIES = 1  # Dask retries of a task whose error escaped the task wrapper (lost data, a dead worker)
 
@@ -55,6 +56,7 @@ class Task:
     kwargs: Mapping[str, Any]     # picklable arguments
     key: str                      # content address (hex); also the cache file name
     label: str = ""               # shown in progress and failure reports
+    revolutions: float = 0.0      # motor revolutions it simulates, about (what it costs: compute.cost)
 
 
 @dataclass(frozen=True)

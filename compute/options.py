@@ -9,9 +9,13 @@ so a command that builds several batches starts its cluster once. Imports the co
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from wearbench.compute.cost import Cost
 
 __all__ = ["DEFAULT", "QUIET", "SERIAL", "Compute"]
 
@@ -29,13 +33,33 @@ class Compute:
             raise ValueError(f"workers = {self.workers}: expected 0 (in-process) or more")
 
     def run(self, tasks: Sequence, *, label: str, cache: bool = True,
-            on_result: Callable[[int, Any], None] | None = None) -> list[Any]:
+            on_result: Callable[[int, Any], None] | None = None, cost: Cost | None = None) -> list[Any]:
         """Run ``tasks`` (``compute.Task``) on the compute layer: results in task order, a ``TaskFailure``
-        where one failed; ``label`` names the batch in its progress."""
+        where one failed; ``label`` names the batch in its progress. Before anything runs, the batch
+        is announced (with ``progress``): how many tasks, how many cached, and the CPU time of the rest
+        priced by ``cost`` (``compute.cost``): the one place a batch says what it costs."""
         from wearbench.compute import run_tasks
+        from wearbench.compute.cost import describe, estimate, workers_of
 
+        if self.progress:
+            self.announce(describe(estimate(tasks, label, cost, workers=workers_of(self.workers, self.scheduler),
+                                            cache=cache)))
         return run_tasks(tasks, scheduler=self.scheduler, workers=self.workers, cache=cache,
                          progress=label if self.progress else None, on_result=on_result)
+
+    def announce(self, text: str) -> None:
+        """Say ``text`` (what a batch or a plan of batches costs) before it starts, on stderr (with
+        ``progress``; quiet otherwise)."""
+        if self.progress:
+            print(text, file=sys.stderr, flush=True)
+
+    @property
+    def workers_known(self) -> int | None:
+        """The workers a batch runs on (1 in this process; the usable cores of a local cluster; None on a
+        running cluster)."""
+        from wearbench.compute.cost import workers_of
+
+        return workers_of(self.workers, self.scheduler)
 
 
 DEFAULT = Compute()  # the active client, else the configured scheduler, else a local cluster on every core

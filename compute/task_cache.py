@@ -25,7 +25,7 @@ import numpy as np
 from wearbench.bench.content import cache_folder
 from wearbench.model.digest import model_results_digest
 
-__all__ = ["LAYOUT_VERSION", "MISSING", "cache_dir", "cache_load", "cache_store", "task_key"]
+__all__ = ["LAYOUT_VERSION", "MISSING", "cache_dir", "cache_load", "cache_store", "cached", "task_key"]
 
 LAYOUT_VERSION = 1  # bump when the cached result layout changes: every key changes with it
 
@@ -86,6 +86,11 @@ def _cache_path(key: str) -> Path:
 
 
 MISSING = object()  # what cache_load returns for a key it does not hold
+
+
+def cached(key: str) -> bool:
+    """Whether the result cache holds a result under ``key`` (without reading it)."""
+    return _cache_path(key).is_file()
 
 
 def cache_load(key: str) -> Any:

@@ -118,12 +118,18 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
+def _sensor(c: SessionComparison) -> str:
+    """The accelerometer's name in the session's bench (what its samples are), else "measured"."""
+    bench = c.session.bench
+    return next((s.name for s in bench.sensors if s.kind == "accelerometer"), "measured") if bench else "measured"
+
+
 def _overlay(c: SessionComparison, path: Path) -> Path:
     w = c.windows[0]
     fig, (ax, axr) = _figure(2, 1, figsize=(10, 5.2), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
     ax.plot(w.time, w.test, **TEST_STYLE)
     ax.plot(w.time, w.theory, **THEORY_STYLE)
-    ax.set_ylabel("slider acceleration (m/s$^2$)")
+    ax.set_ylabel(f"{_sensor(c)} acceleration (m/s$^2$)")
     ax.set_title(f"{c.label}: cycles {w.start_cycle}-{w.start_cycle + c.options.windows.cycles - 1}, "
                  f"R = {w.scores.iso_rating:.3f} ({w.scores.iso_grade}), shift {w.shift_s * 1e3:+.2f} ms")
     ax.legend(loc="upper right")
@@ -178,7 +184,7 @@ def _by_angle(c: SessionComparison, path: Path) -> Path:
                 label="theory" if first else None)
     ax.set_xlim(0, 360)
     ax.set_xlabel("crank angle from the index pulse (deg)")
-    ax.set_ylabel("slider acceleration (m/s$^2$)")
+    ax.set_ylabel(f"{_sensor(c)} acceleration (m/s$^2$)")
     ax.set_title(f"{c.label}: the window's cycles by crank angle")
     ax.legend(loc="upper right")
     return _save(fig, path)
@@ -197,7 +203,7 @@ def _side_by_side(comparisons: Sequence[SessionComparison], path: Path, *, with_
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel("time from window start (s)")
     fig.suptitle("test and theory, five cycles per session" if with_theory else
-                 "measured slider acceleration, five cycles per session")
+                 "measured acceleration, five cycles per session")
     return _save(fig, path)
 
 

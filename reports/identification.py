@@ -92,7 +92,7 @@ def _band_figure(item: IdentifiedSession, path: Path, save: Callable[[Figure, Pa
     twin.set_ylim(0, 100)
     ax.set_xlim(0, 360)
     ax.set_xlabel("crank angle (deg)")
-    ax.set_ylabel("slider acceleration, CFC 180 (m/s$^2$)")
+    ax.set_ylabel("acceleration, filtered as the theory's kept curves (m/s$^2$)")
     ax.set_title(f"{item.identification.session}: measured cycles in the band of {b.state}", fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
     return save(fig, path)
@@ -114,6 +114,16 @@ def _posterior_figure(items: Sequence[IdentifiedSession], path: Path, save) -> P
     return save(fig, path)
 
 
+def _notes(item: IdentifiedSession) -> list[str]:
+    """The session's notes: its identification's (a flat posterior, a speed outside the validated ones,
+    clipping, a diagnosis), where it leaves the top state's band, and its estimate's."""
+    r = item.identification
+    top = max(r.posterior, key=r.posterior.get)
+    leaves = [f"leaves the band of {top}: " + ", ".join(r.leaves[top])] if r.leaves[top] else []
+    own = [] if item.estimate is None else [f"estimate: {n}" for n in item.estimate.notes]
+    return [*r.notes, *leaves, *own]
+
+
 def _interval(i, scale: float, fmt: str) -> str:
     return f"{i.median * scale:{fmt}} [{i.lo90 * scale:{fmt}}-{i.hi90 * scale:{fmt}}]"
 
@@ -124,6 +134,8 @@ def _estimate_cells(est: Estimate | None) -> str:
         return "<td>-</td>" * 4
     if not est.explains:
         return f"<td colspan='3'>{html.escape(est.verdict)}</td><td>no (p {est.p_value:.2g})</td>"
+    if est.flat:  # the intervals are the prior's: said, not shown as a measurement
+        return f"<td colspan='3'>{html.escape(est.verdict)}</td><td>yes (p {est.p_value:.2g})</td>"
     return (f"<td>{_interval(est.clearance, 1e3, '.3f')}</td><td>{_interval(est.cycles_run, 1e-3, ',.0f')}</td>"
             f"<td>{_interval(est.depth, 1e6, '.1f')}</td><td>yes (p {est.p_value:.2g})</td>")
 
@@ -142,7 +154,7 @@ def identification_section(items: Sequence[IdentifiedSession], out: Path, slug: 
                                      "<th>wear depth (µm)</th><th>a parameter value explains it</th>"
                                      if estimated else "") + "<th>windows against it</th><th>sensor delay (ms)</th><th>explained by</th>"
              "<th>cycles to decide</th><th>cycles inside band</th>"
-             "<th>peak |a| CFC 180 measured / theory p50 (m/s²)</th><th>notes</th></tr>"]
+             "<th>peak |a| (kept curves) measured / theory p50 (m/s²)</th><th>notes</th></tr>"]
     rows = []
     for it in items:
         r = it.identification
@@ -156,7 +168,7 @@ def identification_section(items: Sequence[IdentifiedSession], out: Path, slug: 
                      f"<td>{e(', '.join(s for s in states if r.explains[s]) or 'none')}</td>"
                      f"<td>{needed}</td><td>{100 * r.inside[top]:.0f} % ({e(top)})</td>"
                      f"<td>{b['peak_acc_measured_median']:.0f} / {b['peak_acc_theory_p5_p50_p95'][1]:.0f}</td>"
-                     f"<td>{e('; '.join(r.notes + [f'leaves the band of {top}: ' + ', '.join(r.leaves[top])] if r.leaves[top] else r.notes))}</td></tr>")
+                     f"<td>{e('; '.join(_notes(it)))}</td></tr>")
         rows.append({**r.to_dict(), "bands": b, "window_state": it.state, "window_verdict": it.window_verdict,
                      "windows": {st: sw.summary() for st, sw in it.windows.items()},
                      **({"estimate": it.estimate.to_dict()} if it.estimate is not None else {})})

@@ -64,7 +64,7 @@ def window_figure(w: WindowVerdict, band: tuple[np.ndarray, np.ndarray, np.ndarr
     ax.fill_between(t, lo_t, hi_t, color="tab:red", alpha=0.2, lw=0, label=f"{w.state}: 5-95 % band")
     ax.plot(t, rea.ravel(), color="tab:red", lw=0.6, label=f"realisation #{w.realisation}")
     ax.plot(t, w.measured.ravel(), color="black", lw=0.6, label="measured")
-    ax.set_ylabel("slider acceleration, CFC 180 (m/s$^2$)")
+    ax.set_ylabel("acceleration, kept curves' filter (m/s$^2$)")
     ax.legend(loc="upper right", fontsize=8)
     axes[1, 0].plot(t, _outside(w.measured, lo, hi).ravel(), color="tab:blue", lw=0.6)
     axes[1, 0].set_ylabel("outside band (m/s$^2$)")

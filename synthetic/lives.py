@@ -21,9 +21,11 @@ from dataclasses import replace
 import numpy as np
 from wearbench.bench.schema import Bench
 from wearbench.compute.options import DEFAULT, Compute
-from wearbench.validation.inference.estimate import Estimator
+from wearbench.validation.inference.estimate import Estimator, EstimatorDesign
+from wearbench.validation.measurement.features import FeatureSpec
 
-__all__ = ["life_features", "life_means", "life_plan", "measure_move", "move_with_rate", "truth_features"]
+__all__ = ["life_cost", "life_features", "life_means", "life_plan", "life_revolutions", "measure_move", "move_with_rate",
+           "truth_features"]
 
 
 def _sensor_chain(bench: Bench, spread: bool | str, seed: int):
@@ -47,18 +49,21 @@ def _sensor_chain(bench: Bench, spread: bool | str, seed: int):
 
 
 def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int, cycles: int,
-                   spread: bool | str, files: dict | None = None) -> dict:
+                   spread: bool | str, files: dict | None = None, spec: FeatureSpec | None = None) -> dict:
     """One truth's cycle features through the sensor chain (a compute-layer task); ``spread``: False
     (the file's path), True (a drawn axial path) or "cross-axis" (a drawn path with cross-axis);
-    ``files``: worn surfaces to use instead of a wear run of ``cycles_run``."""
+    ``files``: worn surfaces to use instead of a wear run of ``cycles_run``; ``spec``: the features
+    (default the bench's own at its speed, ``measurement.scaling``; an estimator's ``spec``)."""
     from pathlib import Path
 
     from wearbench.bench.schema import WearState
     from wearbench.hardware.emulators.carriage import lateral_force
     from wearbench.model.realisation import simulate_state
     from wearbench.model.wear_stages import StagePlan, run_stages
-    from wearbench.validation.measurement.features import FeatureSpec, cycle_features
+    from wearbench.validation.measurement.features import cycle_features
+    from wearbench.validation.measurement.scaling import resolve_analysis
 
+    spec = spec or resolve_analysis(bench).features
     chain = _sensor_chain(bench, spread, seed)
     joints = [j.name for j in bench.clearance_joints]
     files, depth = dict(files or {}), 0.0
@@ -75,16 +80,17 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     m = chain.oversample
     samples = chain.process(run.acc, lateral_force(run.realisation.bench, run.table) if chain.lateral else None)
     t, crank = run.t[m - 1::m], run.crank[m - 1::m]
-    f = cycle_features(t, crank, samples.astype(float), FeatureSpec())  # only its values are kept
+    f = cycle_features(t, crank, samples.astype(float), spec)  # only its values are kept
     return {"features": f.values[:cycles], "depth": depth, "mode": chain.acc.resonance,
             "cross_axis": chain.acc.cross_axis}
 
 
 def life_features(bench: Bench, clearance: float, factor: float, step: float, stages: int, seed: int, cycles: int,
-                  spread: bool | str) -> dict:
+                  spread: bool | str, spec: FeatureSpec | None = None) -> dict:
     """One simulated life (a compute-layer task): the bench worn from ``clearance`` with ``factor`` x
     the file's wear coefficient through ``stages`` stages of ``step`` cycles; a session of ``cycles``
-    through the sensor chain at 0 and after every stage but the last; the truth's depth after each."""
+    through the sensor chain at 0 and after every stage but the last; the truth's depth after each
+    (features of ``spec``, as :func:`truth_features`)."""
     from pathlib import Path
 
     from wearbench.model.wear_stages import StagePlan, run_stages
@@ -99,8 +105,28 @@ def life_features(bench: Bench, clearance: float, factor: float, step: float, st
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(stages):  # sessions at 0 and after stages 1 .. stages-1
             files = {j: s.save(Path(tmp) / f"{j}_{k}.npz") for j, s in run.stages[k - 1].surfaces.items()} if k else {}
-            feats.append(truth_features(bench, clearance, 0.0, seed, cycles, spread, files=files)["features"])
+            feats.append(truth_features(bench, clearance, 0.0, seed, cycles, spread, files=files, spec=spec)["features"])
     return {"features": feats, "depth": depth}
+
+
+def life_revolutions(cycles: int, stages: int = 5) -> float:
+    """Motor revolutions one life of :func:`life_features` simulates, about: its wear run
+    (``estimate.wear_revolutions``) and a session of ``cycles`` (and its settling) at 0 and after every
+    stage but the last."""
+    from wearbench.validation.inference.estimate import wear_revolutions
+
+    return wear_revolutions(stages) + stages * (cycles + 1.0 + 2.0)
+
+
+def life_cost(bench: Bench, design: EstimatorDesign, speed: float):
+    """What a life's revolutions cost (``compute.cost.Cost``): the bench at the middle of the design's
+    clearances at commanded ``speed``, on the emulated sensor chain's internal rate."""
+    from wearbench.bench.schema import WearState
+    from wearbench.compute.cost import Cost
+
+    c = design.clearances[len(design.clearances) // 2]
+    state = WearState("life", {j.name: c for j in bench.clearance_joints})
+    return Cost(bench, state, speed, _sensor_chain(bench, False, 1).internal_rate, "lives")
 
 
 def life_plan(est: Estimator, lives: int, factor: float, seed: int) -> tuple[float, list[tuple[float, int]]]:
@@ -150,13 +176,16 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     from wearbench.hardware.emulators.config import EmulatorConfig
     from wearbench.validation.inference.estimate import fit_estimator
 
+    if lives < 3:
+        raise ValueError(f"lives = {lives}: expected at least 3 (the move's mean and its error need three independent "
+                         "benches; 20 or more)")
     step, plan = life_plan(est, lives, factor, seed)
     chain = canonical(EmulatorConfig.from_bench(bench).accelerometer)
     tasks = [Task(life_features, {"bench": bench, "clearance": c, "factor": factor, "step": step, "stages": 5,
-                                  "seed": s, "cycles": cycles, "spread": spread},
+                                  "seed": s, "cycles": cycles, "spread": spread, "spec": est.spec},
                   task_key("estimator-life", est.key, bench_key(bench), chain, c, factor, step, s, cycles, spread),
-                  f"life {s}") for c, s in plan]
-    runs = compute.run(tasks, label="lives")
+                  f"life {s}", life_revolutions(cycles)) for c, s in plan]
+    runs = compute.run(tasks, label="lives", cost=life_cost(bench, est.design, est.speed))
     failed = [r for r in runs if isinstance(r, TaskFailure)]
     if failed:
         raise RuntimeError(f"{len(failed)} of {lives} simulated lives failed; the first: {failed[0]}")

@@ -30,18 +30,21 @@ def test_each_subcommand_has_useful_help(name, capsys):
     assert len(out.splitlines()) >= 6
 
 
-@pytest.mark.parametrize(("argv", "cycles"), [(["ensemble", "b.toml"], "cycles"),
-                                              (["identify", "s.mcap"], "ensemble_cycles")])
-def test_ensemble_size_defaults_are_the_shipped_ensembles(argv, cycles):
-    """The command line's ensemble size is EnsembleSettings' (the literal in cli/options keeps the start fast)."""
+@pytest.mark.parametrize("command", ["identify", "compare", "calibrate"])
+def test_ensemble_size_defaults_are_the_shipped_ensembles(command):
+    """The command line's ensemble size is EnsembleSettings' (the literals in cli/ keep the start fast)."""
+    from wearbench.cli.compute import ensemble_size
     from wearbench.validation.inference.ensemble import EnsembleSettings
 
-    args = build_parser().parse_args(argv)
-    assert (args.realisations, getattr(args, cycles)) == (EnsembleSettings().realisations, EnsembleSettings().cycles)
+    args = build_parser().parse_args(["ensemble", "b.toml"])
+    assert (args.realisations, args.cycles) == (EnsembleSettings().realisations, EnsembleSettings().cycles)
+    size = ensemble_size(build_parser().parse_args([command, "s.mcap", *(["--state", "x"] * (command == "calibrate"))]))
+    assert (size.realisations, size.cycles) == (EnsembleSettings().realisations, EnsembleSettings().cycles)
 
 
 def test_estimator_defaults_are_the_shipped_estimator():
-    """`wearbench estimator`'s design defaults are EstimatorDesign()'s, and the test bed's shipped
+    """`wearbench estimator`'s design defaults resolve to EstimatorDesign() on the test bed (the bench's
+    own rule, ``EstimatorDesign.for_bench``), and the test bed's shipped
     estimator has that design's key: `estimate`, `identify --estimate` and the demo use it instead of
     building one (regenerate it when this fails: `wearbench estimator
     ninebar-testbed --ship --force`, then its move, README "How large ...")."""
@@ -54,8 +57,8 @@ def test_estimator_defaults_are_the_shipped_estimator():
         load_estimator,
     )
 
-    assert design_from_args(build_parser().parse_args(["estimator", "b.toml"])) == EstimatorDesign()
     bench = load_bench(shipped_bench("ninebar-testbed"))
+    assert design_from_args(build_parser().parse_args(["estimator", "b.toml"])).resolve(bench) == EstimatorDesign()
     key = estimator_key(bench, EstimatorDesign(), bench.speed)
     assert load_estimator(shipped_path("estimator", bench.name), key=key) is not None, "stale: the model, bench or design changed"
 

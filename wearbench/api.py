@@ -18,6 +18,7 @@ from wearbench.compute.options import Compute
 
 if TYPE_CHECKING:
     from wearbench.validation.comparison.compare import CompareOptions
+    from wearbench.validation.inference.ensemble import EnsembleSettings
     from wearbench.validation.inference.estimate import Estimator, EstimatorDesign
 
 __all__ = ["Results", "calibrate", "compare", "estimate", "identify", "load_bench", "record", "simulate", "track",
@@ -85,14 +86,15 @@ def record(bench: Bench | str | Path, out: str | Path, *, cycles: float | None =
 
 
 def identify(sessions: Sessions, *, candidates: str | Path | Sequence[WearState] | None = None,
-             ensembles: Mapping | str | Path | None = None,
+             ensembles: Mapping | str | Path | None = None, settings: EnsembleSettings | None = None,
              estimator: Estimator | EstimatorDesign | str | Path | None = None, threshold: float = 0.9,
              calibration: str | Path | None = "auto", mount: str = "", compute: Compute | None = None) -> Results:
     """Which candidate state explains each session, with posterior probabilities (``Assessment``s:
     ``.identification``, ``.bands``, ``.windows``, and ``.estimate`` when ``estimator`` is given: an
     ``Estimator``, its file, or an ``EstimatorDesign``). Ensembles are ``ensembles`` (a file or a
-    mapping), else built on ``compute`` (the shipped ones when they fit). See the docs' "How
-    identification works"."""
+    mapping), else built on ``compute`` with ``settings`` (default: each bench's own at its sessions'
+    speed, ``EnsembleSettings.for_bench``; the shipped ones when they fit), every batch announced with
+    its CPU time first. See the docs' "How identification works"."""
     from wearbench.validation.inference.estimate import EstimatorDesign, load_estimator
     from wearbench.validation.inference.identify import IdentifyOptions
     from wearbench.validation.workflows.assess import assess_sessions
@@ -105,7 +107,8 @@ def identify(sessions: Sessions, *, candidates: str | Path | Sequence[WearState]
     sessions = SessionSet.of(sessions, calibration=calibration, mount=mount)
     sessions.check_artefacts(ensembles=ensembles, candidates=candidates,
                              estimator=None if estimator is None or isinstance(estimator, EstimatorDesign) else estimator)
-    assessed = assess_sessions(sessions, candidates=candidates, ensembles=ensembles, options=options, compute=compute)
+    assessed = assess_sessions(sessions, candidates=candidates, ensembles=ensembles, settings=settings,
+                               options=options, compute=compute)
     if estimator is not None:
         estimate_assessed(assessed, estimator, options=options, calibration=calibration, mount=mount, compute=compute)
     return Results(assessed)
@@ -115,8 +118,9 @@ def estimate(sessions: Sessions, *, estimator: Estimator | str | Path | None = N
              design: EstimatorDesign | None = None, calibration: str | Path | None = "auto",
              mount: str = "", compute: Compute | None = None) -> Results:
     """Clearance, cycles run and wear depth of each session with credible intervals (``Estimate``s),
-    from ``estimator`` (an ``Estimator`` or its file) or the estimator of ``design`` (default: the
-    bench's shipped one when it fits, else built on ``compute``)."""
+    from ``estimator`` (an ``Estimator`` or its file) or the estimator of ``design`` (default: each
+    bench's own, ``EstimatorDesign.for_bench``; its shipped one when it fits, else built on
+    ``compute``)."""
     from wearbench.validation.workflows.measure import estimate_sessions
 
     return Results(estimate_sessions(sessions, design=design, estimator=estimator, calibration=calibration,
@@ -137,14 +141,15 @@ def track(sessions: Sessions, cycles_run: Sequence[float] | None = None, *, limi
 
 
 def calibrate(sessions: Sessions, state: str, *, candidates: str | Path | Sequence[WearState] | None = None,
-              ensembles: Mapping | str | Path | None = None, mount: str = "", compute: Compute | None = None):
+              ensembles: Mapping | str | Path | None = None, settings: EnsembleSettings | None = None,
+              mount: str = "", compute: Compute | None = None):
     """The sensor-path calibration of one bench from sessions recorded in the known ``state`` (a
     ``Calibration``; not stored: ``save_calibration`` stores it where ``identify`` and ``estimate``
-    find it)."""
+    find it); ensembles as :func:`identify` builds them."""
     from wearbench.validation.workflows.measure import calibrate_sessions
 
-    return calibrate_sessions(sessions, state, candidates=candidates, ensembles=ensembles, mount=mount,
-                              compute=compute)
+    return calibrate_sessions(sessions, state, candidates=candidates, ensembles=ensembles, settings=settings,
+                              mount=mount, compute=compute)
 
 
 def compare(sessions: Sessions, theory: Sequence | None = None, *, options: CompareOptions | None = None) -> Results:

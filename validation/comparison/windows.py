@@ -51,7 +51,7 @@ Imports validation.ensemble, features, filters, metrics, cycles, chain_delay, id
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -96,6 +96,19 @@ class WindowOptions:
     iso_realisations: int = 3    # realisations each window is rated against (ISO/TS 18571)
     reference_realisations: int = 12  # held-out realisations whose windows give the ISO scores' null
     lowpass: float = 10.0        # Hz, for iso_lowpass
+
+    def for_crank(self, crank_hz: float, lowpass: float | None = None) -> WindowOptions:
+        """These options at a crank turning ``crank_hz`` revolutions per second. The slow curves'
+        low-passes (``lowpass``, ``delay_lowpass``) and the delay search's ``delay_step`` and
+        ``delay_floor`` are stated for a 1 Hz crank, as the defaults are, and scale with it: the
+        low-passes in crank orders (``lowpass``: the bench's resolved one, Hz, for both;
+        ``measurement.scaling``), the step and floor in crank periods (the step at least a
+        2000th of ``max_delay``). ``max_delay`` stays in seconds: a sensor chain's delay does not move
+        with the crank. At 1 Hz: these options."""
+        f = float(crank_hz)
+        low, slow = (self.lowpass * f, self.delay_lowpass * f) if lowpass is None else (lowpass, lowpass)
+        return replace(self, lowpass=low, delay_lowpass=slow, delay_floor=self.delay_floor / f,
+                       delay_step=max(self.delay_step / f, self.max_delay / 2000))
 
     def __post_init__(self) -> None:
         if self.statistic not in STATISTICS:

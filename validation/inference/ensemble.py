@@ -27,9 +27,11 @@ from wearbench.validation.inference import artefacts
 from wearbench.validation.inference.sensor_path import PathSpread
 from wearbench.validation.measurement.features import FeatureSpec, cycle_curves, cycle_features
 from wearbench.validation.measurement.filters import parse_filter
+from wearbench.validation.measurement.scaling import resolve_analysis
 
-__all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "build_ensembles", "check_ensembles_fit",
-           "ensembles_key", "load_ensembles", "realisation_keys", "realisation_summary", "save_ensembles", "sensor_paths_text"]
+__all__ = ["MIN_REALISATIONS", "Ensemble", "EnsembleSettings", "EnsembleSize", "build_ensembles", "check_ensembles_fit",
+           "ensembles_key", "load_ensembles", "realisation_keys", "realisation_revolutions", "realisation_summary", "resolve_settings", "save_ensembles",
+           "sensor_paths_text"]
 
 @dataclass(frozen=True)
 class EnsembleSettings:
@@ -59,11 +61,48 @@ class EnsembleSettings:
                              f"above {self.sensor_paths.mode[1] / 0.45:g} Hz, got {self.output_rate:g} Hz")
 
     @classmethod
+    def for_bench(cls, bench: Bench, speed: float | None = None, *, realisations: int = 64, cycles: int = 8,
+                  sensor_paths: bool = True, seed: int = 1) -> EnsembleSettings:
+        """The settings of ``bench``'s theory at commanded motor ``speed`` (rad/s; default the bench's):
+        features, kept curves' filter and model output rate resolved from the bench's own kinematics
+        and sensor chain (``measurement.scaling.resolve_analysis``), each realisation seen through a
+        mount drawn around its bands (``sensor_paths``; ``PathSpread.around``). For the test bed at its
+        1 Hz these are the defaults, ``EnsembleSettings()``."""
+        a = resolve_analysis(bench, speed)
+        return cls(realisations=realisations, cycles=cycles, seed=seed, output_rate=a.output_rate,
+                   curve_filter=a.curve_filter, features=a.features,
+                   sensor_paths=PathSpread.around(a.features) if sensor_paths else None)
+
+    @classmethod
     def from_dict(cls, data: dict) -> EnsembleSettings:
         """The inverse of ``asdict`` (JSON lists back to tuples); a file of a version before drawn
         sensor paths holds none (its realisations saw the model's acceleration as it is)."""
         return cls(**{**data, "features": FeatureSpec.from_dict(data["features"]),
                       "sensor_paths": PathSpread.from_dict(data.get("sensor_paths"))})
+
+
+@dataclass(frozen=True)
+class EnsembleSize:
+    """How much theory to build, before the bench is known: realisations per state, settled cycles per
+    realisation, whether each sees a drawn sensor path. :meth:`resolve` gives a bench's settings at a
+    speed (``EnsembleSettings.for_bench``); an explicit ``EnsembleSettings`` is used as it is."""
+
+    realisations: int = 64
+    cycles: int = 8
+    sensor_paths: bool = True
+
+    def resolve(self, bench: Bench, speed: float | None = None) -> EnsembleSettings:
+        return EnsembleSettings.for_bench(bench, speed, realisations=self.realisations, cycles=self.cycles,
+                                          sensor_paths=self.sensor_paths)
+
+
+def resolve_settings(settings: EnsembleSettings | EnsembleSize | None, bench: Bench,
+                     speed: float | None = None) -> EnsembleSettings:
+    """``settings`` as they are, or (an :class:`EnsembleSize`, None: the default size) resolved for
+    ``bench`` at ``speed``."""
+    if isinstance(settings, EnsembleSettings):
+        return settings
+    return (settings or EnsembleSize()).resolve(bench, speed)
 
 
 @dataclass(frozen=True)
@@ -109,6 +148,11 @@ def realisation_summary(bench: Bench, state: WearState, seed: int, *, speed: flo
     return {"features": feats.values[:n], "curves": curves[:n], "peaks": peaks[:n]}
 
 
+def realisation_revolutions(settings: EnsembleSettings) -> float:
+    """Motor revolutions one realisation of ``settings`` simulates (settling included): its cost."""
+    return settings.settle + settings.cycles + 1.0
+
+
 def ensembles_key(bench: Bench, states: Sequence[WearState], speed: float, settings: EnsembleSettings) -> str:
     """Content address of a set of ensembles (also keys shipped precomputed ones)."""
     from wearbench.compute import task_key
@@ -138,7 +182,7 @@ def sensor_paths_text(settings: EnsembleSettings) -> str:
 
 
 def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float | None = None,
-                    settings: EnsembleSettings = EnsembleSettings(), compute: Compute = DEFAULT,
+                    settings: EnsembleSettings | EnsembleSize | None = None, compute: Compute = DEFAULT,
                     cache: bool = True, shipped: bool = True, label: str = "theory ensembles") -> dict[str, Ensemble]:
     """Ensembles of every candidate ``state`` of ``bench`` at commanded motor ``speed`` (rad/s).
 
@@ -148,9 +192,11 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
     ``Ensemble.failures``; a state with fewer than 3 good realisations raises, naming the failures.
     """
     from wearbench.compute import Task, TaskFailure
+    from wearbench.compute.cost import Cost
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
+    settings = resolve_settings(settings, bench, speed)
     if not states:
         raise ValueError(f"{bench.name}: no candidate states (give [[state]] tables or --candidates)")
     for state in states:  # a bad surface file fails here, not in every realisation
@@ -169,9 +215,12 @@ def build_ensembles(bench: Bench, states: Sequence[WearState], *, speed: float |
         for i in range(settings.realisations):
             seed = settings.seed + i
             tasks.append(Task(realisation_summary, {"bench": bench, "state": state, "seed": seed, "speed": speed,
-                                                    "settings": settings}, next(keys), f"{state.name} #{i}"))
+                                                    "settings": settings}, next(keys), f"{state.name} #{i}",
+                              realisation_revolutions(settings)))
             owners.append(state.name)
-    results = compute.run(tasks, label=label, cache=cache)
+    middle = states[len(states) // 2]  # priced on a middle state: worn surfaces cost more than new ones
+    results = compute.run(tasks, label=label, cache=cache, cost=Cost(bench, middle, speed, settings.output_rate,
+                                                                     "realisations"))
     out: dict[str, Ensemble] = {}
     for state in states:
         mine = [r for r, o in zip(results, owners, strict=True) if o == state.name]

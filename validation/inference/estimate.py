@@ -54,12 +54,15 @@ from wearbench.validation.inference.ensemble import (
     Ensemble,
     EnsembleSettings,
     build_ensembles,
+    realisation_revolutions,
     sensor_paths_text,
 )
 from wearbench.validation.inference.identify import (
+    FLAT,
     IdentifyOptions,
     default_sensor,
     gamma_by_moments,
+    prior_distance,
     state_statistics,
     variance_floor,
 )
@@ -67,12 +70,13 @@ from wearbench.validation.inference.sensor_path import SensorPath
 from wearbench.validation.inference.statistics import StateStatistics
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
-__all__ = ["Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval", "build_estimator",
-           "estimate_features", "estimator_key", "fit_estimator", "load_estimator", "predictive_band",
-           "save_estimator"]
+__all__ = ["DesignRequest", "Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval",
+           "build_estimator", "check_design_values", "design_clearances", "design_cycles", "estimate_features",
+           "estimator_key", "fit_estimator", "load_estimator", "predictive_band", "resolve_design", "save_estimator"]
 
 NO_VALUE = "no parameter value explains it"
 SHORT_SESSION = 5  # complete crank cycles below which an estimate says the session is short (a window's length)
+PRIOR_ONLY = "the session's evidence does not move the estimate from its prior"
 
 
 @dataclass(frozen=True)
@@ -97,22 +101,46 @@ class EstimatorDesign:
         object.__setattr__(self, "cycles", tuple(float(f"{v:.12g}") for v in n))
 
     @classmethod
-    def small(cls) -> EstimatorDesign:
-        """A small design for a first look (the demo's while no shipped estimator fits): 3 clearances
-        0.25-0.65 mm x cycles run 0, 200,000, 400,000, 3 realisations x 4 cycles each (about 2 min of
-        CPU). Coarse: 3 x 3 points fit the emulator exactly, so its own error comes from leave-one-out."""
+    def small(cls, bench: Bench | None = None, speed: float | None = None) -> EstimatorDesign:
+        """A small design for a first look (the demo's while no shipped estimator fits): the default
+        design's lowest, middle and highest clearance x cycles run 0, one and two wear stages, 3
+        realisations x 4 cycles each (for the test bed 0.25, 0.45, 0.65 mm x 0, 200,000, 400,000; about 2
+        min of CPU). Coarse: 3 x 3 points fit the emulator exactly, so its own error comes from
+        leave-one-out. ``bench``: that bench's (:meth:`for_bench`), else the test bed's values."""
+        if bench is not None:
+            return cls.for_bench(bench, speed, small=True)
         return cls((0.25e-3, 0.45e-3, 0.65e-3), (0.0, 200_000.0, 400_000.0), EnsembleSettings(realisations=3, cycles=4))
+
+    @classmethod
+    def for_bench(cls, bench: Bench, speed: float | None = None, *, realisations: int | None = None,
+                  ensemble_cycles: int | None = None, clearances: Sequence[float] | None = None,
+                  cycles: Sequence[float] | None = None, small: bool = False) -> EstimatorDesign:
+        """``bench``'s design at commanded motor ``speed`` (rad/s; default the bench's), each value
+        given here kept, the others from the bench (:func:`design_clearances`, :func:`design_cycles`:
+        its nominal and candidate clearances and its ``[wear]`` stage; the ensembles' settings
+        resolved from its kinematics and sensor chain, ``EnsembleSettings.for_bench``), 48
+        realisations x 8 cycles; ``small``: :meth:`small`'s sizes (3 clearances x 3 cycles-run values,
+        3 realisations x 4 cycles). For the test bed at its speed: ``EstimatorDesign()``. Values that
+        do not fit the bench raise one ValueError naming the option (``--design-clearances``, ...)."""
+        grid = design_clearances(bench)
+        runs = design_cycles(bench)
+        if small:
+            grid, runs = (grid[0], grid[2], grid[4]), runs[:3]
+        grid = tuple(clearances) if clearances is not None else grid
+        runs = tuple(cycles) if cycles is not None else runs
+        check_design_values(bench, grid, runs)
+        settings = EnsembleSettings.for_bench(bench, speed, realisations=realisations or (3 if small else 48),
+                                              cycles=ensemble_cycles or (4 if small else 8))
+        return cls(grid, runs, settings)
 
     @classmethod
     def parse(cls, clearances: str, cycles: str, *, realisations: int = 48,
               ensemble_cycles: int = 8) -> EstimatorDesign:
-        """A design from text as a user types it: ``"0.25mm,0.45mm,0.65mm"``, ``"0,200000,400000"``."""
-        try:
-            c = tuple(parse_quantity(v, "length", bare_unit="mm") for v in clearances.split(","))
-            n = tuple(float(v) for v in cycles.split(","))
-        except ValueError as exc:
-            raise ValueError(f"design clearances {clearances!r} / cycles {cycles!r}: {exc}") from None
-        return cls(c, n, EnsembleSettings(realisations=realisations, cycles=ensemble_cycles))
+        """A design from text as a user types it: ``"0.25mm,0.45mm,0.65mm"``, ``"0,200000,400000"``
+        (the ensembles' settings the test bed's; ``DesignRequest.parse`` for any bench's)."""
+        request = DesignRequest.parse(clearances, cycles, realisations=realisations, ensemble_cycles=ensemble_cycles)
+        return cls(request.clearances, request.cycles, EnsembleSettings(realisations=realisations,
+                                                                       cycles=ensemble_cycles))
 
     def state(self, i: int, j: int, surfaces: Mapping[str, Path], joints: Sequence[str]) -> WearState:
         c, n = self.clearances[i], self.cycles[j]
@@ -121,6 +149,97 @@ class EstimatorDesign:
     def to_dict(self) -> dict:
         return {"clearances": list(self.clearances), "cycles": list(self.cycles),
                 "settings": {**asdict(self.settings), "features": self.settings.features.to_dict()}}
+
+
+def design_clearances(bench: Bench) -> tuple[float, ...]:
+    """The default design's five clearances (m) for ``bench``: equally spaced over the span of its
+    nominal clearances and its ``[[state]]``s' (at least up to twice the smallest: a joint's clearance
+    about doubles over its useful life, the test bed's 0.3 mm to 0.6 mm), widened by a sixth of the
+    span at each end and kept inside half the smallest bearing radius. The test bed's 0.3 and 0.6 mm
+    give 0.25, 0.35, 0.45, 0.55 and 0.65 mm."""
+    joints = bench.clearance_joints
+    if not joints:
+        raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
+    values = [j.clearance.radial_clearance for j in joints]
+    values += [c for s in bench.states for c in s.clearances.values()]
+    lo, hi = min(values), max(values)
+    hi = max(hi, 2 * lo)
+    margin = (hi - lo) / 6
+    top = 0.5 * min(j.clearance.bearing_radius for j in joints)
+    grid = np.linspace(max(lo - margin, lo / 2), min(hi + margin, top), 5)
+    return tuple(float(f"{v:.12g}") for v in grid)
+
+
+def design_cycles(bench: Bench) -> tuple[float, ...]:
+    """The default design's cycles run for ``bench``: 0 and three of its ``[wear]`` stages
+    (``cycles_per_stage`` x ``stage_scale``; the test bed's 0, 200,000, 400,000, 600,000)."""
+    stage = float(bench.wear.cycles_per_stage * bench.wear.stage_scale)
+    return (0.0, stage, 2 * stage, 3 * stage)
+
+
+def check_design_values(bench: Bench, clearances: Sequence[float], cycles: Sequence[float]) -> None:
+    """Refuse (one ValueError naming the option) design values ``bench`` cannot take: clearances at
+    least two, increasing, positive and inside its smallest bearing radius; cycles run at least two,
+    from 0, equally spaced (one wear stage apart)."""
+    c, n = np.asarray(clearances, float), np.asarray(cycles, float)
+    text = ",".join(f"{v * 1e3:g}mm" for v in c)
+    if c.size < 2 or np.any(np.diff(c) <= 0) or not np.all(np.isfinite(c)) or c[0] <= 0:
+        raise ValueError(f"--design-clearances {text}: expected at least two increasing positive clearances")
+    joints = bench.clearance_joints
+    radius = min((j.clearance.bearing_radius for j in joints), default=np.inf)
+    if c[-1] >= radius:
+        raise ValueError(f"--design-clearances {text}: expected clearances below {bench.name}'s smallest bearing "
+                         f"radius {radius * 1e3:g} mm")
+    ntext = ",".join(f"{v:.0f}" for v in n)
+    if (n.size < 2 or not np.all(np.isfinite(n)) or n[0] != 0 or n[1] <= 0
+            or not np.allclose(np.diff(n), n[1])):
+        raise ValueError(f"--design-cycles {ntext}: expected at least two cycles-run values equally spaced from 0 "
+                         "(one wear stage apart), e.g. 0,200000,400000,600000")
+
+
+@dataclass(frozen=True)
+class DesignRequest:
+    """What a command asks of an estimator's design before the bench is known (each None: the bench's
+    default, :meth:`EstimatorDesign.for_bench`); :meth:`resolve` gives the bench's design."""
+
+    clearances: tuple[float, ...] | None = None
+    cycles: tuple[float, ...] | None = None
+    realisations: int | None = None
+    ensemble_cycles: int | None = None
+    small: bool = False
+
+    @classmethod
+    def parse(cls, clearances: str | None, cycles: str | None, *, realisations: int | None = None,
+              ensemble_cycles: int | None = None, small: bool = False) -> DesignRequest:
+        """A request from text as a user types it: ``"0.25mm,0.45mm,0.65mm"`` (a bare number in mm),
+        ``"0,200000,400000"`` (None: the bench's); one ValueError naming the option otherwise."""
+        c = n = None
+        if clearances is not None:
+            try:
+                c = tuple(parse_quantity(v, "length", bare_unit="mm") for v in clearances.split(","))
+            except ValueError as exc:
+                raise ValueError(f"--design-clearances {clearances!r}: {exc}") from None
+        if cycles is not None:
+            try:
+                n = tuple(float(v.replace("_", "")) for v in cycles.split(","))
+            except ValueError:
+                raise ValueError(f"--design-cycles {cycles!r}: expected cycles-run numbers separated by commas, e.g. "
+                                 "0,200000,400000") from None
+        return cls(c, n, realisations, ensemble_cycles, small)
+
+    def resolve(self, bench: Bench, speed: float | None = None) -> EstimatorDesign:
+        return EstimatorDesign.for_bench(bench, speed, realisations=self.realisations,
+                                         ensemble_cycles=self.ensemble_cycles, clearances=self.clearances,
+                                         cycles=self.cycles, small=self.small)
+
+
+def resolve_design(design: EstimatorDesign | DesignRequest | None, bench: Bench,
+                   speed: float | None = None) -> EstimatorDesign:
+    """``design`` as it is, or (a :class:`DesignRequest`, None: the default) resolved for ``bench`` at
+    ``speed``."""
+    if isinstance(design, EstimatorDesign):
+        return design
+    return (design or DesignRequest()).resolve(bench, speed)
 
 
 def point_name(c: float, n: float) -> str:
@@ -160,6 +279,15 @@ def wear_trajectory(bench: Bench, clearance: float, stages: int, stage_cycles: f
     return [{j: (s.bearing, s.journal, s.cycles) for j, s in st.surfaces.items()} for st in run.stages]
 
 
+def wear_revolutions(stages: int) -> float:
+    """Motor revolutions a wear run of ``stages`` stages simulates, at least (``wear_stages.StagePlan``'s
+    settling and its least updates per stage, one revolution each): what it costs, about."""
+    from wearbench.model.wear_stages import StagePlan
+
+    plan = StagePlan()
+    return float(plan.settle + stages * plan.min_updates * plan.update_revolutions)
+
+
 def estimator_key(bench: Bench, design: EstimatorDesign, speed: float) -> str:
     """Content address of an estimator (also keys a shipped one): bench physics and tolerances, the
     wear settings, the design, the speed and the model source."""
@@ -170,8 +298,8 @@ def estimator_key(bench: Bench, design: EstimatorDesign, speed: float) -> str:
                     round(speed, 9))
 
 
-def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *, speed: float | None = None,
-                    compute: Compute = DEFAULT, cache: bool = True, shipped: bool = True,
+def build_estimator(bench: Bench, design: EstimatorDesign | DesignRequest | None = None, *,
+                    speed: float | None = None, compute: Compute = DEFAULT, cache: bool = True, shipped: bool = True,
                     label: str = "estimator") -> Estimator:
     """The estimator of ``bench``: a shipped one when its key matches, else the design's wear runs
     (one per clearance) and ensembles (one per design point) on the compute layer, cached by content.
@@ -179,12 +307,14 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
     (realisation i is seed + i at every size): only the seeds it lacks are simulated."""
     from wearbench.bench.content import cache_folder
     from wearbench.compute import Task, TaskFailure, task_key
+    from wearbench.compute.cost import Cost, plan_line
     from wearbench.model.surfaces import JointSurfaces
 
     speed = bench.speed if speed is None else float(speed)
     joints = [j.name for j in bench.clearance_joints]
     if not joints:
         raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
+    design = resolve_design(design, bench, speed)
     key = estimator_key(bench, design, speed)
     base, m0 = None, 0  # a shipped smaller estimator of this design and how many realisations it gives
     if shipped and cache and artefacts.shipped_path("estimator", bench.name).exists():
@@ -194,10 +324,18 @@ def build_estimator(bench: Bench, design: EstimatorDesign = EstimatorDesign(), *
         base, m0 = found, _first_realisations(bench, design, speed, found)
     stages, stage = len(design.cycles) - 1, design.cycles[1]
     wkeys = [task_key("estimator-wear", key, c) for c in design.clearances]
+    middle = WearState("design", dict.fromkeys(joints, design.clearances[len(design.clearances) // 2]))
+    settings = design.settings
+    points = len(design.clearances) * len(design.cycles)
+    if compute.progress:  # the whole plan, before the wear runs start
+        compute.announce(plan_line(label, [("wear runs", len(design.clearances), wear_revolutions(stages)),
+                                           ("realisations", points * (settings.realisations - m0),
+                                            realisation_revolutions(settings))],
+                                   Cost(bench, middle, speed, settings.output_rate), workers=compute.workers_known))
     runs = compute.run([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages, "stage_cycles": stage,
-                                             "speed": speed}, k, f"wear {c * 1e3:.3g} mm")
+                                             "speed": speed}, k, f"wear {c * 1e3:.3g} mm", wear_revolutions(stages))
                       for c, k in zip(design.clearances, wkeys, strict=True)],
-                     label=f"{label}: wear", cache=cache)
+                     label=f"{label}: wear", cache=cache, cost=Cost(bench, middle, speed, noun="wear runs"))
     failed = [r for r in runs if isinstance(r, TaskFailure)]
     if failed:
         raise RuntimeError(f"estimator {bench.name}: wear run failed: {failed[0]}")
@@ -460,9 +598,18 @@ class Estimate:
     band: np.ndarray | None = field(default=None, repr=False)  # (3, p) 5/50/95 % of one cycle's features
     measured: np.ndarray | None = field(default=None, repr=False)  # (cycles, p) the session's cycle features
     meta: dict = field(default_factory=dict)  # grid_c (m), grid_n (cycles): the grid's ranges; bins, bands
+    # how far the session moved each parameter's marginal from its uniform prior (total variation, 0-1)
+    evidence: dict = field(default_factory=dict)
+
+    @property
+    def flat(self) -> bool:
+        """Whether the session's evidence left both parameters where their prior has them
+        (``identify.FLAT``): the estimate is its prior, not a measurement."""
+        return bool(self.evidence) and all(v < FLAT for v in self.evidence.values())
 
     def to_dict(self) -> dict:
-        return {k: v for k, v in asdict(self).items() if k not in ("posterior", "band", "measured")}
+        return {**{k: v for k, v in asdict(self).items() if k not in ("posterior", "band", "measured")},
+                "flat": self.flat}
 
     def row(self) -> dict:
         """One table row (SI units): the median and 90 % interval of each parameter, the verdict."""
@@ -475,6 +622,8 @@ class Estimate:
         """The estimate in one line, as the demo's summary and the report's table give it."""
         if not self.explains:
             return NO_VALUE
+        if self.flat:
+            return PRIOR_ONLY
         c, n, d = self.clearance, self.cycles_run, self.depth
         return (f"{c.median * 1e3:.3f} mm [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}], {n.median / 1e3:.0f}k cycles "
                 f"[{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k], wear {d.median * 1e6:.1f} um "
@@ -524,6 +673,18 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
         notes.append(f"no clearance in {gc[0] * 1e3:.3g}-{gc[-1] * 1e3:.3g} mm and wear of 0-{gn[-1]:,.0f} cycles "
                      f"explains the session (p {p:.2g}): outside the estimator's range, or a sensor path or bench "
                      "unlike the model's")
+    evidence = {"clearance": prior_distance(post.sum(axis=1)), "cycles_run": prior_distance(post.sum(axis=0))}
+    unmoved = [k for k, v in evidence.items() if v < FLAT]
+    if explains and len(unmoved) == 2:
+        verdict = PRIOR_ONLY
+        notes.append(f"the session's evidence hardly moves the posterior from the uniform prior over clearances "
+                     f"{gc[0] * 1e3:.3g}-{gc[-1] * 1e3:.3g} mm and 0-{gn[-1]:,.0f} cycles run (total variation "
+                     f"{evidence['clearance']:.2f} and {evidence['cycles_run']:.2f}): the intervals are the prior's, "
+                     "not a measurement; the features do not see clearance or wear at this speed and sensor chain")
+    elif explains and unmoved:
+        what = "the clearance" if unmoved == ["clearance"] else "the cycles run"
+        notes.append(f"the session's evidence hardly moves {what} from its uniform prior (total variation "
+                     f"{evidence[unmoved[0]]:.2f}): its interval is the prior's, not a measurement")
     edge = post[0].sum() + post[-1].sum() + post[:, -1].sum()
     if explains and edge > 0.2:
         notes.append("much of the posterior lies at the edge of the estimator's range: the truth may lie beyond it")
@@ -540,4 +701,5 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     return Estimate(label, n, c_int, n_int, depth_int, (float(gc[i]), float(gn[j])),
                     cov / sd if sd > 0 else 0.0, p, explains, verdict, sensor, notes, inside, post, band, x,
                     {"grid_c": [float(gc[0]), float(gc[-1])], "grid_n": [float(gn[0]), float(gn[-1])],
-                     "bins": spec.bins, "bands": [list(b) for b in spec.bands], "estimator": model.estimator.key})
+                     "bins": spec.bins, "bands": [list(b) for b in spec.bands], "estimator": model.estimator.key},
+                    evidence)

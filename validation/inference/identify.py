@@ -35,7 +35,7 @@ angles where measured cycles leave the 5-95 % band of a feature more often than 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from scipy import linalg, optimize, special, stats
@@ -49,10 +49,31 @@ from wearbench.validation.inference.sensor_path import (
 from wearbench.validation.inference.statistics import StateStatistics
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
-__all__ = ["Identification", "IdentifyOptions", "StateModels", "fit_states", "identify_features"]
+__all__ = ["FLAT", "INDISTINCT", "Identification", "IdentifyOptions", "StateModels", "fit_states", "identify_features",
+           "prior_distance", "separates"]
 
 UNDECIDED = "undecided"
 NONE = "none of the candidates"
+INDISTINCT = "the features cannot tell the candidates apart"
+FLAT = 0.1  # total variation from the uniform prior below which a posterior has not moved
+
+
+def prior_distance(posterior: np.ndarray) -> float:
+    """Total variation distance (0-1) of a posterior on a grid or a set of states from the uniform prior
+    over the same: how far a session's evidence moved it (0: not at all)."""
+    p = np.asarray(posterior, dtype=float).ravel()
+    p = p / p.sum()
+    return float(0.5 * np.abs(p - 1.0 / p.size).sum())
+
+
+def separates(held_out: float | None, states: int, count: int) -> bool:
+    """Whether ``count`` held-out realisations of ``states`` candidates, named right in a fraction
+    ``held_out`` of them, show the features telling the candidates apart: more often than chance
+    (1 / ``states``) would name them, at 1 % (one-sided binomial test; None: unknown)."""
+    if held_out is None or states < 2 or count < 1:
+        return True
+    right = round(held_out * count)
+    return float(stats.binom.sf(right - 1, count, 1.0 / states)) < 0.01
 
 
 @dataclass(frozen=True)
@@ -101,6 +122,8 @@ class StateModels:
     spec: FeatureSpec = field(default_factory=FeatureSpec)
     sensor: SensorPath | None = None  # the sensor path marginalised (None: taken as exact)
     reference: str = ""  # a calibration the states are relative to (``calibrated.py``), "" for none
+    held_out: float | None = None  # fraction of held-out realisations whose top state is their own
+    held_out_count: int = 0  # how many realisations were held out
 
 
 @dataclass
@@ -123,6 +146,11 @@ class Identification:
     notes: list[str] = field(default_factory=list)
     sensor_path: str = ""  # the sensor path the likelihood allowed for (prior or which calibration)
     diagnosis: dict | None = None  # where the session departs from the top state (when none explains it)
+    # how far the session moved the posterior from the uniform prior (total variation, 0-1) and whether
+    # that is too little to say anything (``FLAT``); the theory's own held-out top-1 rate
+    evidence: float = 1.0
+    flat: bool = False
+    held_out: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -254,6 +282,7 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         null[s] = gamma_by_moments(d2)
         null_direction[s] = gamma_by_moments(t2) if others else (1.0, 1.0)  # one candidate: distance 0, p 1
     temperature = temper(np.asarray(lls), np.asarray(truth)) if len(names) > 1 else 1.0
+    held_out = float(np.mean(np.argmax(np.asarray(lls), axis=1) == np.asarray(truth)))
     limit, lo, hi = {}, {}, {}
     for s, f in features.items():
         flat = f.reshape(-1, f.shape[-1])
@@ -263,7 +292,8 @@ def fit_states(ensembles: Mapping[str, Ensemble], options: IdentifyOptions = Ide
         limit[s] = float(np.percentile(np.einsum("ij,jk,ik->i", d, inv, d), 95))
         lo[s], hi[s] = np.percentile(flat, 5, axis=0), np.percentile(flat, 95, axis=0)
     return StateModels(names, fitted, temperature, null, null_direction, limit, lo, hi, options, columns,
-                       window_null=window_null, window_cycles=window_cycles, spec=spec, sensor=sensor)
+                       window_null=window_null, window_cycles=window_cycles, spec=spec, sensor=sensor,
+                       held_out=held_out, held_out_count=len(truth))
 
 
 def angle_ranges(flags: np.ndarray, bins: int) -> list[str]:
@@ -311,20 +341,24 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         shape, scale = models.null_direction[s]
         p_direction[s] = float(stats.gamma.sf(direction_distance2(st, others, xbar, n), shape, scale=scale))
         consistent[s] = p_value[s] >= opts.consistency and p_direction[s] >= opts.consistency_direction
+    evidence = prior_distance(post) if len(names) > 1 else 1.0
+    blind = not separates(models.held_out, len(names), models.held_out_count)
     if not any(consistent.values()):
         verdict = NONE
+    elif blind:
+        verdict = INDISTINCT
     elif post[top] >= opts.threshold and consistent[names[top]]:
         verdict = names[top]
     else:
         verdict = UNDECIDED
     needed = None
-    if verdict == UNDECIDED and any(consistent.values()):
+    if verdict == UNDECIDED and any(consistent.values()) and evidence >= FLAT:
         for m in np.unique(np.geomspace(n + 1, opts.max_cycles, 60).astype(int)):
             p = _posterior(np.array([models.stats[s].log_likelihood(xbar, m) for s in names]), models.temperature)
             if p.max() >= opts.threshold:
                 needed = int(m)
                 break
-    elif verdict != NONE:
+    elif verdict not in (NONE, INDISTINCT, UNDECIDED):
         needed = n
     spec = features.spec
     inside, leaves = {}, {}
@@ -338,6 +372,14 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         often[models.columns] = out.mean(axis=0) > 1 / 3
         leaves[s] = feature_ranges(often, spec)
     notes = []
+    if blind:
+        notes.append(f"the candidates' own realisations, held out, are named right in {100 * models.held_out:.0f} % "
+                     f"of {models.held_out_count}, no more often than chance ({100 / len(names):.0f} %) would: these "
+                     "features cannot tell the candidates apart at this crank speed and sensor chain; no session can "
+                     "decide between them")
+    elif len(names) > 1 and evidence < FLAT:
+        notes.append(f"the session's evidence hardly moves the posterior from the uniform prior (total variation "
+                     f"{evidence:.2f}): it lies between the candidates or the features do not see what tells them apart")
     clipped = int(features.clipped.sum())
     if clipped:
         notes.append(f"{clipped} samples at the sensor's range (clipped): impact energies are underestimated")
@@ -348,7 +390,8 @@ def identify_features(features: CycleFeatures, models: StateModels, *, label: st
         notes.append(diagnosis["summary"])
     return Identification(label, n, {s: float(p) for s, p in zip(names, post, strict=True)}, verdict,
                           float(post[top]), consistent, explains, p_value, p_direction, needed, inside, leaves,
-                          clipped, notes, models.reference or (models.sensor.source if models.sensor else "none"), diagnosis)
+                          clipped, notes, models.reference or (models.sensor.source if models.sensor else "none"), diagnosis,
+                          evidence, len(names) > 1 and evidence < FLAT, models.held_out)
 
 
 def diagnose(xbar: np.ndarray, n: int, models: StateModels, state: str) -> dict:
@@ -372,7 +415,7 @@ def diagnose(xbar: np.ndarray, n: int, models: StateModels, state: str) -> dict:
     rms = {nm: float(np.sqrt(np.nanmean(b ** 2))) for nm, b in zip(names, blocks, strict=True)
            if np.isfinite(b).any()}
     angles = [f"{nm} {r}" for nm, b in zip(names, blocks, strict=True) for r in angle_ranges(np.abs(b) > 3, spec.bins)]
-    broad = SensorPath.prior(spec, PathSpread(mode=(100.0, 10000.0), damping=(0.01, 0.3), sensitivity=0.3))
+    broad = SensorPath.prior(spec, replace(PathSpread.around(spec, 0.1, 10.0), damping=(0.01, 0.3), sensitivity=0.3))
     full_x, full_m = np.zeros(spec.size), np.zeros(spec.size)
     full_x[cols], full_m[cols] = xbar, base
     full_c = np.eye(spec.size) * 1e6  # features not used carry no information

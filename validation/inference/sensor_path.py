@@ -18,8 +18,9 @@ What is lost: the absolute level of each band (the crank-angle shape within a ba
 between crank angles are kept); ``benchmarks/validation/identify.py --sensor-paths`` measures it.
 
 The default prior (:meth:`SensorPath.prior`) is that of a second-order mode log-uniform between
-300 Hz and 3 kHz with damping ratio 0.02-0.1 and a sensitivity within +/-5 %, averaged over each
-band by quadrature (a flat spectrum within the band). ``wearbench calibrate`` narrows it to the
+0.3 and 3 x the top band's upper edge (:meth:`PathSpread.around`: 300 Hz-3 kHz for the test bed's
+1 kHz; the bands move with the crank, ``measurement.scaling``) with damping ratio 0.02-0.1 and a
+sensitivity within +/-5 %, averaged over each band by quadrature (a flat spectrum within the band). ``wearbench calibrate`` narrows it to the
 posterior of one bench's path from sessions of a known state (:func:`calibrate_path`).
 
 Per-band gains absorb a mode outside the bands and the sensitivity, not a mode inside a band: that
@@ -81,6 +82,15 @@ class PathSpread:
         object.__setattr__(self, "mode", mode)
         object.__setattr__(self, "damping", damping)
 
+    @classmethod
+    def around(cls, spec: FeatureSpec, low: float = 0.3, high: float = 3.0) -> PathSpread:
+        """The drawn mounts of an analysis whose features are ``spec``: a mode between ``low`` and ``high``
+        x the top band's upper edge (a lab mounts its sensor so that its modes sit near the band it
+        analyses, not far below it), damping and sensitivity as the defaults. The test bed's 1 kHz top
+        gives the default 300 Hz-3 kHz."""
+        top = max(hi for _, hi in spec.bands)
+        return cls(mode=(top * low, top * high))
+
     def draw(self, seed: int) -> tuple[float, float, float]:
         """(mode Hz, damping ratio, sensitivity) of realisation ``seed``."""
         rng = np.random.default_rng([int(seed), 0x4D4F])
@@ -126,11 +136,15 @@ class SensorPath:
     source: str
 
     @classmethod
-    def prior(cls, spec: FeatureSpec, spread: PathSpread = PathSpread()) -> SensorPath:
-        """The prior of an unmeasured path drawn as ``spread`` draws it: a structural mode log-uniform
-        in its ``mode`` (Hz), damping uniform in its ``damping``, sensitivity uniform within +/- its
-        ``sensitivity`` (moments by quadrature)."""
+    def prior(cls, spec: FeatureSpec, spread: PathSpread | None = None) -> SensorPath:
+        """The prior of an unmeasured path drawn as ``spread`` draws it (default
+        :meth:`PathSpread.around` the bands of ``spec``): a structural mode log-uniform in its ``mode``
+        (Hz), damping uniform in its ``damping``, sensitivity uniform within +/- its ``sensitivity``
+        (moments by quadrature); the curve's content taken at a thirtieth of the lowest mode (the
+        test bed's 10 Hz for 300 Hz)."""
+        spread = spread or PathSpread.around(spec)
         mode, damping, sensitivity = spread.mode, spread.damping, spread.sensitivity
+        curve = mode[0] / 30.0
         fr = np.geomspace(*mode, 41)
         zeta = np.linspace(*damping, 5)
         gains = 1.0 + np.linspace(-sensitivity, sensitivity, 5)
@@ -138,7 +152,7 @@ class SensorPath:
         for f in fr:
             for z in zeta:
                 for g in gains:
-                    low = g / abs(1 - (10.0 / f) ** 2 + 2j * z * 10.0 / f)  # the curve's 1-10 Hz content
+                    low = g / abs(1 - (curve / f) ** 2 + 2j * z * curve / f)  # the curve's content
                     rows.append(np.concatenate([[low - 1.0], _mode_offsets(spec.bands, f, z, g)]))
         theta = np.asarray(rows)
         cov = np.cov(theta.T) + np.diag(np.full(theta.shape[1], 1e-6))

@@ -178,7 +178,7 @@ def depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarra
     """Cycles (effective) and wear depth (gc, points) along each grid clearance's trajectory,
     extrapolated linearly to ``extend`` x the last design cycles at the last stage's rate."""
     gn, depth = model.grid_n, np.maximum.accumulate(model.grid_depth, axis=1)
-    step = max(1, gn.size // (len(model.estimator.design.cycles) - 1))
+    step = max(1, (gn.size - 1) // (len(model.estimator.design.cycles) - 1))  # grid points per design stage
     rate = (depth[:, -1] - depth[:, -1 - step]) / (gn[-1] - gn[-1 - step])
     far = np.geomspace(gn[-1] * 1.05, gn[-1] * extend, 60)
     return np.concatenate([gn, far]), np.concatenate([depth, depth[:, -1:] + rate[:, None] * (far - gn[-1])], axis=1)

@@ -1,4 +1,4 @@
-"""Per-cycle features of the slider acceleration that survive chaos, addressed by crank angle.
+"""Per-cycle features of the accelerometer's signal that survive chaos, addressed by crank angle.
 
 Impacts in clearance joints are chaotic: two realisations of one state part within tens of
 milliseconds, so one trajectory is never compared sample by sample with another. What a state
@@ -16,7 +16,9 @@ and theory share the bins):
 
 The defaults were chosen by measurement (``benchmarks/validation/identify.py`` and the README's
 identification section): 20 degree bins and three impact bands separate the test bed's new and
-first-wear states where 10 degree bins of one 100-1000 Hz band did not.
+first-wear states where 10 degree bins of one 100-1000 Hz band did not. They are the test bed's at
+its 1 Hz crank: a spec is in hertz, and ``scaling.resolve_analysis`` gives every bench's at its speed
+(crank orders, the sensor chain's cap).
 
 Pure numpy/scipy; imports only ``wearbench.validation.measurement.filters``.
 """

@@ -32,8 +32,11 @@ from wearbench.validation.measurement.features import (
     cycle_features,
     sample_rate,
 )
+from wearbench.validation.measurement.scaling import resolve_analysis
 
-__all__ = ["MeasuredSession", "load_session", "stream_start"]
+__all__ = ["RESOLUTION_STEPS", "MeasuredSession", "load_session", "stream_start"]
+
+RESOLUTION_STEPS = 20  # a crank-angle curve spanning fewer steps of the recorded resolution gets a note
 
 
 def stream_start(acc: pd.DataFrame, fs: float) -> float:
@@ -167,8 +170,47 @@ class MeasuredSession:
 
     def features(self, spec: FeatureSpec | None = None) -> CycleFeatures:
         """Cycle features of the session, from its samples, its recorded sample rate and its samples'
-        ``clipped`` flags (the reader's)."""
-        return cycle_features(*self.samples, spec or FeatureSpec(), clipped=self.clipped, fs=self.fs)
+        ``clipped`` flags (the reader's); ``spec``: default its bench's own at its commanded speed (``scaling.resolve_analysis``). Where the bench's stated chain delay
+        moves a feature (:meth:`feature_delay`), each sample is read at the crank angle it was measured
+        at, that much before its time stamp."""
+        spec = spec or resolve_analysis(self.bench, self.commanded_speed).features
+        t, angle, acc = self.samples
+        delay = self.feature_delay(spec)
+        if delay is not None:
+            angle = np.interp(t - delay, self.encoder["time"].to_numpy(float), self.encoder["angle"].to_numpy(float))
+        return cycle_features(t, angle, acc, spec, clipped=self.clipped, fs=self.fs)
+
+    def resolution_note(self, features: CycleFeatures, steps: float = RESOLUTION_STEPS) -> str | None:
+        """A note when the session's mean crank-angle curve (``features``' curve block) spans fewer
+        than ``steps`` steps of its recorded resolution (the range over 32768, the protocols' int16
+        LSB): the accelerometer's range is too coarse for the motion at this speed, and quantisation
+        reshapes the curve the features compare (None otherwise, or without a recorded range)."""
+        if self.clip_level is None or features.cycles < 1:
+            return None
+        lsb = self.clip_level / 32767.0
+        span = float(np.ptp(features.curve.mean(axis=0)))
+        if span >= steps * lsb:
+            return None
+        return (f"the session's crank-angle curve spans {span:.3g} m/s^2, {span / lsb:.1f} steps of its "
+                f"{lsb:.3g} m/s^2 resolution (its {lsb * 32768 / 9.80665:,.0f} g range over 32768): the "
+                "accelerometer's range is too coarse for the motion at this speed, and quantisation changes the "
+                "features; a sensor with a smaller range sees it")
+
+    def feature_delay(self, spec: FeatureSpec) -> np.ndarray | None:
+        """The accelerometer's stated delay behind the encoder (s, per acceleration sample: its
+        ``[sensor.chain]``, clock drift included) where it matters to features of ``spec``: where the
+        chain's own delay reaches a hundredth of a crank-angle bin at the session's crank speed (at 5000 rpm a 27 us
+        chain is 0.8 degrees, a twenty-fifth of a 20 degree bin; the test bed's 0.27 ms at 1 Hz is 0.1
+        degree, a two-hundredth); None below that, or without a statement."""
+        stated = self.stated_delay()
+        if stated is None:
+            return None
+        t = self.acceleration["time"].to_numpy(float)
+        delay = np.asarray(stated.at(t - self.stream_start), dtype=float)
+        crank_hz = abs(self.commanded_speed * (self.bench.encoder_driver.ratio or 1.0)) / (2 * np.pi)
+        if not crank_hz > 0 or abs(stated.constant) * crank_hz * spec.bins < 0.01:
+            return None
+        return delay
 
     def stated_delay(self, band: tuple[float, float] = (1.0, 100.0)) -> StatedDelay | None:
         """The accelerometer delay the session's bench states (its ``[sensor.chain]``), its filters'

@@ -31,6 +31,7 @@ from wearbench.validation.inference.calibration import Calibration
 from wearbench.validation.inference.ensemble import (
     Ensemble,
     EnsembleSettings,
+    EnsembleSize,
 )
 from wearbench.validation.inference.estimate import Estimate
 from wearbench.validation.inference.identify import (
@@ -40,6 +41,7 @@ from wearbench.validation.inference.identify import (
     fit_states,
     identify_features,
 )
+from wearbench.validation.measurement.scaling import resolve_analysis
 from wearbench.validation.measurement.session import MeasuredSession
 from wearbench.validation.workflows.session_set import SessionSet
 
@@ -133,7 +135,7 @@ def judging_models(ensembles: Mapping[str, Ensemble], options: IdentifyOptions, 
 
 def assess_sessions(sessions: SessionSet | Sequence[str | Path | MeasuredSession], *,
                     candidates: str | Path | Sequence[WearState] | None = None,
-                    settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
+                    settings: EnsembleSettings | EnsembleSize | None = None, options: IdentifyOptions | None = None,
                     window_options: WindowOptions | None = None,
                     ensembles: Mapping[str, Ensemble] | str | Path | None = None, compute: Compute | None = None,
                     calibration: str | Path | None = "auto", mount: str = "") -> list[Assessment]:
@@ -141,8 +143,9 @@ def assess_sessions(sessions: SessionSet | Sequence[str | Path | MeasuredSession
     candidate states.
 
     candidates: a ``[[state]]`` TOML file, ``WearState``s, or None for the states of the bench
-    recorded in each session. Ensembles are built once per (bench, commanded speed) on the compute
-    layer (``compute``) and cached; ``ensembles`` ({state: Ensemble}, or a file saved by ``wearbench
+    recorded in each session. Ensembles of ``settings`` (an ``EnsembleSize`` or None: resolved for each
+    bench and commanded speed, ``EnsembleSettings.for_bench``; every group's checked before any is
+    built) are built once per (bench, commanded speed) on the compute layer (``compute``) and cached; ``ensembles`` ({state: Ensemble}, or a file saved by ``wearbench
     ensemble``, refused before anything is built where its bench, speed or candidates do not fit a
     session) uses those instead. calibration: "auto" uses the stored calibration of each session's
     bench, sensor and ``mount`` when there is one, else the sensor-path prior; a calibration file uses
@@ -152,27 +155,33 @@ def assess_sessions(sessions: SessionSet | Sequence[str | Path | MeasuredSession
     sessions = SessionSet.of(sessions, calibration=calibration, mount=mount)
     if ensembles is None:
         sessions.require_benches("candidate states need its bench")
-    sessions.check_artefacts(ensembles=ensembles, candidates=candidates)
+    sessions.check_artefacts(ensembles=ensembles, candidates=candidates, settings=settings, theory=("ensembles",),
+                             cycles=window_options.cycles)
     out: list[Assessment | None] = [None] * len(sessions)
     for group in sessions.groups():
         ens = sessions.ensembles(group, candidates=candidates, settings=settings, ensembles=ensembles,
                                  compute=compute)
         st = next(iter(ens.values())).settings
         crank = next(iter(ens.values())).speed * (group.bench.encoder_driver.ratio if group.bench else 1.0)
+        analysis = resolve_analysis(group.bench, group.speed)  # the windows at this crank speed
+        wo = window_options.for_crank(analysis.crank_hz, analysis.window_lowpass)
         judged: dict[str, tuple] = {}
         for i, s in zip(group.indices, group.sessions, strict=True):
             cal = sessions.calibration(s, st.features)
             tag = cal.key if cal else ""
             if tag not in judged:
-                judged[tag] = judging_models(ens, options, window_options, crank, cal)
+                judged[tag] = judging_models(ens, options, wo, crank, cal)
             models, theories = judged[tag]
             feats = sessions.features(s, st.features)
             ident = identify_features(feats, models, label=s.label)
             if cal is not None:
                 ident.notes.append(f"sensor path: {cal.describe()}")
+            for note in (analysis.speed_note(), s.resolution_note(feats)):
+                if note:
+                    ident.notes.append(note)
             state = ident.verdict if ident.verdict in ens else max(ident.posterior, key=ident.posterior.get)
             mc = measured_curves(*s.samples, grid=st.grid, filter_spec=st.curve_filter,
-                                 lowpass=window_options.delay_lowpass, fs=s.fs, stream_start=s.stream_start)
+                                 lowpass=wo.delay_lowpass, fs=s.fs, stream_start=s.stream_start)
             bands = compare_bands(mc.at(0.0), mc.peaks, ens[state])
             windows = {name: score_windows(mc, th, feats, s.stated_delay()) for name, th in theories.items()}
             out[i] = Assessment(s, ident, bands, windows, mc)

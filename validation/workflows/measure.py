@@ -14,8 +14,14 @@ from wearbench.bench.content import bench_key
 from wearbench.bench.schema import WearState
 from wearbench.compute.options import Compute
 from wearbench.validation.inference.calibration import Calibration, calibration_key, fit_calibration
-from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
+from wearbench.validation.inference.ensemble import (
+    Ensemble,
+    EnsembleSettings,
+    EnsembleSize,
+    resolve_settings,
+)
 from wearbench.validation.inference.estimate import (
+    DesignRequest,
     Estimate,
     Estimator,
     EstimatorDesign,
@@ -26,6 +32,7 @@ from wearbench.validation.inference.estimate import (
 from wearbench.validation.inference.identify import IdentifyOptions, fit_states, identify_features
 from wearbench.validation.inference.move import Move, stored_move
 from wearbench.validation.inference.track import Track, track_features
+from wearbench.validation.measurement.scaling import resolve_analysis
 from wearbench.validation.measurement.session import MeasuredSession
 from wearbench.validation.workflows.assess import Assessment
 from wearbench.validation.workflows.session_set import SessionSet, candidate_states
@@ -46,7 +53,7 @@ __all__ = [
 
 def calibrate_sessions(sessions: Sessions, state: str, *,
                        candidates: str | Path | Sequence[WearState] | None = None,
-                       settings: EnsembleSettings | None = None, options: IdentifyOptions | None = None,
+                       settings: EnsembleSettings | EnsembleSize | None = None, options: IdentifyOptions | None = None,
                        ensembles: Mapping[str, Ensemble] | str | Path | None = None, mount: str = "",
                        compute: Compute | None = None, before: Callable[[str], object] | None = None,
                        force: bool = False) -> Calibration:
@@ -65,10 +72,12 @@ def calibrate_sessions(sessions: Sessions, state: str, *,
     sessions.refuse_duplicates("calibration")
     first = group.first
     ready = sessions.ensembles(group, candidates=candidates, ensembles=ensembles) if ensembles is not None else None
-    names = list(ready) if ready else [st.name for st in candidate_states(first.bench, candidates)]
+    names = list(ready) if ready else [s.name for s in candidate_states(first.bench, candidates)]
     if state not in names:
         raise ValueError(f"calibrate: --state {state!r}: expected one of the bench's states {names}")
-    spec = next(iter(ready.values())).settings.features if ready else (settings or EnsembleSettings()).features
+    if ready is None:  # resolved for the bench and speed (and checked) before any work
+        settings = resolve_settings(settings, first.bench, group.speed)
+    spec = next(iter(ready.values())).settings.features if ready else settings.features
     if before is not None:
         before(calibration_key(first.bench, first.metadata, spec, mount))
     ens = ready or sessions.ensembles(group, candidates=candidates, settings=settings, compute=compute)
@@ -93,16 +102,18 @@ def calibrate_sessions(sessions: Sessions, state: str, *,
     return replace(cal, doubts=tuple(doubts))
 
 
-def estimate_sessions(sessions: Sessions, *, design: EstimatorDesign | None = None, estimator: EstimatorGiven = None,
+def estimate_sessions(sessions: Sessions, *, design: EstimatorDesign | DesignRequest | None = None,
+                      estimator: EstimatorGiven = None,
                       options: IdentifyOptions | None = None, calibration: str | Path | None = "auto",
                       mount: str = "", compute: Compute | None = None) -> list[Estimate]:
     """Clearance and wear of each session (paths, ``MeasuredSession``s or a ``SessionSet``) with
     credible intervals.
 
     The estimator of each (bench, commanded speed) is ``estimator`` (an ``Estimator`` or its file,
-    refused before any work where it was built for another bench or speed), else ``design``'s
-    (default ``EstimatorDesign()``): the shipped one when its key matches, built on the compute layer
-    otherwise. ``calibration``/``mount``: as :func:`~wearbench.validation.workflows.assess.assess_sessions`.
+    refused before any work where it was built for another bench or speed), else ``design``'s (a
+    ``DesignRequest`` or None: the bench's own, ``EstimatorDesign.for_bench``, every group's checked
+    before any is built): the shipped one when its key matches, built on the compute layer otherwise.
+    ``calibration``/``mount``: as :func:`~wearbench.validation.workflows.assess.assess_sessions`.
     """
     options = options or IdentifyOptions()
     sessions = SessionSet.of(sessions, calibration=calibration, mount=mount)
@@ -112,7 +123,7 @@ def estimate_sessions(sessions: Sessions, *, design: EstimatorDesign | None = No
         from wearbench.validation.inference.estimate import load_estimator
 
         estimator = load_estimator(estimator)
-    sessions.check_artefacts(estimator=estimator)
+    sessions.check_artefacts(estimator=estimator, design=design, theory=("estimator",))
     out: list[Estimate | None] = [None] * len(sessions)
     for group in sessions.groups():
         est = sessions.estimator(group, design=design, estimator=estimator, compute=compute)
@@ -122,20 +133,26 @@ def estimate_sessions(sessions: Sessions, *, design: EstimatorDesign | None = No
             tag = cal.key if cal else ""
             if tag not in fitted:
                 fitted[tag] = fit_estimator(est, options, sensor=cal.path if cal else None)
-            out[i] = estimate_features(sessions.features(s, est.spec), fitted[tag], label=s.label)
+            feats = sessions.features(s, est.spec)
+            out[i] = estimate_features(feats, fitted[tag], label=s.label)
             if cal is not None:
                 out[i].notes.append(f"sensor path: {cal.describe()}")
+            analysis = resolve_analysis(group.bench, group.speed)
+            for note in (analysis.speed_note(), s.resolution_note(feats)):
+                if note:
+                    out[i].notes.append(note)
     return out
 
 
-def estimate_assessed(assessed: Sequence[Assessment], estimator: Estimator | EstimatorDesign, *,
-                      options: IdentifyOptions | None = None, calibration: str | Path | None = "auto",
+def estimate_assessed(assessed: Sequence[Assessment], estimator: Estimator | EstimatorDesign | DesignRequest | None,
+                      *, options: IdentifyOptions | None = None, calibration: str | Path | None = "auto",
                       mount: str = "", compute: Compute | None = None) -> list[Assessment]:
     """Each assessed session's clearance and wear beside its identification (``Assessment.estimate``,
-    shown in the report): with ``estimator``, or the one of that design (as :func:`estimate_sessions`);
-    ``calibration``/``mount``: as the identification used them. Returns ``assessed``."""
+    shown in the report): with ``estimator``, or the one of that design (a design or request, None:
+    each bench's own, as :func:`estimate_sessions`); ``calibration``/``mount``: as the identification
+    used them. Returns ``assessed``."""
     given = estimator if isinstance(estimator, Estimator) else None
-    design = estimator if isinstance(estimator, EstimatorDesign) else None
+    design = None if given is not None else estimator
     found = estimate_sessions([a.session for a in assessed], design=design, estimator=given, options=options,
                               calibration=calibration, mount=mount, compute=compute)
     for a, e in zip(assessed, found, strict=True):
@@ -208,7 +225,8 @@ def check_life_order(loaded: Sequence[MeasuredSession], cycles_run: Sequence[flo
 
 
 def track_sessions(sessions: Sessions, cycles_run: Sequence[float] | None = None, *,
-                   limit: float | None = None, design: EstimatorDesign | None = None, estimator: EstimatorGiven = None,
+                   limit: float | None = None, design: EstimatorDesign | DesignRequest | None = None,
+                   estimator: EstimatorGiven = None,
                    options: IdentifyOptions | None = None, calibration: str | Path | None = "auto", mount: str = "",
                    move: Move | bool = True, compute: Compute | None = None) -> Track:
     """Wear over one bench's life from ``sessions`` recorded after ``cycles_run`` cycles (see
@@ -226,7 +244,7 @@ def track_sessions(sessions: Sessions, cycles_run: Sequence[float] | None = None
         from wearbench.validation.inference.estimate import load_estimator
 
         estimator = load_estimator(estimator)
-    sessions.check_artefacts(estimator=estimator)
+    sessions.check_artefacts(estimator=estimator, design=design, theory=("estimator",))
     est = sessions.estimator(group, design=design, estimator=estimator, compute=compute)
     cal = sessions.calibration(group.first, est.spec)
     model = fit_estimator(est, options, sensor=cal.path if cal else None)

@@ -21,6 +21,7 @@ from wearbench.bench.content import file_digest
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import Bench, WearState
 from wearbench.compute.options import Compute
+from wearbench.validation.inference.artefacts import ArtefactError
 from wearbench.validation.inference.calibration import (
     Calibration,
     sensor_record,
@@ -29,15 +30,19 @@ from wearbench.validation.inference.calibration import (
 from wearbench.validation.inference.ensemble import (
     Ensemble,
     EnsembleSettings,
+    EnsembleSize,
     build_ensembles,
     check_ensembles_fit,
     load_ensembles,
+    resolve_settings,
 )
 from wearbench.validation.inference.estimate import (
+    DesignRequest,
     Estimator,
     EstimatorDesign,
     build_estimator,
     load_estimator,
+    resolve_design,
 )
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 from wearbench.validation.measurement.session import MeasuredSession, load_session
@@ -204,36 +209,45 @@ class SessionSet:
     # ---- the theory each group uses --------------------------------------------------------------
 
     def ensembles(self, group: SessionGroup, *, candidates: str | Path | Sequence[WearState] | None = None,
-                  settings: EnsembleSettings | None = None,
+                  settings: EnsembleSettings | EnsembleSize | None = None,
                   ensembles: Mapping[str, Ensemble] | str | Path | None = None,
-                  compute: Compute | None = None, build: bool = True) -> dict[str, Ensemble]:
+                  compute: Compute | None = None, build: bool = True, cycles: int = 0) -> dict[str, Ensemble]:
         """The candidate states' ensembles for ``group``: ready-made ones (a mapping, or a file saved by
         ``wearbench ensemble``, refused where its bench, speed or candidates do not fit the group), else
-        built on the compute layer (``build=False``: checks only, returns {})."""
+        ``settings``' (an ``EnsembleSize`` or None resolved for the group's bench and speed,
+        ``EnsembleSettings.for_bench``) built on the compute layer (``build=False``: checks only,
+        returns {}); ``cycles``: the least settled cycles per realisation the caller needs (a file
+        with fewer is refused)."""
         if isinstance(ensembles, (str, Path)):
             path = Path(ensembles)
             found = load_ensembles(path)
             bench = group.bench
             states = candidate_states(bench, candidates) if bench and (candidates or bench.states) else None
             check_ensembles_fit(path, found, bench=bench, states=states, speed=group.speed, session=group.first.label)
+            held = min(e.features.shape[1] for e in found.values())
+            if held < cycles:
+                raise ArtefactError(f"{path}: {held} settled cycles per realisation; {cycles}-cycle windows need at "
+                                    f"least {cycles} (wearbench ensemble --cycles {cycles + 1})")
             return found
         if ensembles is not None:
             return dict(ensembles)
         if group.bench is None:
             self.require_benches("candidate states need its bench")
         states = candidate_states(group.bench, candidates)
+        settings = resolve_settings(settings, group.bench, group.speed)
         if not build:
             return {}
-        return build_ensembles(group.bench, states, speed=group.speed, settings=settings or EnsembleSettings(),
+        return build_ensembles(group.bench, states, speed=group.speed, settings=settings,
                                compute=compute or Compute())
 
-    def estimator(self, group: SessionGroup, *, design: EstimatorDesign | None = None,
+    def estimator(self, group: SessionGroup, *, design: EstimatorDesign | DesignRequest | None = None,
                   estimator: Estimator | str | Path | None = None, compute: Compute | None = None,
                   build: bool = True) -> Estimator | None:
         """The estimator for ``group``: a ready-made one (an ``Estimator`` or a file saved by ``wearbench
-        estimator``), refused where it was built for another bench or speed; else ``design``'s (default
-        ``EstimatorDesign()``), the shipped one when its key matches, built on the compute layer otherwise
-        (``build=False``: checks only, returns None)."""
+        estimator``), refused where it was built for another bench or speed; else ``design``'s (a
+        ``DesignRequest`` or None resolved for the group's bench and speed, ``EstimatorDesign.for_bench``),
+        the shipped one when its key matches, built on the compute layer otherwise (``build=False``:
+        checks only, returns None)."""
         if isinstance(estimator, (str, Path)):
             estimator = load_estimator(estimator)
         if estimator is not None:
@@ -243,16 +257,21 @@ class SessionSet:
             return estimator
         if group.bench is None:
             self.require_benches("the estimator needs its bench")
+        design = resolve_design(design, group.bench, group.speed)
         if not build:
             return None
-        return build_estimator(group.bench, design or EstimatorDesign(), speed=group.speed,
-                               compute=compute or Compute())
+        return build_estimator(group.bench, design, speed=group.speed, compute=compute or Compute())
 
-    def check_artefacts(self, *, ensembles=None, estimator=None, candidates=None) -> None:
-        """Check ready-made theory against every group before any is built (one ArtefactError line)."""
+    def check_artefacts(self, *, ensembles=None, estimator=None, candidates=None, settings=None,
+                        design=None, theory: tuple[str, ...] = (), cycles: int = 0) -> None:
+        """Check every group's theory before any is built: ready-made ensembles or estimator against the
+        group (one ArtefactError line), and the theory to build (``theory``: "ensembles", "estimator")
+        resolved for each group's bench and speed, ``settings`` and ``design`` checked there (one
+        ValueError line naming the option)."""
         for group in self.groups():
-            if ensembles is not None:
-                self.ensembles(group, candidates=candidates, ensembles=ensembles, build=False)
-            if estimator is not None:
-                self.estimator(group, estimator=estimator, build=False)
+            if ensembles is not None or "ensembles" in theory:
+                self.ensembles(group, candidates=candidates, ensembles=ensembles, settings=settings, build=False,
+                               cycles=cycles)
+            if estimator is not None or "estimator" in theory:
+                self.estimator(group, estimator=estimator, design=design, build=False)
 

@@ -123,12 +123,15 @@ def test_off_a_terminal_progress_is_lines_and_the_table_is_whole(session, tmp_pa
     assert r.returncode == 0, r.stderr
     rows = [line for line in r.stdout.splitlines() if line.lstrip("│ ").startswith("s ")]
     assert rows and all("…" not in line for line in r.stdout.splitlines()), r.stdout
-    assert any(v in rows[0] for v in ("undecided", "none of the candidates", *(s.name for s in testbed.states)))
+    verdicts = ("undecided", "none of the candidates", "the features cannot tell", *(s.name for s in testbed.states))
+    assert any(v in rows[0] for v in verdicts)
     assert max(len(line) for line in r.stdout.splitlines()) > 80  # laid out in full, not cut
     r = subprocess.run([sys.executable, "-m", "wearbench.cli", "ensemble", "ninebar-testbed", "--realisations", "4",
                         "--cycles", "2", "--workers", "0", "--out", str(tmp_path / "e.npz")],
                        capture_output=True, text=True, timeout=900, check=False)
     assert r.returncode == 0, r.stderr
     lines = [x for x in r.stderr.splitlines() if x.startswith("theory ensembles")]
+    assert lines[0].startswith("theory ensembles: 16 realisations, about") and "of CPU" in lines[0]  # said first
+    lines = lines[1:]
     assert lines[0].startswith("theory ensembles: started") and lines[-1].startswith("theory ensembles: 16/16")
     assert 3 <= len(lines) <= 12, lines  # a line per tenth, not one per redraw
