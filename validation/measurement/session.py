@@ -169,16 +169,22 @@ class MeasuredSession:
         return stream_start(self.acceleration, self.fs)
 
     def features(self, spec: FeatureSpec | None = None) -> CycleFeatures:
-        """Cycle features of the session, from its samples, its recorded sample rate and its samples'
-        ``clipped`` flags (the reader's); ``spec``: default its bench's own at its commanded speed (``scaling.resolve_analysis``). Where the bench's stated chain delay
-        moves a feature (:meth:`feature_delay`), each sample is read at the crank angle it was measured
-        at, that much before its time stamp."""
+        """Cycle features of the session, from its samples at :meth:`feature_angle`, its recorded
+        sample rate and its samples' ``clipped`` flags (the reader's); ``spec``: default its bench's own
+        at its commanded speed (``scaling.resolve_analysis``)."""
         spec = spec or resolve_analysis(self.bench, self.commanded_speed).features
-        t, angle, acc = self.samples
+        t, _, acc = self.samples
+        return cycle_features(t, self.feature_angle(spec), acc, spec, clipped=self.clipped, fs=self.fs)
+
+    def feature_angle(self, spec: FeatureSpec) -> np.ndarray:
+        """The crank angle (rad) each acceleration sample is binned at for features of ``spec``: the
+        encoder's at its time stamp, or, where the bench's stated chain delay moves a feature
+        (:meth:`feature_delay`), the encoder's that much before it (when the sample was measured)."""
+        t, angle, _ = self.samples
         delay = self.feature_delay(spec)
-        if delay is not None:
-            angle = np.interp(t - delay, self.encoder["time"].to_numpy(float), self.encoder["angle"].to_numpy(float))
-        return cycle_features(t, angle, acc, spec, clipped=self.clipped, fs=self.fs)
+        if delay is None:
+            return angle
+        return np.interp(t - delay, self.encoder["time"].to_numpy(float), self.encoder["angle"].to_numpy(float))
 
     def resolution_note(self, features: CycleFeatures, steps: float = RESOLUTION_STEPS) -> str | None:
         """A note when the session's mean crank-angle curve (``features``' curve block) spans fewer

@@ -24,6 +24,8 @@ from wearbench.acquisition.session_file import read_session
 from wearbench.bench.load import parse_bench
 from wearbench.hardware.protocol.messages import counts_to_m_s2
 from wearbench.testing import recorded_blocks
+from wearbench.validation.measurement.cycles import crank_turns
+from wearbench.validation.measurement.scaling import resolve_analysis
 from wearbench.validation.measurement.session import MeasuredSession, load_session
 
 G = 9.80665
@@ -94,8 +96,10 @@ def _same_count_everywhere(result, out) -> np.ndarray:
     np.testing.assert_array_equal(s.clipped, flags)
     assert s.clip_level == r.clip_level
     features = s.features()
-    inside = (s.turns.cycle >= s.turns.first) & (s.turns.cycle <= s.turns.last)
-    per_cycle = np.bincount(s.turns.cycle[inside & flags] - s.turns.first, minlength=features.cycles)
+    # the features bin each sample at the crank angle it was measured at (the chain's stated delay)
+    turns = crank_turns(s.feature_angle(resolve_analysis(s.bench, s.commanded_speed).features))
+    inside = (turns.cycle >= turns.first) & (turns.cycle <= turns.last)
+    per_cycle = np.bincount(turns.cycle[inside & flags] - turns.first, minlength=features.cycles)
     np.testing.assert_array_equal(features.clipped, per_cycle)
     assert features.clipped.sum() == flags[inside].sum() > 0
     return flags

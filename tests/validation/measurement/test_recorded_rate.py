@@ -12,7 +12,7 @@ from wearbench.acquisition.drivers import ACCELERATION, ENCODER, Block, StreamIn
 from wearbench.acquisition.layout import record_stream
 from wearbench.acquisition.session_file import read_session
 from wearbench.acquisition.session_writer import SessionWriter
-from wearbench.validation.measurement.features import cycle_features, sample_rate
+from wearbench.validation.measurement.features import FeatureSpec, cycle_features, sample_rate
 from wearbench.validation.measurement.session import load_session
 
 RATE, ENCODER_RATE, CPR, TURNS_PER_S = 10000.0, 1000.0, 4000, 10.0
@@ -56,10 +56,11 @@ def test_the_recorded_rate_not_the_steps(tmp_path):
     assert s.fs == RATE  # exactly: as recorded
     assert abs(sample_rate(t) - RATE) > 1.0  # the steps' median is off by more than 1 Hz
     assert s.gaps == 0  # steps of 0.6..1.4 periods: no dropped samples at the recorded rate
-    f = s.features()
-    np.testing.assert_array_equal(f.values, cycle_features(*s.samples, fs=RATE).values)
+    spec = FeatureSpec()
+    f = s.features(spec)
+    np.testing.assert_array_equal(f.values, cycle_features(*s.samples, spec, fs=RATE).values)
     assert f.cycles >= 3
-    assert not np.allclose(f.values, cycle_features(*s.samples, fs=sample_rate(t)).values, rtol=1e-9)
+    assert not np.allclose(f.values, cycle_features(*s.samples, spec, fs=sample_rate(t)).values, rtol=1e-9)
 
 
 def test_a_session_from_frames_has_the_rate_of_its_times():

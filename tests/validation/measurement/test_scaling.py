@@ -144,6 +144,7 @@ def _session(bench, revolutions=4, fs=100_000.0, speed=None, full_scale=None, im
     """A session of ``bench`` at its speed (or ``speed``): a once-per-revolution impact in the
     acceleration; ``full_scale``: its recorded range (m/s^2)."""
     import pandas as pd
+    from wearbench.acquisition.layout import clip_level
     from wearbench.validation.measurement.session import MeasuredSession
 
     bench = bench if speed is None else bench.with_speed(speed)
@@ -153,10 +154,10 @@ def _session(bench, revolutions=4, fs=100_000.0, speed=None, full_scale=None, im
     angle = omega * t + 0.3
     acc = 10.0 * np.sin(angle) + impact * np.exp(-((np.mod(angle, 2 * np.pi) - 2.0) / 0.01) ** 2)
     enc_t = t[::10]
-    calibration = {} if full_scale is None else {"acceleration.range": str(full_scale)}
     return MeasuredSession("s", pd.DataFrame({"time": t, "acc": acc}),
                            pd.DataFrame({"time": enc_t, "angle": omega * enc_t + 0.3}), bench=bench,
-                           metadata={"session": {"speed_rad_s": str(bench.speed)}, "calibration": calibration})
+                           metadata={"session": {"speed_rad_s": str(bench.speed)}},
+                           clip_level=None if full_scale is None else clip_level(full_scale))
 
 
 def test_features_read_the_accelerometer_at_its_stated_delay_where_it_moves_a_feature():
