@@ -4,7 +4,7 @@ As scipy's ``integrate/_ivp/rk.py`` does, each explicit Runge-Kutta method is it
 (:class:`Tableau`: :data:`DOPRI5`, :data:`RK4`), run by the one compiled step
 ``integrators.erk_try``. A :class:`Method` pairs a tableau with its step control and constraint
 stabilisation; :data:`METHODS` is the registry ``simulate``, the command line's ``--method`` and
-``benchmarks/work_precision.py`` read. Adding a method: its tableau here, an entry in
+``benchmarks/model/work_precision.py`` read. Adding a method: its tableau here, an entry in
 :data:`METHODS`. Imports numpy only (the command line reads it without loading numba).
 """
 
@@ -141,7 +141,7 @@ Dopri5 = Method(
         "onto the position and velocity constraints after any accepted step with measurable drift "
         "(drift-free); contact onsets and impacts are resolved by step rejection. rtol 1e-6, atol 1e-9 m: "
         "peak contact forces within ~2 %; the clearance dynamics are chaotic, so pointwise agreement "
-        "over a whole revolution is out of reach for every method (see benchmarks/work_precision.py).",
+        "over a whole revolution is out of reach for every method (see benchmarks/model/work_precision.py).",
 )
 Accurate = dataclasses.replace(
     Dopri5, name="accurate", rtol=1e-8, atol=1e-11,
