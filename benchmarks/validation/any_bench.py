@@ -47,7 +47,7 @@ def fine_sensor(bench):
 CASES = {
     "slider-crank 5000 rpm": lambda: load_bench(resolve_bench("slider-crank")),
     "slider-crank 120 rpm": lambda: load_bench(resolve_bench("slider-crank")).with_speed(120 * RPM),
-    "slider-crank 120 rpm, 500 g sensor": lambda: fine_sensor(load_bench(resolve_bench("slider-crank"))).with_speed(
+    "slider-crank 120 rpm with a 500 g sensor": lambda: fine_sensor(load_bench(resolve_bench("slider-crank"))).with_speed(
         120 * RPM),
     "fourbar 1 Hz": lambda: load_bench(resolve_bench("fourbar")),
     "lab four-bar 1.5 Hz": lambda: load_bench(ROOT / "tests" / "data" / "lab-fourbar.toml"),
