@@ -345,6 +345,7 @@ PROCESS_LAUNCHES: dict[str, str] = {
     "wearbench.hardware.emulators.serial_server": "the serial emulator in its own process (forkserver)",
     "wearbench.testing.mcap_readers": "npm and node: the reader Foxglove uses, checking the files we write",
     "benchmarks.compute.scale_out": "a process pool timed against the cluster",
+    "benchmarks.compute.suite_durations": "pytest on the suite, timed as CI runs it",
     "benchmarks.model.trajectory_identity": "a fresh interpreter per model source, for bit identity",
     "benchmarks.model.profile_revolution": "a fresh interpreter, so compilation is not timed",
     "benchmarks.result_json": "git, for the commit a result was measured on",

@@ -1,0 +1,85 @@
+"""Where does the test suite's time go? Runs pytest on the suite (as CI does) and tabulates its wall
+time, the time by test folder and the slowest tests, from pytest's JUnit XML (``--junitxml``: per
+test, its setup, call and teardown together).
+
+The run's wall time depends on the machine and what else runs on it: the result names both (its
+``environment``). ``--pytest-args`` passes options through, e.g. ``-m "not slow"`` for the developer
+loop.
+
+    python -m benchmarks.compute.suite_durations [--pytest-args ARGS] [--top 25] [--json PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import shlex
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from benchmarks.result_json import ROOT, Run, column, table, write_result
+
+
+def read_junit(path: Path) -> list[tuple[str, str, float]]:
+    """Each test case of a JUnit XML file: (file, test id, seconds), skipped cases included."""
+    out = []
+    for case in ET.parse(path).getroot().iter("testcase"):
+        module = case.get("classname", "")
+        parts = module.split(".")
+        # the classname is the module path (and a class); its file is the longest prefix under tests/
+        file = next((p for k in range(len(parts), 0, -1)
+                     if (ROOT / (p := "/".join(parts[:k]) + ".py")).is_file()), module)
+        out.append((file, f"{file}::{case.get('name', '')}", float(case.get("time", 0.0))))
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--pytest-args", default="", help="options passed to pytest (quoted), e.g. '-m \"not slow\"'")
+    ap.add_argument("--top", type=int, default=25, help="slowest tests listed (25)")
+    ap.add_argument("--json", metavar="PATH", help="also write the result (docs/results/data/ for the docs)")
+    args = ap.parse_args()
+    run = Run()
+    with tempfile.TemporaryDirectory() as tmp:
+        junit = Path(tmp) / "junit.xml"
+        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", f"--junitxml={junit}",
+               *shlex.split(args.pytest_args)]
+        t0 = time.monotonic()
+        done = subprocess.run(cmd, cwd=ROOT, check=False)
+        wall = time.monotonic() - t0
+        if not junit.exists():
+            raise SystemExit(f"pytest wrote no JUnit XML (exit {done.returncode})")
+        cases = read_junit(junit)
+    by_folder: dict[str, list[float]] = collections.defaultdict(list)
+    for file, _, s in cases:
+        by_folder[str(Path(file).parent)].append(s)
+    folders = sorted(by_folder.items(), key=lambda kv: -sum(kv[1]))
+    slowest = sorted(cases, key=lambda c: -c[2])[:args.top]
+    total = sum(s for *_, s in cases)
+    top_share = sum(s for *_, s in slowest) / total if total else 0.0
+    print(f"pytest exit {done.returncode}: {len(cases)} tests, wall {wall:.0f} s, summed test time {total:.0f} s; "
+          f"the {len(slowest)} slowest hold {top_share:.0%}")
+    for _, name, s in slowest:
+        print(f"{s:8.1f} s  {name}")
+    if args.json:
+        label = args.pytest_args or "the whole suite"
+        write_result(args.json, question="Where does the test suite's time go?", script=__file__, run=run, seeds={},
+                     findings=[(f"pytest {label}: {len(cases)} tests in {wall / 60:.1f} min of wall time "
+                               f"(exit {done.returncode}); the {len(slowest)} slowest tests hold {top_share:.0%} "
+                               "of the summed test time.")],
+                     tables=[table("by test folder", [column("folder"), column("tests"),
+                                                      column("time", "s", ".0f"), column("share", None, ".0%")],
+                                   [[f, len(v), sum(v), sum(v) / total] for f, v in folders]),
+                             table(f"the {len(slowest)} slowest tests (setup, call and teardown)",
+                                   [column("test"), column("time", "s", ".1f")], [[n, s] for _, n, s in slowest])],
+                     notes=["One run on the machine named below; wall times on a busy machine are longer."])
+        print(f"results: {args.json}")
+    raise SystemExit(done.returncode)
+
+
+if __name__ == "__main__":
+    main()
