@@ -387,9 +387,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     post = np.exp(log_post - special.logsumexp(log_post))
     p_life, p_alone = _consistency_at_mode(post, xbars, [f.cycles for f in features], runs, model, ks, drift, move)
     c_int = Interval.from_weights(gc, post.sum(axis=1))
-    k_int = Interval.from_weights(np.log(ks), post.sum(axis=0))
-    k_int = Interval(*(float(np.exp(v)) for v in asdict(k_int).values()))
-    coef = Interval(*(v * coefficient for v in asdict(k_int).values()))
+    k_int = Interval.from_weights(np.log(ks), post.sum(axis=0)).map(np.exp)
+    coef = k_int.map(lambda v: v * coefficient)
     n_curve, d_curve = depth_curve(model)
     nodes, qw = np.polynomial.hermite_e.hermegauss(9 if depth_spread > 0 else 1)
     deltas, qw = np.exp(depth_spread * nodes), qw / qw.sum()  # the bench's depth / the trajectory's
