@@ -752,8 +752,10 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     edge = post[0].sum() + post[-1].sum() + post[:, -1].sum()
     if explains and edge > 0.2:
         notes.append("much of the posterior lies at the edge of the estimator's range: the truth may lie beyond it")
-    one_sided = [f"{name} {i.text(fmt)}" for name, i, fmt in (("clearance", c_int, fmt_mm), ("cycles run", n_int, fmt_kcycles),
-                                                              ("wear depth", depth_int, fmt_um)) if i.kind != "central"]
+    one_sided = [f"{name} {i.text(fmt)}" for name, i, fmt in (("clearance", c_int, lambda v: f"{fmt_mm(v)} mm"),
+                                                              ("cycles run", n_int, fmt_kcycles),
+                                                              ("wear depth", depth_int, lambda v: f"{fmt_um(v)} um"))
+                 if i.kind != "central"]
     if explains and verdict != PRIOR_ONLY and one_sided:
         notes.append("one-sided 90 % interval" + ("s" if len(one_sided) > 1 else "") + " where the posterior piles at "
                      "the edge of the estimator's range: " + ", ".join(one_sided))
