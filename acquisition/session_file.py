@@ -179,6 +179,7 @@ class Session:
     host_origin: float  # host time (s, Unix) of time 0
     surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> embedded worn-surface .npz
     streams: dict[str, StreamInfo] = field(default_factory=dict)  # ACCELERATION, ENCODER as recorded
+    bench_problem: str | None = None  # why the recorded bench does not load (None: it loads, or none is recorded)
 
     @property
     def sample_rate(self) -> float:
@@ -327,7 +328,8 @@ def _bench(text: str, meta: dict, path: Path, files: dict[str, bytes]) -> tuple[
     """The recorded bench, its relative file names (worn surfaces) taken from where the bench file
     was when recorded, else from beside the session file, else from the copies the session carries
     (``files``, {relative path: bytes}: unpacked once into a folder named by their digest under
-    ``$WEARBENCH_CACHE/sessions``); (None, why) if none works."""
+    ``$WEARBENCH_CACHE/sessions``); (None, why) if none works, why being the first place's error
+    (the bench file where it was recorded, when the session says)."""
     error = None
     for where in (meta.get("session", {}).get("bench_path"), f"{path.parent / BENCH_ATTACHMENT}",
                   _unpacked(text, files) if files else None):
@@ -335,7 +337,7 @@ def _bench(text: str, meta: dict, path: Path, files: dict[str, bytes]) -> tuple[
             try:
                 return parse_bench(text, where), None
             except BenchError as exc:
-                error = exc
+                error = error or exc
     return None, f"the recorded bench does not load here: {error}"
 
 
@@ -371,7 +373,7 @@ def read_session(path: str | Path) -> Session:
     if not scan.channels and not scan.metadata:
         raise ValueError(f"{path}: no wearbench session in this file ({scan.problem or 'empty'})")
     meta = scan.metadata
-    bench, problem = None, scan.problem
+    bench, problem, bench_problem = None, scan.problem, None
     files = {a.name[len(BENCH_FILES):]: a.data for a in scan.attachments if a.name.startswith(BENCH_FILES)}
     for a in scan.attachments:
         if a.name == BENCH_ATTACHMENT:
@@ -416,7 +418,7 @@ def read_session(path: str | Path) -> Session:
                                            "enabled", "fault"])
     return Session(path=path, bench=bench, metadata=meta, clearances=clearances, wear_state=wear_state,
                    acceleration=acceleration, encoder=encoder, events=event_frame, motor=motor,
-                   finished=scan.finished, problem=problem, quality=quality, origin=origin,
+                   finished=scan.finished, problem=problem, bench_problem=bench_problem, quality=quality, origin=origin,
                    host_origin=host_origin,
                    surface_files={surface_joint(a.name): a.data for a in scan.attachments
                                   if surface_joint(a.name)}, streams=streams)

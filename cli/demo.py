@@ -204,6 +204,7 @@ def summary_text(truths, assessed) -> str:
 def estimate_text(truths, assessed) -> str:
     """Per session: its true state, the estimate's medians and 90 % intervals of clearance, cycles run
     and wear depth, and whether a parameter value explains it, beside the identification's verdict."""
+    from wearbench.validation.inference.estimate import fmt_kcycles, fmt_mm, fmt_um
     from wearbench.validation.workflows.measure import named_outside
 
     rows = [("true bench", "identified", "clearance mm [90 %]", "cycles run [90 %]", "wear depth um [90 %]",
@@ -214,9 +215,9 @@ def estimate_text(truths, assessed) -> str:
             rows.append((truth, a.identification.verdict, "-", "-", "-", f"no (p {e.p_value:.2g})" if e else "-"))
             continue
         c, n, d = e.clearance, e.cycles_run, e.depth
-        rows.append((truth, a.identification.verdict, f"{c.median * 1e3:.3f} [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}]",
-                     f"{n.median / 1e3:.0f}k [{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k]",
-                     f"{d.median * 1e6:.1f} [{d.lo90 * 1e6:.1f}-{d.hi90 * 1e6:.1f}]", f"yes (p {e.p_value:.2g})"))
+        rows.append((truth, a.identification.verdict, f"{c.median * 1e3:.3f} [{c.text(fmt_mm)}]",
+                     f"{n.median / 1e3:.0f}k [{n.text(fmt_kcycles)}]", f"{d.median * 1e6:.1f} [{d.text(fmt_um)}]",
+                     f"yes (p {e.p_value:.2g})"))
     notes = [f"{truth}: {n}" for truth, a in zip(truths, assessed, strict=True) if (n := named_outside(a, a.estimate))]
     return "\n".join([_columns(rows), *notes])
 

@@ -7,11 +7,15 @@ writes the joint posterior figure and JSON when asked.
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from wearbench.cli.calibrate import add_calibration_arguments, calibration_options
 from wearbench.cli.compute import add_compute_arguments, compute_options
 from wearbench.cli.estimator import add_design_arguments, design_from_args
 from wearbench.cli.options import add_force_argument
+
+if TYPE_CHECKING:
+    from wearbench.validation.inference.estimate import Interval
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,11 +39,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def kind_note(interval: Interval) -> str:
+    """What a one-sided interval is, after it ("" for a central one)."""
+    if interval.kind == "central":
+        return ""
+    return f" ({interval.kind}: the posterior piles at the edge of the estimator's range)"
+
+
+def fmt_cycles(v: float) -> str:
+    """Cycles as the printout gives them: whole, with thousands separators."""
+    return f"{v:,.0f}"
+
+
 def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
     from wearbench.bench.output_file import check_output, output_file, output_folder
+    from wearbench.validation.inference.estimate import fmt_mm, fmt_um
     from wearbench.validation.workflows.measure import estimate_sessions
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):
@@ -50,12 +67,11 @@ def run(args: argparse.Namespace) -> int:
     for e in results:
         print(f"{e.session} ({e.cycles} cycles): {e.verdict}")
         if e.explains and not e.flat:  # a flat estimate's intervals are its prior's: the verdict says so
-            print(f"  clearance {e.clearance.median * 1e3:.3f} mm  50 % {e.clearance.lo50 * 1e3:.3f}-"
-                  f"{e.clearance.hi50 * 1e3:.3f}  90 % {e.clearance.lo90 * 1e3:.3f}-{e.clearance.hi90 * 1e3:.3f}")
-            print(f"  cycles run {e.cycles_run.median:,.0f}  50 % {e.cycles_run.lo50:,.0f}-{e.cycles_run.hi50:,.0f}"
-                  f"  90 % {e.cycles_run.lo90:,.0f}-{e.cycles_run.hi90:,.0f}")
-            print(f"  wear depth (clearance growth) {e.depth.median * 1e6:.1f} um  90 % {e.depth.lo90 * 1e6:.1f}-"
-                  f"{e.depth.hi90 * 1e6:.1f} um;  clearance and wear correlated {e.correlation:+.2f}")
+            c, n, d = e.clearance, e.cycles_run, e.depth
+            print(f"  clearance {c.median * 1e3:.3f} mm  50 % {c.text(fmt_mm, 50)}  90 % {c.text(fmt_mm)}{kind_note(c)}")
+            print(f"  cycles run {n.median:,.0f}  50 % {n.text(fmt_cycles, 50)}  90 % {n.text(fmt_cycles)}{kind_note(n)}")
+            print(f"  wear depth (clearance growth) {d.median * 1e6:.1f} um  90 % {d.text(fmt_um)} um{kind_note(d)};  "
+                  f"clearance and wear correlated {e.correlation:+.2f}")
         print(f"  consistency p {e.p_value:.3g}; {100 * e.inside:.0f} % of the measured cycles' features inside "
               f"the 90 % predictive band; sensor path: {e.sensor_path}")
         for note in e.notes:

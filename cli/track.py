@@ -19,12 +19,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "track", help="wear coefficient and cycles to a clearance limit from sessions over a bench's life",
         description="Sessions of ONE bench recorded after different numbers of cycles run: the initial clearance "
         "and the Archard wear coefficient (as a factor on the bench file's) fitted to all of them jointly with "
-        "credible intervals, the wear depth at each, and the cycles until the clearance reaches --limit.")
+        "credible intervals, the wear depth at each, and the clearance limit (--limit) seen from the last session: "
+        "the probability that it is reached, the cycles that remain otherwise, whether it lies beyond the design.")
     p.add_argument("sessions", nargs="+", metavar="SESSION.mcap", help="sessions of one bench")
     p.add_argument("--cycles-run", metavar="N1,N2,...",
                    help="cycles the bench had run at each session, in the sessions' order (e.g. 0,100000,200000); "
                    "default: as each session records it ('wearbench record --cycles-run N')")
-    p.add_argument("--limit", help="clearance limit, e.g. 0.5mm: print the cycles until the clearance reaches it")
+    p.add_argument("--limit", help="clearance limit, e.g. 0.5mm: print whether the clearance has reached it by the last "
+                   "session (its probability) and the cycles that remain otherwise")
     p.add_argument("--estimator", metavar="FILE.npz", help="estimator saved by 'wearbench estimator'")
     p.add_argument("--no-move", action="store_true",
                    help="do not use the move from new to worn measured on simulated lives and stored with the "
@@ -87,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _print_life(t, limit: float | None) -> None:
     """The life's numbers: each session's wear depth, the initial clearance, the wear coefficient and
-    the cycles to the clearance limit."""
+    the clearance limit seen from the last session (reached, the cycles that remain, beyond the design)."""
     for label, n, d in zip(t.sessions, t.cycles_run, t.depth, strict=True):
         print(f"{label}: {n:,.0f} cycles run, wear depth {d.median * 1e6:.1f} um (90 % {d.lo90 * 1e6:.1f}-"
               f"{d.hi90 * 1e6:.1f})")
@@ -95,11 +97,5 @@ def _print_life(t, limit: float | None) -> None:
     print(f"initial clearance {c.median * 1e3:.3f} mm (90 % {c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f})")
     print(f"wear coefficient {t.coefficient.median:.3g} 1/Pa = {k.median:.2f} x the bench file's "
           f"(50 % {k.lo50:.2f}-{k.hi50:.2f}, 90 % {k.lo90:.2f}-{k.hi90:.2f})")
-    if limit is not None:
-        if t.cycles_to_limit is None:
-            print(f"clearance limit {limit * 1e3:g} mm: beyond the horizon for most of the posterior")
-        else:
-            m = t.cycles_to_limit
-            print(f"clearance limit {limit * 1e3:g} mm reached after {m.median:,.0f} cycles from new "
-                  f"(90 % {m.lo90:,.0f}-{m.hi90:,.0f}); {max(0.0, m.median - max(t.cycles_run)):,.0f} after the last "
-                  "session")
+    if limit is not None and t.ahead is not None:
+        print(f"clearance limit {limit * 1e3:g} mm: {t.ahead.verdict}")

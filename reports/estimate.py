@@ -49,9 +49,17 @@ def posterior_figure(estimate: Estimate, path: str | Path, model: EstimatorModel
         if levels[0] < levels[1]:
             ax.contour(gc * 1e3, gn / 1e3, post.T, levels=levels, colors=["0.2", "0.2"], linestyles=["--", "-"])
     c, n = estimate.clearance, estimate.cycles_run
+    sided = [f"{name} {i.text(fmt)}" for name, i, fmt in (("clearance", c, lambda v: f"{v * 1e3:.3f} mm"),
+                                                          ("cycles run", n, lambda v: f"{v / 1e3:.0f}k"))
+             if i.kind != "central"]
     ax.errorbar([c.median * 1e3], [n.median / 1e3], xerr=[[(c.median - c.lo90) * 1e3], [(c.hi90 - c.median) * 1e3]],
                 yerr=[[(n.median - n.lo90) / 1e3], [(n.hi90 - n.median) / 1e3]], fmt="o", color="C3",
-                label="medians, 90 % intervals")
+                label="medians, 90 % intervals" + (f" (one-sided: {'; '.join(sided)})" if sided else ""))
+    for i, scale, along_x in ((c, 1e3, True), (n, 1e-3, False)):  # a one-sided interval's closed end: the range's
+        if i.kind != "central":
+            end = (i.lo90 if i.kind == "upper bound" else i.hi90) * scale
+            mark = {"marker": "|" if along_x else "_", "markersize": 14, "color": "C3", "ls": "none"}
+            ax.plot([end] if along_x else [c.median * 1e3], [n.median / 1e3] if along_x else [end], **mark)
     ax.set_xlabel("radial clearance (mm)")
     ax.set_ylabel("cycles run (thousands)")
     ax.set_title(f"{estimate.session}: {estimate.cycles} cycles\n{estimate.verdict}", fontsize=8)

@@ -125,7 +125,8 @@ def _notes(item: IdentifiedSession) -> list[str]:
 
 
 def _interval(i, scale: float, fmt: str) -> str:
-    return f"{i.median * scale:{fmt}} [{i.lo90 * scale:{fmt}}-{i.hi90 * scale:{fmt}}]"
+    """Median and 90 % interval ("lo-hi", or "at most" / "at least" where one-sided)."""
+    return f"{i.median * scale:{fmt}} [{i.text(lambda v: f'{v * scale:{fmt}}')}]"
 
 
 def _estimate_cells(est: Estimate | None) -> str:

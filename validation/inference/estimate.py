@@ -29,9 +29,12 @@ parameters; an MCMC or a neural estimator adds nothing there):
    it is not subtracted (it was, and zeroed the emulator error). The common part is in the
    covariance as the ensemble mean's error (``StateStatistics.covariance``).
 3. **Posterior** on a grid over the design box (uniform prior), tempered as ``identify`` tempers;
-   marginal medians, 50 % and 90 % central credible intervals of ``c``, ``N`` and the wear depth
-   (the largest clearance growth of any joint, its bearing's and journal's deepest points added,
-   interpolated from the wear runs: what a clearance limit is checked against).
+   marginal medians, 50 % and 90 % credible intervals of ``c``, ``N`` and the wear depth (the
+   largest clearance growth of any joint, its bearing's and journal's deepest points added,
+   interpolated from the wear runs: what a clearance limit is checked against). Intervals are
+   central, or one-sided from an end of the range where the posterior piles there
+   (:meth:`Interval.from_weights`: the shortest 90 % interval then reaches that end; "at most" /
+   "at least"), and say which (``Interval.kind``).
 4. **Consistency**: the session's smallest distance over the grid against the same statistic of the
    design's own realisations (a gamma fitted by moments); below ``consistency`` the answer is "no
    parameter value explains it".
@@ -40,7 +43,7 @@ parameters; an MCMC or a neural estimator adds nothing there):
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -70,9 +73,10 @@ from wearbench.validation.inference.sensor_path import SensorPath
 from wearbench.validation.inference.statistics import StateStatistics
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
-__all__ = ["DesignRequest", "Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval",
+__all__ = ["INTERVAL_KINDS", "DesignRequest", "Estimate", "Estimator", "EstimatorDesign", "EstimatorModel", "Interval",
            "build_estimator", "check_design_values", "design_clearances", "design_cycles", "estimate_features",
-           "estimator_key", "fit_estimator", "load_estimator", "predictive_band", "resolve_design", "save_estimator"]
+           "estimator_key", "fit_estimator", "fmt_kcycles", "fmt_mm", "fmt_um", "load_estimator", "predictive_band",
+           "resolve_design", "save_estimator"]
 
 NO_VALUE = "no parameter value explains it"
 SHORT_SESSION = 5  # complete crank cycles below which an estimate says the session is short (a window's length)
@@ -551,30 +555,89 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
 # ---- estimating -------------------------------------------------------------------------------
 
 
+INTERVAL_KINDS = ("central", "upper bound", "lower bound")
+
+
+def fmt_mm(v: float) -> str:
+    """A clearance (m) as an interval prints it: mm, three decimals."""
+    return f"{v * 1e3:.3f}"
+
+
+def fmt_kcycles(v: float) -> str:
+    """Cycles run as an estimate's interval prints them: thousands."""
+    return f"{v / 1e3:.0f}k"
+
+
+def fmt_um(v: float) -> str:
+    """A wear depth (m) as an interval prints it: micrometres, one decimal."""
+    return f"{v * 1e6:.1f}"
+
+
 @dataclass(frozen=True)
 class Interval:
-    """Posterior median and central credible intervals of one parameter (SI units)."""
+    """Posterior median and 50 % and 90 % credible intervals of one parameter (SI units).
+
+    ``kind``: ``"central"``, equal tails (5-95 %, 25-75 %); ``"upper bound"``, one-sided from the
+    lowest value the parameter can take ("at most": 0-90 %, 0-50 %), where the posterior piles at that
+    end; ``"lower bound"``, one-sided to the highest ("at least": 10-100 %, 50-100 %)."""
 
     median: float
     lo50: float
     hi50: float
     lo90: float
     hi90: float
+    kind: str = "central"
+
+    def __post_init__(self) -> None:
+        if self.kind not in INTERVAL_KINDS:
+            raise ValueError(f"interval kind {self.kind!r}: expected one of {INTERVAL_KINDS}")
 
     def contains(self, x: float, level: int = 90) -> bool:
         lo, hi = (self.lo90, self.hi90) if level == 90 else (self.lo50, self.hi50)
         return lo <= x <= hi
 
+    def map(self, f: Callable[[float], float]) -> Interval:
+        """The interval of ``f`` of the parameter (``f`` increasing: quantiles map to quantiles)."""
+        return Interval(*(float(f(v)) for v in (self.median, self.lo50, self.hi50, self.lo90, self.hi90)), self.kind)
+
+    def text(self, fmt: Callable[[float], str] = lambda v: f"{v:.3g}", level: int = 90) -> str:
+        """The interval in words: ``"lo-hi"``, ``"at most hi"`` or ``"at least lo"`` (values by ``fmt``)."""
+        lo, hi = (self.lo90, self.hi90) if level == 90 else (self.lo50, self.hi50)
+        if self.kind == "upper bound":
+            return f"at most {fmt(hi)}"
+        if self.kind == "lower bound":
+            return f"at least {fmt(lo)}"
+        return f"{fmt(lo)}-{fmt(hi)}"
+
     @classmethod
-    def from_weights(cls, values: np.ndarray, weights: np.ndarray) -> Interval:
-        """Quantiles of a distribution given on sorted grid ``values`` by ``weights`` (piecewise linear CDF)."""
+    def from_weights(cls, values: np.ndarray, weights: np.ndarray, *, edges: bool = False) -> Interval:
+        """Quantiles of a distribution given on grid ``values`` by ``weights`` (piecewise linear CDF).
+
+        ``edges``: the values span the range the parameter can take (a design box), and where the
+        posterior piles at one end of it the interval is one-sided from that end: the shortest
+        interval holding 90 % then reaches the end, and a central one would leave out the values most
+        probable. The rule: one-sided where the shortest 90 % interval starts (or ends) at the end of
+        the support and is shorter than the central one; central (5-95 %, 25-75 %) otherwise."""
         order = np.argsort(values, kind="stable")
         x, w = np.asarray(values, float)[order], np.asarray(weights, float)[order]
+        keep = np.flatnonzero(w > 0)  # the support: an end of zero weight is no end the posterior reaches
+        if keep.size:
+            x, w = x[keep[0]:keep[-1] + 1], w[keep[0]:keep[-1] + 1]
         cdf = np.cumsum(w)
         cdf = cdf / cdf[-1]
         mid = cdf - 0.5 * w / w.sum()  # each grid value holds the mass of its cell, centred on it
-        q = lambda p: float(np.interp(p, mid, x))
-        return cls(q(0.5), q(0.25), q(0.75), q(0.05), q(0.95))
+        q = lambda p: np.interp(p, mid, x)
+        central = cls(*(float(q(p)) for p in (0.5, 0.25, 0.75, 0.05, 0.95)))
+        if not edges or x[-1] <= x[0]:
+            return central
+        start = np.linspace(0.0, 0.1, 201)
+        widths = q(start + 0.9) - q(start)
+        shortest, wide = widths.min(), (central.hi90 - central.lo90) * (1 - 1e-3)
+        if widths[0] <= shortest * (1 + 1e-9) and widths[0] < wide:
+            return cls(central.median, float(x[0]), central.median, float(x[0]), float(q(0.9)), "upper bound")
+        if widths[-1] <= shortest * (1 + 1e-9) and widths[-1] < wide:
+            return cls(central.median, central.median, float(x[-1]), float(q(0.1)), float(x[-1]), "lower bound")
+        return central
 
 
 @dataclass
@@ -612,22 +675,23 @@ class Estimate:
                 "flat": self.flat}
 
     def row(self) -> dict:
-        """One table row (SI units): the median and 90 % interval of each parameter, the verdict."""
+        """One table row (SI units): the median and 90 % interval of each parameter with its kind
+        (``*_interval``: central, upper bound, lower bound), the verdict."""
         out = {"session": self.session, "cycles": self.cycles, "explains": self.explains, "p_value": self.p_value}
         for name, i in (("clearance_m", self.clearance), ("cycles_run", self.cycles_run), ("wear_depth_m", self.depth)):
-            out.update({name: i.median, f"{name}_lo90": i.lo90, f"{name}_hi90": i.hi90})
+            out.update({name: i.median, f"{name}_lo90": i.lo90, f"{name}_hi90": i.hi90, f"{name}_interval": i.kind})
         return out
 
     def line(self) -> str:
-        """The estimate in one line, as the demo's summary and the report's table give it."""
+        """The estimate in one line, as the demo's summary and the report's table give it: each median
+        and its 90 % interval ("lo-hi", or "at most" / "at least" where one-sided)."""
         if not self.explains:
             return NO_VALUE
         if self.flat:
             return PRIOR_ONLY
         c, n, d = self.clearance, self.cycles_run, self.depth
-        return (f"{c.median * 1e3:.3f} mm [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}], {n.median / 1e3:.0f}k cycles "
-                f"[{n.lo90 / 1e3:.0f}k-{n.hi90 / 1e3:.0f}k], wear {d.median * 1e6:.1f} um "
-                f"[{d.lo90 * 1e6:.1f}-{d.hi90 * 1e6:.1f}]")
+        return (f"{c.median * 1e3:.3f} mm [{c.text(fmt_mm)}], {n.median / 1e3:.0f}k cycles [{n.text(fmt_kcycles)}], "
+                f"wear {d.median * 1e6:.1f} um [{d.text(fmt_um)}]")
 
 
 def predictive_band(model: EstimatorModel, posterior: np.ndarray, *, draws: int = 4000, seed: int = 0
@@ -655,9 +719,9 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     logp = -0.5 * d2 / model.temperature
     post = np.exp(logp - special.logsumexp(logp))
     gc, gn = model.grid_c, model.grid_n
-    c_int = Interval.from_weights(gc, post.sum(axis=1))
-    n_int = Interval.from_weights(gn, post.sum(axis=0))
-    depth_int = Interval.from_weights(model.grid_depth.ravel(), post.ravel())
+    c_int = Interval.from_weights(gc, post.sum(axis=1), edges=True)
+    n_int = Interval.from_weights(gn, post.sum(axis=0), edges=True)
+    depth_int = Interval.from_weights(model.grid_depth.ravel(), post.ravel(), edges=True)
     i, j = np.unravel_index(int(np.argmax(post)), post.shape)
     cc, nn = np.meshgrid(gc, gn, indexing="ij")
     mc, mn = float((post * cc).sum()), float((post * nn).sum())
@@ -666,8 +730,8 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     p = float(stats.gamma.sf(float(d2.min()), model.null[0], scale=model.null[1]))
     explains = p >= model.options.consistency
     notes = []
-    verdict = (f"clearance {c_int.median * 1e3:.3f} mm (90 % {c_int.lo90 * 1e3:.3f}-{c_int.hi90 * 1e3:.3f}), "
-               f"{n_int.median / 1e3:.0f}k cycles run (90 % {n_int.lo90 / 1e3:.0f}k-{n_int.hi90 / 1e3:.0f}k)")
+    verdict = (f"clearance {c_int.median * 1e3:.3f} mm (90 % {c_int.text(fmt_mm)}), "
+               f"{n_int.median / 1e3:.0f}k cycles run (90 % {n_int.text(fmt_kcycles)})")
     if not explains:
         verdict = NO_VALUE
         notes.append(f"no clearance in {gc[0] * 1e3:.3g}-{gc[-1] * 1e3:.3g} mm and wear of 0-{gn[-1]:,.0f} cycles "
@@ -688,6 +752,13 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     edge = post[0].sum() + post[-1].sum() + post[:, -1].sum()
     if explains and edge > 0.2:
         notes.append("much of the posterior lies at the edge of the estimator's range: the truth may lie beyond it")
+    one_sided = [f"{name} {i.text(fmt)}" for name, i, fmt in (("clearance", c_int, lambda v: f"{fmt_mm(v)} mm"),
+                                                              ("cycles run", n_int, fmt_kcycles),
+                                                              ("wear depth", depth_int, lambda v: f"{fmt_um(v)} um"))
+                 if i.kind != "central"]
+    if explains and verdict != PRIOR_ONLY and one_sided:
+        notes.append("one-sided 90 % interval" + ("s" if len(one_sided) > 1 else "") + " where the posterior piles at "
+                     "the edge of the estimator's range: " + ", ".join(one_sided))
     if n < SHORT_SESSION:
         notes.append(f"only {n} complete crank cycle{'s' if n > 1 else ''}: the estimator's statistics hold for "
                      f"sessions of {SHORT_SESSION} or more; record longer for intervals to trust")

@@ -83,14 +83,20 @@ estimator's by a factor ``delta`` on the depth (its staging, and its geometry wi
 lognormal with ``depth_spread`` (default 5 %: simulated lives' depth after 100k-500k cycles differed
 from the estimator's trajectory at the same effective cycles by 1-5 % sd, ``benchmarks/validation/estimate.py``),
 integrated by Gauss-Hermite quadrature. The cycles-to-limit interval is that of the joint posterior
-of (c, k, delta): the clearance's and coefficient's uncertainty and their correlation included.
+of (c, k, delta): the clearance's and coefficient's uncertainty and their correlation included. An
+interval from new says little when the limit may lie behind the bench already, so the limit is also
+seen from the last session (:class:`LimitAhead`, :func:`limit_ahead`): the probability that it was
+reached by then; otherwise the cycles that remain (an interval over the rest of the posterior,
+one-sided from 0 where it piles there); and the probability that it lies beyond the design's range
+of wear (``k`` times the cycles from new past the design's last cycles run: the depth there is
+extrapolated, not simulated), said first when it is most of what remains.
 """
 
 from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -100,11 +106,69 @@ from wearbench.validation.inference.move import Move, Rate
 from wearbench.validation.inference.statistics import nearest_psd, shrunk_covariance
 from wearbench.validation.measurement.features import CycleFeatures
 
-__all__ = ["CONSISTENCY", "NO_LIFE", "Track", "depth_curve", "joint_log_likelihood", "life_consistency", "life_rate",
-           "session_covariances", "track_features", "wear_drift"]
+__all__ = ["CONSISTENCY", "NO_LIFE", "LimitAhead", "Track", "depth_curve", "joint_log_likelihood", "life_consistency",
+           "life_rate", "limit_ahead", "session_covariances", "track_features", "wear_drift"]
 
 K_RANGE = (0.2, 5.0)
 RATE_SPREAD = 0.2  # lognormal sd of the features' rate along a life (module docstring)
+EXTEND = 100.0  # the depth is extrapolated to this many times the design's last cycles run (depth_curve)
+
+
+@dataclass
+class LimitAhead:
+    """A clearance limit seen from the last session: the probability that the bench had reached it by
+    then; otherwise the cycles that remain after the last session (an interval over the part of the
+    posterior that has not reached it), the probability that the limit lies beyond the design's range
+    of wear (reached only where the depth is extrapolated from the design's last stage, or never) and
+    the probability that it is not reached even within the extrapolation (``EXTEND`` x the design's
+    range). Probabilities are of the whole posterior."""
+
+    p_reached: float
+    p_beyond_design: float  # not reached by the last session, and reached only past the design's range (or never)
+    p_never: float  # not reached within the extrapolation
+    remaining: Interval | None  # cycles after the last session, given not reached (None: never, for most of it)
+    last: float  # cycles run at the last session
+
+    @property
+    def verdict(self) -> str:
+        """In words: reached (with its probability), the cycles that remain otherwise, beyond the design."""
+        if self.p_reached >= 0.95:
+            return f"already reached by the last session (P {self.p_reached:.2f})"
+        head = (f"reached by the last session with P {self.p_reached:.2f}; otherwise " if self.p_reached >= 0.05
+                else f"not reached by the last session (P reached {self.p_reached:.2f}): ")
+        if self.remaining is None:
+            return head + (f"not within {EXTEND:g} x the design's range of wear (P {self.p_never:.2f}), the wear past "
+                           "it extrapolated from the design's last stage")
+        r = self.remaining
+        text = f"a further {r.median:,.0f} cycles (90 % {r.text(lambda v: f'{v:,.0f}')})"
+        if self.p_beyond_design >= 0.5 * (1.0 - self.p_reached):
+            return (head + f"beyond the design's range of wear (P {self.p_beyond_design:.2f}): {text}, the wear past it "
+                    "extrapolated from the design's last stage")
+        if self.p_beyond_design >= 0.05:
+            text += f"; beyond the design's range of wear with P {self.p_beyond_design:.2f}"
+        return head + text
+
+
+def limit_ahead(cycles: np.ndarray, covered: np.ndarray, weights: np.ndarray, last: float) -> LimitAhead:
+    """Where a clearance limit lies from the last session: ``cycles`` (from new) at which each point of
+    the posterior (``weights``) reaches it (inf: not within the extrapolation), ``covered`` whether that
+    lies within the design's range of wear, ``last`` the last session's cycles run; the three
+    broadcast alike."""
+    cycles, covered, weights = np.broadcast_arrays(np.asarray(cycles, float), np.asarray(covered, bool),
+                                                   np.asarray(weights, float))
+    total = float(weights.sum())
+    if not total > 0:
+        raise ValueError("limit_ahead: the posterior's weights sum to no mass")
+    reached = cycles <= last
+    ahead = ~reached & np.isfinite(cycles)
+    p_reached = float(weights[reached].sum()) / total
+    p_never = float(weights[~np.isfinite(cycles)].sum()) / total
+    remaining = None
+    if weights[ahead].sum() > 0 and p_never < 0.5 * (1.0 - p_reached):
+        remaining = Interval.from_weights(cycles[ahead] - last, weights[ahead], edges=True)
+        if remaining.kind == "upper bound":  # the range's end is the last session itself, not the grid's nearest
+            remaining = replace(remaining, lo50=0.0, lo90=0.0)
+    return LimitAhead(p_reached, float(weights[~reached & ~covered].sum()) / total, p_never, remaining, float(last))
 
 
 @dataclass
@@ -127,6 +191,8 @@ class Track:
     # None: the move's rate against clearance, ``move['rate']``)
     p_value: float = 1.0  # consistency of the sessions, jointly, with one bench at the best (c, k)
     session_p: list[float] = field(default_factory=list)  # each session's own consistency (any c, N)
+    ahead: LimitAhead | None = None  # the limit seen from the last session (with ``limit``)
+    design_cycles: float | None = None  # the estimator's last cycles run: effective cycles past it are extrapolated
 
     @property
     def explains(self) -> bool:
@@ -144,7 +210,8 @@ class Track:
         return f"{NO_LIFE} as one bench's life (p {self.p_value:.2g})"
 
     def to_dict(self) -> dict:
-        return {**asdict(self), "explains": self.explains, "verdict": self.verdict}
+        return {**asdict(self), "explains": self.explains, "verdict": self.verdict,
+                "limit_verdict": self.ahead.verdict if self.ahead is not None else None}
 
     def to_dataframe(self) -> pd.DataFrame:
         """One row per session: its cycles run and its wear depth (m), median and 90 % interval."""
@@ -174,7 +241,7 @@ def life_consistency(model: EstimatorModel, xbars: np.ndarray, cycles: Sequence[
     return float(stats.gamma.sf(q, len(cycles) * shape, scale=scale)), alone
 
 
-def depth_curve(model: EstimatorModel, extend: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
+def depth_curve(model: EstimatorModel, extend: float = EXTEND) -> tuple[np.ndarray, np.ndarray]:
     """Cycles (effective) and wear depth (gc, points) along each grid clearance's trajectory,
     extrapolated linearly to ``extend`` x the last design cycles at the last stage's rate."""
     gn, depth = model.grid_n, np.maximum.accumulate(model.grid_depth, axis=1)
@@ -387,9 +454,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
     post = np.exp(log_post - special.logsumexp(log_post))
     p_life, p_alone = _consistency_at_mode(post, xbars, [f.cycles for f in features], runs, model, ks, drift, move)
     c_int = Interval.from_weights(gc, post.sum(axis=1))
-    k_int = Interval.from_weights(np.log(ks), post.sum(axis=0))
-    k_int = Interval(*(float(np.exp(v)) for v in asdict(k_int).values()))
-    coef = Interval(*(v * coefficient for v in asdict(k_int).values()))
+    k_int = Interval.from_weights(np.log(ks), post.sum(axis=0)).map(np.exp)
+    coef = k_int.map(lambda v: v * coefficient)
     n_curve, d_curve = depth_curve(model)
     nodes, qw = np.polynomial.hermite_e.hermegauss(9 if depth_spread > 0 else 1)
     deltas, qw = np.exp(depth_spread * nodes), qw / qw.sum()  # the bench's depth / the trajectory's
@@ -400,7 +466,7 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
         return Interval.from_weights((d[:, :, None] * deltas).ravel(), weights.ravel())
 
     depth = [depth_at(n) for n in cycles_run]
-    to_limit, beyond, notes = None, 0.0, []
+    to_limit, beyond, notes, ahead = None, 0.0, [], None
     if limit is not None:
         need = (limit - gc)[:, None] / deltas[None, :]  # (c, delta) trajectory depth that reaches the limit
         eff_limit = np.array([[np.interp(v, d_curve[i], n_curve, right=np.inf) if v > 0 else 0.0 for v in need[i]]
@@ -412,7 +478,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
             to_limit = Interval.from_weights(cycles[finite], weights[finite])
         if beyond > 0.05:
             notes.append(f"{beyond:.0%} of the posterior reaches the limit beyond {n_curve[-1]:,.0f} effective cycles "
-                         "(100x the estimator's range): the interval's upper end is a lower bound")
+                         f"({EXTEND:g}x the estimator's range): the interval's upper end is a lower bound")
+        ahead = limit_ahead(cycles, eff_limit[:, None, :] <= model.grid_n[-1], weights, max(cycles_run))
     horizon = max(1.5 * max(cycles_run), 1.2 * to_limit.hi90 if to_limit else 0.0)
     prediction = [(float(n), depth_at(n)) for n in np.linspace(0.0, horizon, 41)]
     worn = int(np.sum(np.unique(runs) > 0))
@@ -428,7 +495,8 @@ def track_features(features: Sequence[CycleFeatures], cycles_run: Sequence[float
                      f"{min(K_RANGE[1], float(ks[inside][-1])):.3g} x the file's (the last session's cycles run times "
                      "the factor must lie within the estimator's range)")
     return Track(labels, [float(n) for n in cycles_run], c_int, k_int, coef, depth, limit, to_limit, beyond,
-                 prediction, notes, move.to_dict() if move is not None else None, rate_spread, p_life, p_alone)
+                 prediction, notes, move.to_dict() if move is not None else None, rate_spread, p_life, p_alone,
+                 ahead, float(model.grid_n[-1]))
 
 
 def _consistency_at_mode(post: np.ndarray, xbars: np.ndarray, cycles: Sequence[int], runs: np.ndarray,

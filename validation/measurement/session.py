@@ -78,6 +78,8 @@ class MeasuredSession:
     surface_files: dict[str, bytes] = field(default_factory=dict)  # joint -> worn-surface .npz embedded
     finished: bool = True  # False: the file was cut short (read up to its last complete chunk)
     problem: str | None = None  # why the file is not finished
+    bench_problem: str | None = None  # the loader's words for why the recorded bench does not load (None: it loads,
+    # or none is recorded)
     speed_tolerance: float = 0.02
     points_per_rev: int = 720
     fs: float | None = None  # Hz, as recorded (see the class docstring)
@@ -247,4 +249,5 @@ def load_session(path: str | Path, *, label: str | None = None) -> MeasuredSessi
                            encoder=s.encoder, bench=s.bench, clearances=dict(s.clearances),
                            wear_state=dict(s.wear_state), metadata=dict(s.metadata), path=path,
                            surface_files=dict(s.surface_files), finished=s.finished, problem=s.problem,
+                           bench_problem=s.bench_problem,
                            fs=s.sample_rate, clip_level=s.clip_level)

@@ -28,6 +28,7 @@ from wearbench.validation.inference.estimate import (
     EstimatorModel,
     estimate_features,
     fit_estimator,
+    fmt_mm,
 )
 from wearbench.validation.inference.identify import IdentifyOptions, fit_states, identify_features
 from wearbench.validation.inference.move import Move, stored_move
@@ -174,7 +175,7 @@ def named_outside(a: Assessment, est: Estimate | None) -> str | None:
     outside = [v for v in named.clearances.values() if not c.contains(v)]
     if not outside:
         return None
-    return (f"the estimate puts the clearance at {c.median * 1e3:.3f} mm [{c.lo90 * 1e3:.3f}-{c.hi90 * 1e3:.3f}], "
+    return (f"the estimate puts the clearance at {c.median * 1e3:.3f} mm [{c.text(fmt_mm)}], "
             f"outside {named.name}'s {outside[0] * 1e3:.3f} mm: the bench lies between the candidates or beyond them")
 
 

@@ -138,11 +138,11 @@ class SessionSet:
 
     def require_benches(self, needs: str) -> None:
         """Refuse (ValueError naming the session and why) a session without a usable bench file:
-        ``needs`` says what needs one."""
+        ``needs`` says what needs one. Why is the session loader's own text where a bench file is
+        recorded but does not load (worn-surface files it names missing beside it, say)."""
         for s in self.sessions:
             if s.bench is None:
-                why = next((p for p in (s.problem or "").split("; ") if "bench" in p), "no bench file recorded in it")
-                raise ValueError(f"session {s.label}: {why}; {needs}")
+                raise ValueError(f"session {s.label}: {s.bench_problem or 'no bench file recorded in it'}; {needs}")
 
     def refuse_duplicates(self, noun: str) -> None:
         """Refuse (ValueError) one recording given twice (the same file, or a copy of it, under any name):
