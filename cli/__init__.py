@@ -162,8 +162,9 @@ def _release_process_resources() -> None:
     processes the command started that still run (a local cluster's workers, an emulator;
     ``wearbench.compute.interrupts``, loaded by whatever started them), remove the outputs it was still
     writing (their temporary names; the old outputs stay), then run multiprocessing's exit finalizers (priority >= 0: they
-    unlink the named semaphores of a local cluster's process handles), so its resource tracker has
-    nothing left to warn about ("leaked semaphore objects")."""
+    unlink the named semaphores of a local cluster's process handles) and release what another thread
+    was still closing (``interrupts.release_resources``), so its resource tracker has nothing left to
+    warn about ("leaked semaphore objects")."""
     interrupts = sys.modules.get("wearbench.compute.interrupts")  # never imported here: main may hold
     if interrupts is not None:  # the import lock when the watchdog runs
         with contextlib.suppress(Exception):  # best effort on the way out
@@ -176,6 +177,9 @@ def _release_process_resources() -> None:
     if util is not None:
         with contextlib.suppress(Exception):  # best effort on the way out
             util._run_finalizers(0)
+    if interrupts is not None:  # what another thread was closing when the Ctrl-C came
+        with contextlib.suppress(Exception):
+            interrupts.release_resources()
 
 
 def _silence_stdout() -> None:

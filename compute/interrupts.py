@@ -15,12 +15,17 @@ meanwhile, and a start-up that takes the KeyboardInterrupt half-way loses what i
 - :func:`running_processes` and :func:`end_processes`: the processes this program started through
   multiprocessing that still run, and SIGKILL for them (what a shutdown does when its time is up, and
   the command line before its ``os._exit(130)``, which skips multiprocessing's own exit clean-up).
+- :func:`track_resources` and :func:`release_resources`: what this process has told multiprocessing's
+  resource tracker it holds (the named semaphores of a local cluster's queues), so that an
+  ``os._exit`` while another thread closes a queue (its semaphore unlinked, the tracker not yet told)
+  leaves the tracker nothing to warn about ("leaked semaphore objects").
 
 Imports the standard library only.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import threading
@@ -28,7 +33,7 @@ import time
 from collections.abc import Callable, Collection
 from typing import Any, TypeVar
 
-__all__ = ["POLL", "end_processes", "running_processes", "start_shielded"]
+__all__ = ["POLL", "end_processes", "release_resources", "running_processes", "start_shielded", "track_resources"]
 
 T = TypeVar("T")
 
@@ -52,6 +57,7 @@ def start_shielded(start: Callable[[], T], *, close: Callable[[T], Any], name: s
     # launched from here: launching it from the helper thread would unblock SIGINT there (the
     # tracker's start-up blocks and then unblocks it in the calling thread)
     resource_tracker.ensure_running()
+    track_resources()
     lock = threading.Lock()
     done = threading.Event()
     box: dict[str, Any] = {}
@@ -130,3 +136,53 @@ def end_processes(keep: Collection[int] = (), *, name: str = "", wait: float = 0
             ready = wait_for(sentinels, max(0.0, deadline - time.monotonic()))
             sentinels = [s for s in sentinels if s not in ready]
     return list(ended)
+
+
+_SENDS = threading.Lock()  # held around each message to the resource tracker, and for good by release_resources
+_HELD: set[tuple[str, str]] = set()  # (name, type) registered with the tracker and not unregistered
+
+
+def track_resources() -> None:
+    """From now on, record what this process registers with multiprocessing's resource tracker (each
+    message sent under one lock, so :func:`release_resources` sees an exact set). Idempotent."""
+    from multiprocessing import resource_tracker
+
+    tracker = resource_tracker._resource_tracker
+    send = tracker._send
+    if getattr(send, "wearbench_tracked", False):
+        return
+
+    def tracked(cmd: str, name: str, rtype: str) -> None:
+        with _SENDS:
+            send(cmd, name, rtype)
+            if cmd == "REGISTER":
+                _HELD.add((name, rtype))
+            elif cmd == "UNREGISTER":
+                _HELD.discard((name, rtype))
+
+    tracked.wearbench_tracked = True  # type: ignore[attr-defined]
+    tracker._send = tracked
+
+
+def release_resources(timeout: float = 1.0) -> None:
+    """Before ``os._exit``: stop every further message to the resource tracker (the lock is kept), then
+    unlink the semaphores this process still holds and tell the tracker so. A thread caught between
+    unlinking a semaphore and saying so never gets to say it twice."""
+    if not _SENDS.acquire(timeout=timeout):  # a message stuck for a second: leave it to the tracker
+        return
+    from multiprocessing import resource_tracker
+
+    tracker = resource_tracker._resource_tracker
+    for name, rtype in sorted(_HELD):
+        try:
+            if rtype == "semaphore":
+                import _multiprocessing
+
+                _multiprocessing.sem_unlink(name)
+        except OSError:
+            pass  # unlinked already (by the thread that was closing it)
+        try:
+            os.write(tracker._fd, f"UNREGISTER:{name}:{rtype}\n".encode("ascii"))
+        except (OSError, TypeError):
+            return  # no tracker to tell
+    _HELD.clear()

@@ -222,11 +222,11 @@ class _Interrupted(dict):
 
 def _calibration_key(session) -> str:
     from wearbench.validation.inference.calibration import calibration_key
-    from wearbench.validation.inference.ensemble import EnsembleSettings
+    from wearbench.validation.measurement.scaling import resolve_analysis
     from wearbench.validation.measurement.session import load_session
 
-    s = load_session(session)
-    return calibration_key(s.bench, s.metadata, EnsembleSettings().features)
+    s = load_session(session)  # calibrate's features: the bench's own at the session's speed
+    return calibration_key(s.bench, s.metadata, resolve_analysis(s.bench, s.commanded_speed).features)
 
 
 def test_the_new_commands_never_write_over_a_session(recorded, capsys):

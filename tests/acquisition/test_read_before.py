@@ -17,6 +17,7 @@ from wearbench.acquisition.drivers import ACCELERATION, ENCODER
 from wearbench.acquisition.layout import clip_level
 from wearbench.acquisition.session_file import read_session
 from wearbench.testing import recorded_blocks
+from wearbench.validation.measurement.features import FeatureSpec, cycle_features
 from wearbench.validation.measurement.session import load_session
 
 DATA = Path(__file__).with_name("data")
@@ -38,7 +39,9 @@ def test_a_session_recorded_before_reads_as_before(name):
     s = load_session(path)
     assert s.clip_level == before["clip_level"] and s.gaps == before["gaps"]
     assert s.fs == 10000.0 and s.fs == pytest.approx(before["fs"], rel=1e-12)
-    f = s.features()
+    # the features as read then: the test bed's spec at the encoder's angle (a session's default now follows its
+    # crank speed, and reads each sample at the angle its stated chain delay puts it)
+    f = cycle_features(*s.samples, FeatureSpec(), clipped=s.clipped, fs=s.fs)
     assert f.cycles == before["cycles"]
     assert f.clipped.tolist() == before["features_clipped"]
     np.testing.assert_allclose(f.values, np.array(before["features"]), rtol=1e-9, atol=1e-8)
