@@ -12,12 +12,21 @@
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
 from wearbench.testing import mcap_readers
 
 NODE_FOLDER = mcap_readers.cache_dir()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _ctrl_c_heard() -> None:
+    """Ctrl-C heard as in a terminal's run: a suite started in the background of a shell inherits
+    SIGINT ignored (POSIX), and so would every process the interrupt tests start and signal."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session", autouse=True)
