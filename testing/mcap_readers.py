@@ -71,8 +71,13 @@ def read_with_node(paths: list[Path], folder: Path) -> list[dict]:
     """One result per file from ``read_mcap.mjs`` (see its header for the fields)."""
     if not paths:
         return []
-    r = subprocess.run(["node", str(folder / SCRIPT.name), *map(str, paths)], cwd=folder,
-                       capture_output=True, text=True, timeout=300, check=False)
+    try:
+        r = subprocess.run(["node", str(folder / SCRIPT.name), *map(str, paths)], cwd=folder,
+                           capture_output=True, text=True, timeout=300, check=False)
+    except subprocess.TimeoutExpired as exc:
+        printed = (exc.stdout or b"")[-300:]
+        raise RuntimeError(f"node {SCRIPT.name} on {len(paths)} file(s) ({paths[0]}, ...) did not exit within "
+                           f"{exc.timeout:.0f} s; it had printed {printed!r}") from None
     if r.returncode:
         raise RuntimeError(f"node {SCRIPT.name} exited {r.returncode}: {r.stderr.strip()[-2000:]}")
     return json.loads(r.stdout)

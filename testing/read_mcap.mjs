@@ -90,4 +90,6 @@ const results = [];
 for (const path of process.argv.slice(2)) {
   results.push(await read(path));
 }
-console.log(JSON.stringify(results));
+// Exit once the line is flushed rather than when the event loop drains: a CI run once saw node print
+// the whole result and then stay alive until the caller's 300 s timeout killed it.
+process.stdout.write(JSON.stringify(results) + "\n", () => process.exit(0));
