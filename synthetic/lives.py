@@ -59,6 +59,7 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     from wearbench.bench.schema import WearState
     from wearbench.hardware.emulators.carriage import lateral_force
     from wearbench.model.realisation import simulate_state
+    from wearbench.model.surfaces import JointSurfaces
     from wearbench.model.wear_stages import StagePlan, run_stages
     from wearbench.validation.measurement.features import cycle_features
     from wearbench.validation.measurement.scaling import resolve_analysis
@@ -66,7 +67,8 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     spec = spec or resolve_analysis(bench).features
     chain = _sensor_chain(bench, spread, seed)
     joints = [j.name for j in bench.clearance_joints]
-    files, depth = dict(files or {}), 0.0
+    files = dict(files or {})
+    depth = max((sum(JointSurfaces.load(f).max_depth) for f in files.values()), default=0.0)  # the wear model's depth
     with tempfile.TemporaryDirectory() as tmp:
         if cycles_run > 0:
             run = run_stages(bench, StagePlan.from_bench(bench, stages=1, stage_cycles=cycles_run),

@@ -78,6 +78,8 @@ def main() -> None:
                     "(SensorSpread's whole draw; the cached drawn lives and the shipped move are axial only)")
     ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
     ap.add_argument("--at-truths", type=int, default=0, help="extra truths at --at cycles run (0)")
+    ap.add_argument("--states", type=int, default=0, help="sessions per worn state of the bench file, on the state's "
+                    "own surface files (0)")
     ap.add_argument("--lives", type=int, default=0, help="simulated lives for track (0)")
     ap.add_argument("--life-factor", type=float, default=1.3, help="the lives' wear coefficient / the file's (1.3)")
     ap.add_argument("--life-cycles", type=int, default=20, help="cycles per session of a life (20)")
@@ -136,6 +138,8 @@ def main() -> None:
     at_truths = [(float(at_rng.uniform(lo, hi)), args.at, args.seed + 5000 + k) for k in range(args.at_truths)]
     life_rng = np.random.default_rng(args.seed + 2)
     lives = [(float(life_rng.uniform(0.3e-3, 0.55e-3)), args.seed + 8000 + k) for k in range(args.lives)]
+    worn = [st for st in bench.states if st.surfaces]
+    state_truths = [(st, args.seed + 7000 + 100 * i + k) for i, st in enumerate(worn) for k in range(args.states)]
 
     def truth_key(c, n, s):
         return task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths)
@@ -167,6 +171,12 @@ def main() -> None:
 
         done = run(at_truths, "truths at --at") + run(truths, "truths from the prior")  # the shorter batch first
         truths = at_truths + truths
+        state_done = run_tasks([Task(truth_features, {"bench": bench, "clearance": max(st.clearances.values()),
+                                                      "cycles_run": 0.0, "seed": s, "cycles": args.cycles,
+                                                      "spread": args.sensor_paths, "files": dict(st.surfaces)},
+                                     task_key("estimate-state-truth", st.name, dict(st.clearances), file_digests(st),
+                                              s, args.cycles, args.sensor_paths), f"{st.name} {s}")
+                                for st, s in state_truths], progress="sessions of the worn states")
         t_truth = time.perf_counter() - t0
         t0 = time.perf_counter()
         life_runs = run_tasks([Task(life_features, {"bench": bench, "clearance": c, "factor": args.life_factor,
@@ -179,6 +189,8 @@ def main() -> None:
     failed = [d for d in done if isinstance(d, TaskFailure)]
     reported = [report_truths(est, t_build, ok, failed, t_truth, args) for est, t_build in built]
     est, (model, tables) = built[0][0], reported[0]
+    if state_truths:
+        tables["states"] = report_states(model, state_truths, state_done, args)
     if args.json:
         d = est.design
         write_result(args.json, question="Do the estimator's intervals hold the truth on benches it never saw?",
@@ -192,7 +204,11 @@ def main() -> None:
                             "through the emulator's sensor chain"
                             + (" with a drawn mount" if args.sensor_paths else "") + ".",
                             ("A calibrated 90 % interval holds the truth in 0.90 of truths, within about two standard "
-                            "errors (the se column).")])
+                            "errors (the se column).")]
+                     + ([(f"Worn states: {args.states} sessions per worn state of the bench file, each on a bench drawn "
+                         "with its own seed and the state's own surface files (worn by an earlier version of the "
+                         "wear model, never a run of the estimator's); truth: the state's clearance, the files' "
+                         "cycles and wear depth.")] if state_truths else []))
         print(f"results: {args.json}")
     if args.store_move:
         store_move(bench, model, lives_asked, life_key, args)
@@ -292,6 +308,57 @@ def report_truths(est, t_build: float, ok, failed, t_truth: float, args):
                      "intervals hold the truth in " + ", ".join(f"{r[1]:.2f} ({r[0]})" for r in calibration_rows)
                      + (f"; median clearance error {width_rows[-1][5]:.3f} mm." if width_rows else ".")]}
     return model, tables
+
+
+def file_digests(state) -> dict[str, str]:
+    """The content of a state's surface files, for its sessions' cache key."""
+    import hashlib
+
+    return {j: hashlib.sha256(p.read_bytes()).hexdigest()[:16] for j, p in sorted(state.surfaces.items())}
+
+
+def report_states(model, state_truths, done, args) -> dict:
+    """Score the sessions of the bench file's worn states (their own surface files): per state the
+    truth, the medians of the estimate and how many 90 % intervals hold it; one row for all."""
+    from wearbench.compute import TaskFailure
+    from wearbench.model.surfaces import JointSurfaces
+    from wearbench.validation.inference.estimate import estimate_features
+    from wearbench.validation.measurement.features import CycleFeatures
+
+    per_state: dict[str, list] = {}
+    for (st, _), d in zip(state_truths, done, strict=True):
+        if isinstance(d, TaskFailure):
+            print(f"{st.name}: a session failed: {d}")
+            continue
+        truth = (max(st.clearances.values()), max(JointSurfaces.load(f).cycles for f in st.surfaces.values()), d["depth"])
+        f = d["features"][:args.cycles]
+        per_state.setdefault(st.name, []).append((truth, estimate_features(CycleFeatures(model.estimator.spec, f,
+                                                                                          np.zeros(len(f))), model)))
+    rows = []
+    print(f"\nthe bench file's worn states, {args.states} sessions each on their own surface files:")
+    print("state                 sessions  truth (mm, k cycles, um)   median estimate (mm, k cycles, um)   "
+          "90 % holds c / N / depth   explained")
+    for name, rs in list(per_state.items()) + [("all worn states", [r for v in per_state.values() for r in v])]:
+        n = len(rs)
+        holds = [sum(e.explains and iv(e).contains(t[k]) for t, e in rs)
+                 for k, iv in enumerate((lambda e: e.clearance, lambda e: e.cycles_run, lambda e: e.depth))]
+        med = [float(np.median([iv(e).median for _, e in rs]))
+               for iv in (lambda e: e.clearance, lambda e: e.cycles_run, lambda e: e.depth)]
+        t = rs[0][0]
+        rows.append([name, n, t[0] * 1e3, t[1] / 1e3, t[2] * 1e6, med[0] * 1e3, med[1] / 1e3, med[2] * 1e6,
+                     *(h / n for h in holds), sum(e.explains for _, e in rs) / n])
+        same = all(r[0] == t for r in rs)
+        print(f"{name:20s}  {n:8d}  " + (f"{t[0] * 1e3:.3f}, {t[1] / 1e3:.0f}, {t[2] * 1e6:.1f}" if same else "(several)")
+              .ljust(27) + f"{med[0] * 1e3:.3f}, {med[1] / 1e3:.0f}, {med[2] * 1e6:.1f}".ljust(37)
+              + f"{holds[0]}/{n}  {holds[1]}/{n}  {holds[2]}/{n}".ljust(26) + f"{rows[-1][-1]:.2f}")
+    rows[-1][2:5] = [None, None, None]  # the pooled row has no one truth
+    return table(f"the bench file's worn states on their own surface files, {args.cycles}-cycle sessions", [
+        column("state"), column("sessions"), column("truth clearance", "mm", ".3f"),
+        column("truth cycles run", "k cycles", ".0f"), column("truth wear depth", "um", ".1f"),
+        column("median clearance", "mm", ".3f"), column("median cycles run", "k cycles", ".0f"),
+        column("median wear depth", "um", ".1f"), column("90 % holds clearance", None, ".2f"),
+        column("90 % holds cycles run", None, ".2f"), column("90 % holds wear depth", None, ".2f"),
+        column("explained", None, ".2f", "share of sessions some parameter value explains")], rows)
 
 
 def information(model, clearances, at: float) -> None:
