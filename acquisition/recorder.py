@@ -51,11 +51,13 @@ from wearbench.acquisition.sequence import SequenceCheck
 from wearbench.acquisition.session import Progress, SessionPlan, SessionResult
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.schema import Bench
+from wearbench.hardware.protocol.taps import TAP_EVENT
 
 __all__ = ["Recorder", "record_session"]
 
 _PULSE_MARGIN = 0.05  # revolutions recorded past the index pulse that closes the last cycle
 _FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
+_DRAIN_LIMIT = 2.0  # s a tap session waits past its last interval for the accelerometer stream to catch up
 
 
 def _failure_reason(exc: Exception, what: str) -> str:
@@ -94,6 +96,8 @@ class Recorder:
         self._events = 0
         self._cpu: dict[str, float] = {}
         self._acc_rate = (0.0, time.monotonic(), 0)  # (rate, t, samples at t)
+        self._acc_end = -math.inf  # device time just after the last acceleration sample handed to the writer
+        self._latches: list[float] = []  # device times of the taps the drive latched (tap events)
         self._device_now: float | None = None  # latest device time seen (drive state)
         self._recorded_until = -math.inf  # device time: blocks stamped before it are kept after recording ends
         self._overflow: list = []
@@ -163,6 +167,8 @@ class Recorder:
                             self._index_high = bool(high[-1])
                     elif isinstance(item, Event) and item.device_time is None:
                         item.device_time = self._device_now
+                    elif isinstance(item, Event) and item.kind == TAP_EVENT:
+                        self._latches.append(item.device_time)
                     if isinstance(item, Event) and item.kind == "malformed":
                         self._malformed += 1
                         if self._malformed > self.plan.max_malformed:
@@ -201,7 +207,10 @@ class Recorder:
         w = self.writer
         if isinstance(item, Block):
             broken = self._checks[item.stream].check(item.stream, item.sequence, len(item.samples))
-            events = [self._clip_check(item) if item.stream == ACCELERATION else None]
+            events = [None]
+            if item.stream == ACCELERATION:
+                events = [self._clip_check(item)]
+                self._acc_end = max(self._acc_end, item.device_time + len(item.samples) / item.sample_rate)
             if broken:
                 self._events += 1
                 events.append(Event(broken.kind, broken.note, device_time=item.device_time))
@@ -370,6 +379,14 @@ class Recorder:
             if s is None:
                 return
             prog.elapsed = s.device_time - start
+        # On a busy host the tap latches late after its command and the stream lags the drive's state:
+        # record until the accelerometer's samples reach as far past the last latch as the plan gives a
+        # tap (three quarters of an interval), so the last tap keeps its whole response (within a bound).
+        def covered(_: MotorState) -> bool:
+            return len(self._latches) >= p.taps and self._acc_end >= self._latches[-1] + 0.75 * p.tap_interval
+
+        if self._wait(_DRAIN_LIMIT, prog, until=covered) is None:
+            return
         self.stop("completed", "phase")
 
     def _run(self, prog: Progress) -> None:
