@@ -83,7 +83,7 @@ class CanEmulator:
         self._delayed: list[tuple[float, Callable[[], None]]] = []
         self._alive = 0
         self._ack = (0, 0)
-        self._off_until: float | None = None
+        self._bus_off_over = False
         self._bus_off_done = False
         self._silent = False
         self._garbage_sent = False
@@ -138,11 +138,18 @@ class CanEmulator:
 
     # ---- sending ------------------------------------------------------------------------------
 
-    def _off(self) -> bool:
-        return self._silent or self.device.frozen or (self._off_until is not None and time.monotonic() < self._off_until)
+    def _off(self, at: float | None = None) -> bool:
+        """Silent now, or off the bus at stream time ``at`` (default now: a block's is when it was sampled)."""
+        return self._silent or self.device.frozen or self._bus_off(self.device.stream_time() if at is None else at)
 
-    def _send(self, msg: can.Message, corruptible: bool = False) -> bool:
-        if self._off() or self.bus is None:
+    def _bus_off(self, st: float | None) -> bool:
+        """Whether stream time ``st`` lies in the bus-off span (device time: on a busy host the blocks
+        sampled then are lost however late the emulator gets to them)."""
+        f = self.config.faults
+        return f.bus_off_at is not None and st is not None and f.bus_off_at <= st < f.bus_off_at + f.bus_off_duration
+
+    def _send(self, msg: can.Message, corruptible: bool = False, at: float | None = None) -> bool:
+        if self._off(at) or self.bus is None:
             return False
         rate = self.config.faults.corrupt_rate
         if corruptible and rate and self._rng.random() < rate:
@@ -190,7 +197,7 @@ class CanEmulator:
             msg = cf.encoder_frame(block)
             wire = EncoderBlock(block.sequence, round(block.time * 1e9) / 1e9, block.sample_rate,
                                 block.counts, block.index)
-        if self._send(msg, corruptible=True):
+        if self._send(msg, corruptible=True, at=self.device.stream_time_of(block.time)):  # lost if sampled off the bus
             self.sent.append(wire)
 
     def _run(self) -> None:
@@ -232,9 +239,8 @@ class CanEmulator:
             self._bus_off_done = True
             self.bus.send(can.Message(arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True, data=bytes(8)))
             self.error_frames += 1
-            self._off_until = time.monotonic() + f.bus_off_duration
-        if self._off_until is not None and time.monotonic() >= self._off_until:
-            self._off_until = None
+        if self._bus_off_done and not self._bus_off_over and st >= f.bus_off_at + f.bus_off_duration:
+            self._bus_off_over = True
             self._event(FaultCode.BUS_OFF, self.device.clock(), round(f.bus_off_duration * 1000))
 
     # ---- raw DBC commands ---------------------------------------------------------------------

@@ -377,6 +377,10 @@ class BenchDevice:
         """Seconds since the first START_STREAM (fault times count from there), or None."""
         return None if self._first_stream is None else self.clock() - self._first_stream
 
+    def stream_time_of(self, t: float) -> float | None:
+        """Device time ``t`` (a block's) in seconds since the first START_STREAM, or None."""
+        return None if self._first_stream is None else t - self._first_stream
+
     def fault_due(self, after: float | None) -> bool:
         """Whether a fault set ``after`` s into streaming (None: never) is due now."""
         st = self.stream_time()

@@ -100,6 +100,24 @@ def test_bus_off_corruption_and_late_replies(testbed, channel):
     assert max(gaps) >= 0.25 * 10000 / 24  # ~0.3 s of blocks lost while off the bus
 
 
+def test_bus_off_loses_the_blocks_sampled_while_off_however_late_the_emulator_runs(testbed, channel):
+    """A starved emulator (one pass every 0.25 s, as on a loaded host) loses exactly the blocks
+    sampled in the 0.3 s off the bus, not those it got to during it: the gap is 0.3-0.6 s of the
+    stream, to a block."""
+    cfg = {"signal": "none", "faults": {"bus_off_at": "0.3 s", "bus_off_duration": "0.3 s"}}
+    with CanEmulator(testbed, channel, cfg, period=0.25) as emu:
+        bus = can.Bus(interface="virtual", channel=channel, fd=True)
+        start(bus)
+        msgs = collect(bus, 1.5)
+        bus.shutdown()
+    seqs = [v["Sequence"] for v in named(msgs, "AccelBlock")]
+    block = cf.ACCEL_PER_FRAME / emu.device.sample_rate  # s per block
+    gaps = [(a, b) for a, b in itertools.pairwise(seqs) if b - a > 1]
+    assert len(gaps) == 1, gaps
+    first_lost, next_kept = (gaps[0][0] + 1 - seqs[0]) * block, (gaps[0][1] - seqs[0]) * block
+    assert abs(first_lost - 0.3) <= block and abs(next_kept - 0.6) <= block, (first_lost, next_kept)
+
+
 def test_disconnect_goes_silent(testbed, channel):
     with CanEmulator(testbed, channel, {"signal": "none", "faults": {"disconnect_after": "0.3 s"}}):
         bus = can.Bus(interface="virtual", channel=channel, fd=True)
