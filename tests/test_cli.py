@@ -69,6 +69,7 @@ def test_bench_check_reports_degrees_of_freedom(capsys):
     assert "ok" in out and "4 degrees of freedom" in out
 
 
+@pytest.mark.slow
 def test_user_error_is_one_line_and_exit_2(tmp_path):
     broken = tmp_path / "broken.toml"
     broken.write_text(shipped_bench("ninebar").read_text().replace('length = "0.40 m"', 'length = "-0.4 m"', 1))

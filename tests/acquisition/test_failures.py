@@ -99,6 +99,7 @@ def test_sigint_finishes_the_file(bench, tmp_path):
     assert not (tmp_path / "sigint.mcap.ballast").exists()
 
 
+@pytest.mark.slow
 def test_sigkill_leaves_a_recoverable_file(bench, tmp_path):
     out = tmp_path / "killed.mcap"
     proc = _start_record(bench, tmp_path, out)

@@ -16,6 +16,8 @@ from html.parser import HTMLParser
 
 import pytest
 
+pytestmark = pytest.mark.slow  # builds the documentation first (CI runs it)
+
 HELP = {"-h", "--help"}
 OPTION = re.compile(r"(?<![\w-])(--?[A-Za-z0-9][\w-]*)")
 

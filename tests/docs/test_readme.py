@@ -26,7 +26,7 @@ def test_the_test_command_block_is_what_ci_runs():
     block = subprocess.run(["bash", "-c", ("sed -n '/<!-- test-command -->/,/<!-- \\/test-command -->/p' README.md "
                             "| sed -n '/^```/,/^```/p' | sed '1d;$d'")], cwd=ROOT, capture_output=True, text=True,
                            check=True).stdout.strip()
-    assert block == "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && .venv/bin/pytest"
+    assert block == "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && .venv/bin/pytest -n auto"
 
 
 def test_the_way_to_estimate_ones_own_session_is_on_the_readme():

@@ -157,6 +157,7 @@ def test_sharp_steps_neither_stall_nor_explode(bench):
     assert res.summary["steps"] < 20 * smooth.summary["steps"]
 
 
+@pytest.mark.slow
 def test_simulated_stage_conserves_archard_volume_and_wears_contact_zones(bench):
     plan = StagePlan.from_bench(bench, stages=1, min_updates=2)
     run = run_stages(bench, plan, clearances=CLEAR, speed=SPEED)

@@ -195,6 +195,7 @@ def test_trends_answer_from_the_interval_of_each_ratio():
     assert got["wear raises the peak slider acceleration, second wear more than first"] == "not resolved"
 
 
+@pytest.mark.slow
 def test_a_finding_with_no_effect_rarely_disagrees():
     """Every true ratio 1 (forces and accelerations spread 0.2 in log, depths 0.05): over 400 synthetic
     studies a finding disagrees in at most 2.5 % (+ sampling) of them, its 1 to 3 ratios' levels shared
@@ -299,6 +300,7 @@ def test_a_realisation_on_surfaces_in_memory_is_the_one_on_their_files(tmp_path)
     assert np.array_equal(a.acc, b.acc) and np.array_equal(a.t, a.table["t"].to_numpy())
 
 
+@pytest.mark.slow
 def test_replication_probability_is_calibrated_under_its_flat_prior():
     """Effects drawn from a wide flat prior, two runs of each: among first runs that predict a rerun
     "agrees" with probability p (binned), the second run agrees at rate p (a second method: the

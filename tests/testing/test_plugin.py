@@ -107,6 +107,7 @@ def test_pytest_fixtures_lists_the_plugins_fixtures_with_docstrings(tmp_path):
     assert "@pytest.mark.realtime(duration)" in markers
 
 
+@pytest.mark.slow
 def test_a_failing_test_leaves_nothing_behind(tmp_path):
     r, notes = _run_mini(tmp_path, "fails_on_purpose")
     assert r.returncode == 1 and "failing on purpose" in r.stdout, r.stdout
@@ -125,6 +126,7 @@ def _recording(notes: Path) -> bool:
     return session.exists() and session.stat().st_size > 100_000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("group", [False, True], ids=["sigint-to-pytest", "terminal-ctrl-c"])
 def test_ctrl_c_mid_session_leaves_a_finished_file_and_nothing_else(tmp_path, group):
     """Also a terminal's Ctrl-C, which reaches the emulator's process too (issue 46): it took it, died,

@@ -174,6 +174,7 @@ def _tie_cases():
     }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(_tie_cases()))
 def test_plain_call_matches_the_reference_implementation(case):
     x, y = _tie_cases()[case]

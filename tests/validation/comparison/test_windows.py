@@ -195,6 +195,7 @@ def test_null_is_calibrated_on_held_out_realisations(ensembles):
     assert np.ptp([w.percentile for w in got]) > 40
 
 
+@pytest.mark.slow
 def test_each_feature_statistic_can_decide_with_its_own_held_out_null(ensembles):
     """With any feature statistic as the verdict, fresh draws of the true state are consistent at
     about 1 - alpha and draws of the other state are not; the verdict reads that statistic's p-value,
@@ -220,6 +221,7 @@ def test_each_feature_statistic_can_decide_with_its_own_held_out_null(ensembles)
             score_windows(draws["soft"][0][0], bare, draws["soft"][0][1])
 
 
+@pytest.mark.slow
 def test_report_has_one_window_verdict_per_session_and_a_theory_with_impacts(assessed, tmp_path):
     report = write_assessment_report(assessed, tmp_path)
     scores = json.loads(report.scores_json.read_text())
@@ -245,6 +247,7 @@ def ensembles_peaks(a) -> np.ndarray:
     return a.bands.peaks_theory
 
 
+@pytest.mark.slow
 def test_calibration_is_computed_once_per_ensembles_content(ensembles, monkeypatch, tmp_path):
     """The costly part (fitted statistics, window nulls) comes from the result cache the second time,
     with the same verdicts; other ensembles are a miss."""
@@ -393,6 +396,7 @@ def test_likelihood_ratio_power_matches_the_closed_form_for_collinear_states():
     assert got["power_direction"] < got["power_lr_all"] < got["power_lr"] + 0.01
 
 
+@pytest.mark.slow
 def test_likelihood_ratio_power_matches_a_simulation_of_the_statistic(gaussian_states):
     """``separation``'s ``power_lr`` (multivariate normal integral) and ``power_lr_all`` (its own
     simulation) against windows drawn from the fitted Gaussians and judged by

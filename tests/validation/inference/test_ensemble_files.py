@@ -110,6 +110,7 @@ def test_a_candidate_surface_that_is_no_npz_fails_before_any_realisation(tmp_pat
     assert "candidate state 'worn', joint A" in err and "not an .npz archive" in err and "pickle" not in err
 
 
+@pytest.mark.slow
 def test_off_a_terminal_progress_is_lines_and_the_table_is_whole(session, tmp_path):
     """Issue 25, item 12: off a terminal identify was silent for minutes while it built ensembles
     and cut its verdict table to 80 columns ("undeci...")."""

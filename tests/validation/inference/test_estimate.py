@@ -150,6 +150,7 @@ def test_joint_posterior_figure_and_json(model, tmp_path):
     assert d["clearance"]["lo90"] <= d["clearance"]["median"] <= d["clearance"]["hi90"] and "posterior" not in d
 
 
+@pytest.mark.slow
 def test_track_recovers_a_wear_coefficient_1_3_times_the_files(model, tmp_path):
     """Lives of one bench each (clearance 0.4 mm, true coefficient 1.3x the file's; the five sessions
     share the bench's offset from the file, as a real bench's do) recorded at 0, 100k, ... 400k
@@ -260,6 +261,7 @@ def test_the_edge_note_fires_when_a_tenth_of_the_factor_lies_at_the_grids_edge(m
         assert any("reaches the edge" in note for note in t.notes) == fires, (factor, mass, t.notes)
 
 
+@pytest.mark.slow
 def test_the_wear_drift_is_measured_from_the_designs_shared_benches_and_enters_the_stacked_gaussian():
     """A design whose realisations keep their bench at every design point (as the real design's seeds
     do) and whose offset moves by a drawn d (sd 0.1, 0.2 in two halves of the features) from new to

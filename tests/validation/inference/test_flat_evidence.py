@@ -8,6 +8,7 @@ And ``track`` with a design of two cycles-run values (it ended in an IndexError)
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.inference.estimate import (
     PRIOR_ONLY,
@@ -52,6 +53,7 @@ def test_prior_distance_is_zero_for_the_prior_and_near_one_for_certainty():
     assert prior_distance(np.ones((81, 61))) < 1e-12
 
 
+@pytest.mark.slow
 def test_candidates_the_features_cannot_tell_apart_say_so():
     rng = np.random.default_rng(3)
     same = np.zeros(P)

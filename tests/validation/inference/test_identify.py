@@ -64,6 +64,7 @@ def ensemble(name: str, features: np.ndarray) -> Ensemble:
                     np.zeros((m, c)), 2 * np.pi)
 
 
+@pytest.mark.slow
 def test_a_state_between_the_candidates_is_caught_along_their_directions():
     """Wear stages on a line: A, B, C 5 standard deviations of a 20-cycle mean apart in a few features; B is not a candidate.
     In all 72 features B's sessions pass A's or C's test most of the time; along the directions
@@ -87,6 +88,7 @@ def test_a_state_between_the_candidates_is_caught_along_their_directions():
     assert np.mean(own) >= 0.9  # nominal 0.989 (p >= 0.001 and 0.01); the nulls are fitted on 32 realisations
 
 
+@pytest.mark.slow
 def test_pooled_covariances_calibrate_states_that_share_their_spread():
     """Four states with one (correlated) spread, as the wear states of one bench share its tolerances:
     the pooled fit needs less tempering than one covariance per state, and names more sessions."""

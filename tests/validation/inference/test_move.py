@@ -79,6 +79,7 @@ def test_a_planted_move_is_measured_to_its_standard_error_and_track_given_it_rec
         life_move(model, lives[:6], benches=[0, 1] * 3)
 
 
+@pytest.mark.slow
 def test_a_move_stored_beside_its_estimator_is_loaded_with_it_and_track_uses_it(model, tmp_path):
     m, lives = planted(model, np.random.default_rng(13))
     about = {"sensor_paths": ["default path"], "seeds": list(range(500, 512)), "factor": 1.3,
@@ -137,6 +138,7 @@ def test_a_move_measured_against_another_estimator_is_refused_naming_file_field_
                        move=Move(other.mean[:5], other.covariance[:5, :5], est.key, other.rows[:, :5]))
 
 
+@pytest.mark.slow
 def test_track_uses_the_stored_move_unless_told_not_to(model, sessions, tmp_path, capsys):
     """`wearbench track --estimator FILE` with FILE.move.npz beside it: the move is used and said (output,
     --json), --no-move leaves it out and says so; a move of another estimator stops track with its error.

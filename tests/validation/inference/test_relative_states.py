@@ -82,6 +82,7 @@ def test_calibrated_bench_is_named_right_where_the_uncalibrated_verdict_was_none
     assert named_cal >= 9  # measured 10 of 12 (the others undecided)
 
 
+@pytest.mark.slow
 def test_models_of_a_calibration_without_features_or_unpaired_ensembles_fall_back_to_its_path(ensembles):
     path = SensorPath.prior(SPEC)
     cal = Calibration("k" * 64, "b", "A", ("s",), 20, "", path, 0.5, "now")

@@ -24,6 +24,7 @@ def life(rng, clearance: float, factor: float = 1.3, runs=RUNS, offsets=None) ->
                           np.zeros(20)) for n in runs]
 
 
+@pytest.mark.slow
 def test_lives_of_one_bench_are_explained_at_the_tests_rate(model):
     """30 lives drawn from the model the estimator was fitted on: the joint test passes in all but a
     few (its level is 0.001; the p-values are not piled near zero)."""

@@ -115,6 +115,7 @@ def lives(model, runs, limit, n=6, seed=6):
     return out
 
 
+@pytest.mark.slow
 def test_a_life_past_the_limit_says_it_was_reached_with_its_probability(model, tmp_path):
     from wearbench.reports.track import track_figure
 
@@ -132,6 +133,7 @@ def test_a_life_past_the_limit_says_it_was_reached_with_its_probability(model, t
     assert track_figure(tracks[0], tmp_path / "life.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_a_life_before_the_limit_gets_a_finite_interval_of_the_cycles_that_remain(model, tmp_path):
     from wearbench.reports.track import design_end, track_figure
 

@@ -56,6 +56,7 @@ def life(n_runs, eta):
     return [CycleFeatures(SPEC, np.repeat(true_mean(0.4e-3, eta * n)[None], 20, axis=0), np.zeros(20)) for n in n_runs]
 
 
+@pytest.mark.slow
 def test_a_planted_rate_error_is_covered_with_the_rate_spread_and_missed_without_it(model):
     """Lives worn at the file's rate (factor 1.0) whose features run 0.7 or 1.4 times as fast: without
     the spread the factor's 90 % interval sits on the features' rate and misses 1.0; with a spread of
@@ -94,6 +95,7 @@ def planted_rate(c: float) -> float:
     return float(np.exp(np.log(0.5) * (c - 0.30e-3) / 0.25e-3))
 
 
+@pytest.mark.slow
 def test_a_planted_clearance_dependent_rate_is_measured_and_covers_the_factor_where_a_constant_spread_misses(model):
     """life_rate on 16 lives whose features' rate falls from 1x at 0.30 mm to 0.5x at 0.55 mm finds a
     rate near 1x at the low end and well below it at the high end; with it stored on the move, a new
