@@ -68,9 +68,10 @@ def _git(*args: str) -> str | None:
 
 
 def code_version() -> dict[str, Any]:
-    """The installed wearbench's version, the checkout's commit, and whether tracked files had changes."""
+    """The installed wearbench's version, the checkout's commit, and whether tracked files had changes
+    (other results under ``docs/results/data/`` do not count: a run that writes several is still clean)."""
     commit = _git("rev-parse", "HEAD")
-    status = _git("status", "--porcelain", "--untracked-files=no") if commit else None
+    status = _git("status", "--porcelain", "--untracked-files=no", "--", ".", ":!docs/results/data") if commit else None
     return {"wearbench": version("wearbench"), "commit": commit, "dirty": None if status is None else bool(status)}
 
 
