@@ -71,13 +71,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def demo_estimator(bench):
     """The test bed's shipped estimator when its key matches, else ``EstimatorDesign.small()`` (cached)."""
-    from wearbench.validation.inference import artefacts
-    from wearbench.validation.inference.estimate import (
+    from wearbench.validation.estimation.estimate import (
         EstimatorDesign,
         build_estimator,
         estimator_key,
         load_estimator,
     )
+    from wearbench.validation.inference import artefacts
 
     shipped = artefacts.shipped_path("estimator", bench.name)
     if shipped.exists():
@@ -94,8 +94,8 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.reports.assessment import write_assessment_report
     from wearbench.validation import load_session
+    from wearbench.validation.estimation.estimate import save_estimator
     from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
-    from wearbench.validation.inference.estimate import save_estimator
     from wearbench.validation.workflows.assess import assess_sessions
     from wearbench.validation.workflows.measure import estimate_assessed
 
@@ -204,7 +204,7 @@ def summary_text(truths, assessed) -> str:
 def estimate_text(truths, assessed) -> str:
     """Per session: its true state, the estimate's medians and 90 % intervals of clearance, cycles run
     and wear depth, and whether a parameter value explains it, beside the identification's verdict."""
-    from wearbench.validation.inference.estimate import fmt_kcycles, fmt_mm, fmt_um
+    from wearbench.validation.estimation.estimate import fmt_kcycles, fmt_mm, fmt_um
     from wearbench.validation.workflows.measure import named_outside
 
     rows = [("true bench", "identified", "clearance mm [90 %]", "cycles run [90 %]", "wear depth um [90 %]",

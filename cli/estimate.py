@@ -15,7 +15,7 @@ from wearbench.cli.estimator import add_design_arguments, design_from_args
 from wearbench.cli.options import add_force_argument
 
 if TYPE_CHECKING:
-    from wearbench.validation.inference.estimate import Interval
+    from wearbench.validation.estimation.estimate import Interval
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from wearbench.bench.output_file import check_output, output_file, output_folder
-    from wearbench.validation.inference.estimate import fmt_mm, fmt_um
+    from wearbench.validation.estimation.estimate import fmt_mm, fmt_um
     from wearbench.validation.workflows.measure import estimate_sessions
 
     for option, path, folder in (("--json", args.json, False), ("--out", args.out, True)):

@@ -31,7 +31,7 @@ def add_design_arguments(p: argparse.ArgumentParser) -> None:
 def design_from_args(args: argparse.Namespace):
     """The design a command asks for (``estimate.DesignRequest``; resolved for each bench and speed),
     its sizes checked before anything is built (one ValueError naming the option)."""
-    from wearbench.validation.inference.estimate import DesignRequest
+    from wearbench.validation.estimation.estimate import DesignRequest
 
     if args.realisations is not None and args.realisations < 3:
         raise ValueError(f"--realisations {args.realisations}: expected at least 3 realisations per design point "
@@ -43,7 +43,7 @@ def design_from_args(args: argparse.Namespace):
                                ensemble_cycles=args.ensemble_cycles, small=args.small)
 
 
-MIN_LIVES = 3  # inference.move.life_move: the move's mean and covariance over at least three benches
+MIN_LIVES = 3  # estimation.move.life_move: the move's mean and covariance over at least three benches
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -81,14 +81,14 @@ def run(args: argparse.Namespace) -> int:
 
     from wearbench.bench.load import load_bench, resolve_bench
     from wearbench.bench.output_file import check_output, output_file
-    from wearbench.validation.inference import artefacts
-    from wearbench.validation.inference.estimate import (
+    from wearbench.validation.estimation.estimate import (
         build_estimator,
         estimator_key,
         load_estimator,
         save_estimator,
     )
-    from wearbench.validation.inference.move import move_path, save_move
+    from wearbench.validation.estimation.move import move_path, save_move
+    from wearbench.validation.inference import artefacts
 
     bench = load_bench(resolve_bench(args.bench))
     design = design_from_args(args).resolve(bench)  # every value checked against the bench before any work

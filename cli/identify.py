@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.bench.output_file import check_output, output_file, output_folder
     from wearbench.cli.progress import console as progress_console
     from wearbench.reports.assessment import write_assessment_report
-    from wearbench.validation.inference.estimate import DesignRequest, Estimator, load_estimator
+    from wearbench.validation.estimation.estimate import DesignRequest, Estimator, load_estimator
     from wearbench.validation.inference.identify import IdentifyOptions
     from wearbench.validation.workflows.assess import assess_sessions
     from wearbench.validation.workflows.measure import estimate_assessed

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
-from wearbench.validation.inference.estimate import Estimate, EstimatorModel
+from wearbench.validation.estimation.estimate import Estimate, EstimatorModel
 
 __all__ = ["posterior_figure", "predictive_figure"]
 

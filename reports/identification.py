@@ -18,7 +18,7 @@ from wearbench.reports.windows import NOTES as WINDOW_NOTES
 from wearbench.reports.windows import window_section
 from wearbench.validation.comparison.bands import BandComparison
 from wearbench.validation.comparison.windows import SessionWindows
-from wearbench.validation.inference.estimate import Estimate
+from wearbench.validation.estimation.estimate import Estimate
 from wearbench.validation.inference.identify import Identification
 
 __all__ = ["IdentifiedSession", "identification_section"]

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from wearbench.validation.inference.track import Track
+from wearbench.validation.estimation.track import Track
 
 __all__ = ["design_end", "track_figure"]
 

@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 from wearbench.bench.schema import Bench
 from wearbench.compute.options import DEFAULT, Compute
-from wearbench.validation.inference.estimate import Estimator, EstimatorDesign
+from wearbench.validation.estimation.estimate import Estimator, EstimatorDesign
 from wearbench.validation.measurement.features import FeatureSpec
 
 __all__ = ["life_cost", "life_features", "life_means", "life_plan", "life_revolutions", "measure_move", "move_with_rate",
@@ -115,7 +115,7 @@ def life_revolutions(cycles: int, stages: int = 5) -> float:
     """Motor revolutions one life of :func:`life_features` simulates, about: its wear run
     (``estimate.wear_revolutions``) and a session of ``cycles`` (and its settling) at 0 and after every
     stage but the last."""
-    from wearbench.validation.inference.estimate import wear_revolutions
+    from wearbench.validation.estimation.estimate import wear_revolutions
 
     return wear_revolutions(stages) + stages * (cycles + 1.0 + 2.0)
 
@@ -158,8 +158,8 @@ def move_with_rate(model, lives, about: dict, *, cycles: int, benches=None):
     """The move from new to worn measured on ``lives`` (``track_move.life_move``: (session means,
     cycles run, clearance, factor) each) with the features' rate along the same lives against
     clearance (``track.life_rate``; sessions of ``cycles`` cycles)."""
-    from wearbench.validation.inference.move import life_move
-    from wearbench.validation.inference.track import life_rate
+    from wearbench.validation.estimation.move import life_move
+    from wearbench.validation.estimation.track import life_rate
 
     move = life_move(model, lives, about, benches=benches)
     return replace(move, rate=life_rate(model, lives, move, cycles=cycles))
@@ -176,7 +176,7 @@ def measure_move(bench: Bench, est: Estimator, *, lives: int = 20, factor: float
     from wearbench.bench.content import bench_key, canonical
     from wearbench.compute import Task, TaskFailure, task_key
     from wearbench.hardware.emulators.config import EmulatorConfig
-    from wearbench.validation.inference.estimate import fit_estimator
+    from wearbench.validation.estimation.estimate import fit_estimator
 
     if lives < 3:
         raise ValueError(f"lives = {lives}: expected at least 3 (the move's mean and its error need three independent "

@@ -47,8 +47,8 @@ ALLOWED: dict[str, set[str]] = {
     "cli": set(LIBRARY) | {"testing", "api"},
     "benchmarks": set(LIBRARY) | {"testing", "api"},  # scripts beside the program: not the program itself
 }
-# inside validation, the job groups point down too: measurement < inference < comparison < workflows
-VALIDATION_FLOORS = ("measurement", "inference", "comparison", "workflows")
+# inside validation, the job groups point down too: measurement < inference < estimation < comparison < workflows
+VALIDATION_FLOORS = ("measurement", "inference", "estimation", "comparison", "workflows")
 # the one sanctioned exception: the simulated device of the sim backend runs in-process
 EXCEPTIONS: dict[str, set[str]] = {"wearbench.acquisition.backends.sim": {"hardware.emulators"}}
 
@@ -289,8 +289,8 @@ def test_the_check_catches_a_program_launch(source, launches):
      ["wearbench.validation.measurement.tap_test -> wearbench.validation.workflows.assess"]),
     ("wearbench.validation.workflows.assess", "from wearbench.validation.measurement.session import load_session\n",
      []),
-    ("wearbench.validation.inference.track", "def f():\n    from wearbench.reports.track import track_figure\n",
-     ["wearbench.validation.inference.track -> wearbench.reports.track"]),
+    ("wearbench.validation.estimation.track", "def f():\n    from wearbench.reports.track import track_figure\n",
+     ["wearbench.validation.estimation.track -> wearbench.reports.track"]),
     ("wearbench.bench.load", "import wearbench.model.kernel\n", ["wearbench.bench.load -> wearbench.model.kernel"]),
     ("wearbench.acquisition.recorder", "from wearbench.hardware.emulators import device\n",
      ["wearbench.acquisition.recorder -> wearbench.hardware.emulators.device"]),
@@ -452,16 +452,16 @@ def test_processes_start_only_where_listed():
 
 
 @pytest.mark.parametrize("module, source, expected", [
-    ("wearbench.validation.inference.track", "from wearbench.validation.inference.estimate import _interval\n",
-     ["wearbench.validation.inference.track -> wearbench.validation.inference.estimate._interval"]),
+    ("wearbench.validation.estimation.track", "from wearbench.validation.estimation.estimate import _interval\n",
+     ["wearbench.validation.estimation.track -> wearbench.validation.estimation.estimate._interval"]),
     ("benchmarks.profile", "import wearbench.model.kernel as K\nK._schur(1)\n",
      ["benchmarks.profile -> wearbench.model.kernel._schur"]),
     ("benchmarks.acquisition.live_view", "from benchmarks.acquisition.record_throughput import _metered\n",
      ["benchmarks.acquisition.live_view -> benchmarks.acquisition.record_throughput._metered"]),
-    ("wearbench.validation.inference.track", "from wearbench.validation.inference import estimate\nestimate._x\n",
-     ["wearbench.validation.inference.track -> wearbench.validation.inference.estimate._x"]),
-    ("wearbench.validation.inference.track", "from wearbench.validation.inference.estimate import Interval\n", []),
-    ("wearbench.validation.inference.track", "def _own():\n    pass\n_own()\nx.__class__\n", []),
+    ("wearbench.validation.estimation.track", "from wearbench.validation.estimation import estimate\nestimate._x\n",
+     ["wearbench.validation.estimation.track -> wearbench.validation.estimation.estimate._x"]),
+    ("wearbench.validation.estimation.track", "from wearbench.validation.estimation.estimate import Interval\n", []),
+    ("wearbench.validation.estimation.track", "def _own():\n    pass\n_own()\nx.__class__\n", []),
 ])
 def test_the_check_catches_a_private_name_crossing(module, source, expected):
     _, known = _sources()

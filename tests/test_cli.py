@@ -50,12 +50,12 @@ def test_estimator_defaults_are_the_shipped_estimator():
     ninebar-testbed --ship --force`, then its move, README "How large ...")."""
     from wearbench.bench.load import load_bench
     from wearbench.cli.estimator import design_from_args
-    from wearbench.validation.inference.artefacts import shipped_path
-    from wearbench.validation.inference.estimate import (
+    from wearbench.validation.estimation.estimate import (
         EstimatorDesign,
         estimator_key,
         load_estimator,
     )
+    from wearbench.validation.inference.artefacts import shipped_path
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     assert design_from_args(build_parser().parse_args(["estimator", "b.toml"])).resolve(bench) == EstimatorDesign()

@@ -193,10 +193,10 @@ def recorded(tmp_path_factory):
 def synthetic():
     """A small fitted estimator on synthetic design features (``validation/test_estimate.py``), an
     estimate of one session and a track of two: real results to write, in a second."""
-    from wearbench.validation.inference.estimate import Estimator, estimate_features, fit_estimator
-    from wearbench.validation.inference.track import track_features
+    from wearbench.validation.estimation.estimate import Estimator, estimate_features, fit_estimator
+    from wearbench.validation.estimation.track import track_features
 
-    from .validation.inference.test_estimate import DESIGN, OPTIONS, draw, session, true_mean
+    from .validation.estimation.test_estimate import DESIGN, OPTIONS, draw, session, true_mean
 
     rng = np.random.default_rng(0)
     feats = np.stack([np.stack([draw(rng, true_mean(c, n), 16, 8) for n in DESIGN.cycles])
@@ -331,7 +331,7 @@ def test_estimate_and_track_keep_the_old_files_until_the_new_ones_are_complete(r
 
 def test_estimator_replaces_its_file_only_with_force_and_only_complete(synthetic, tmp_path, monkeypatch, capsys):
     """`estimator` had its own --replace: now the one --force, and a failure while saving keeps the old file."""
-    from wearbench.validation.inference import estimate
+    from wearbench.validation.estimation import estimate
 
     est = synthetic[0]
     out = tmp_path / "bed-estimator.npz"

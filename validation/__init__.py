@@ -1,9 +1,9 @@
 """wearbench.validation: measured sessions against theory: scores, identification, estimates.
 
 Cut by job, each group a subpackage on its own floor: ``measurement`` (a session and its cycle
-features), ``inference`` (ensembles, identification, calibration, the estimator, tracking),
-``comparison`` (window scores and verdicts against theory), ``workflows`` (sessions in, answers
-out). Figures and HTML live above it, in :mod:`wearbench.reports`. The names below load with their
+features), ``inference`` (ensembles, identification, calibration), ``estimation`` (the estimator,
+the move from new to worn, tracking), ``comparison`` (window scores and verdicts against theory),
+``workflows`` (sessions in, answers out). Figures and HTML live above it, in :mod:`wearbench.reports`. The names below load with their
 module on first use; a lab's code uses :mod:`wearbench` itself.
 """
 

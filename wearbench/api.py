@@ -18,8 +18,8 @@ from wearbench.compute.options import Compute
 
 if TYPE_CHECKING:
     from wearbench.validation.comparison.compare import CompareOptions
+    from wearbench.validation.estimation.estimate import Estimator, EstimatorDesign
     from wearbench.validation.inference.ensemble import EnsembleSettings
-    from wearbench.validation.inference.estimate import Estimator, EstimatorDesign
 
 __all__ = ["Results", "calibrate", "compare", "estimate", "identify", "load_bench", "record", "simulate", "track",
            "write_report"]
@@ -95,7 +95,7 @@ def identify(sessions: Sessions, *, candidates: str | Path | Sequence[WearState]
     mapping), else built on ``compute`` with ``settings`` (default: each bench's own at its sessions'
     speed, ``EnsembleSettings.for_bench``; the shipped ones when they fit), every batch announced with
     its CPU time first. See the docs' "How identification works"."""
-    from wearbench.validation.inference.estimate import EstimatorDesign, load_estimator
+    from wearbench.validation.estimation.estimate import EstimatorDesign, load_estimator
     from wearbench.validation.inference.identify import IdentifyOptions
     from wearbench.validation.workflows.assess import assess_sessions
     from wearbench.validation.workflows.measure import estimate_assessed

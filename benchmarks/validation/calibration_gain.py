@@ -56,8 +56,8 @@ def main() -> None:
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.model.surfaces import JointSurfaces
     from wearbench.synthetic.lives import truth_features
+    from wearbench.validation.estimation.estimate import EstimatorDesign, build_estimator
     from wearbench.validation.inference.ensemble import build_ensembles
-    from wearbench.validation.inference.estimate import EstimatorDesign, build_estimator
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     states = {s.name: s for s in bench.states}
@@ -100,8 +100,8 @@ def judge(bench, ensembles, est, done, seeds, paths, life, cycles_run, cycles) -
     the bench's first session): one row each."""
     from dataclasses import replace
 
+    from wearbench.validation.estimation.estimate import estimate_features, fit_estimator
     from wearbench.validation.inference.calibration import fit_calibration
-    from wearbench.validation.inference.estimate import estimate_features, fit_estimator
     from wearbench.validation.inference.identify import (
         IdentifyOptions,
         fit_states,

@@ -123,8 +123,8 @@ def main() -> None:
     from wearbench.bench.load import load_bench, shipped_bench
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.compute.task_cache import MISSING, cache_load
-    from wearbench.validation.inference.estimate import EstimatorDesign, build_estimator
-    from wearbench.validation.inference.move import load_move, stored_move
+    from wearbench.validation.estimation.estimate import EstimatorDesign, build_estimator
+    from wearbench.validation.estimation.move import load_move, stored_move
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     designs = [EstimatorDesign.small()] if args.small else [EstimatorDesign.parse(
@@ -225,7 +225,7 @@ def main() -> None:
 def report_truths(est, t_build: float, ok, failed, t_truth: float, args):
     """Fit ``est`` and print its calibration on the truths ``ok`` ((c, n, seed), result) at 5, 10 and
     --cycles cycles: coverage, ranks, widths, clearance errors, the --at truths; returns the model."""
-    from wearbench.validation.inference.estimate import estimate_features, fit_estimator
+    from wearbench.validation.estimation.estimate import estimate_features, fit_estimator
     from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
     design, n_max = est.design, est.design.cycles[-1]
@@ -326,7 +326,7 @@ def report_states(model, state_truths, done, args) -> dict:
     truth, the medians of the estimate and how many 90 % intervals hold it; one row for all."""
     from wearbench.compute import TaskFailure
     from wearbench.model.surfaces import JointSurfaces
-    from wearbench.validation.inference.estimate import estimate_features
+    from wearbench.validation.estimation.estimate import estimate_features
     from wearbench.validation.measurement.features import CycleFeatures
 
     per_state: dict[str, list] = {}
@@ -416,7 +416,7 @@ def recording(model, clearances, at: float) -> None:
     and the wear coefficient scales them all), against the cycles per session; tempered as the posterior is. 'expected exclusion' as in
     :func:`information`."""
     from scipy import linalg, stats
-    from wearbench.validation.inference.track import session_covariances, wear_drift
+    from wearbench.validation.estimation.track import session_covariances, wear_drift
 
     st = model.stats[model.reference]
     drift = wear_drift(model)
@@ -453,9 +453,9 @@ def store_move(bench, model, lives, life_key, args) -> None:
     from scipy import stats
     from wearbench.compute import Task, TaskFailure, run_tasks
     from wearbench.compute.task_cache import MISSING, cache_load
-    from wearbench.validation.inference.move import life_move, save_move
+    from wearbench.validation.estimation.move import life_move, save_move
+    from wearbench.validation.estimation.track import session_covariances, wear_drift
     from wearbench.validation.inference.statistics import shrunk_covariance
-    from wearbench.validation.inference.track import session_covariances, wear_drift
 
     every = [k * args.life_step for k in range(5)]
     kinds = {"default": False, "drawn": True}
@@ -525,8 +525,8 @@ def report_lives(bench, model, lives, runs, args, seconds: float, stored=None) -
     with the ``stored`` move (track's default; said whether it was measured on these lives), and with
     it but without the features' rate spread (``track_features(rate_spread=0)``, track before it)."""
     from wearbench.compute import TaskFailure
-    from wearbench.validation.inference.move import life_move
-    from wearbench.validation.inference.track import RATE_SPREAD, depth_curve, track_features
+    from wearbench.validation.estimation.move import life_move
+    from wearbench.validation.estimation.track import RATE_SPREAD, depth_curve, track_features
     from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
     n_curve, d_curve = depth_curve(model)
@@ -608,7 +608,7 @@ def change_from_new(model, lives) -> tuple[np.ndarray, np.ndarray]:
     the new one's, and the estimator's mean change to the same effective cycles, both projected on the
     estimator's change from new to its last cycles run at the life's clearance (weighted by the inverse
     of one 20-cycle session's covariance, drift included): (lives, worn sessions) each."""
-    from wearbench.validation.inference.track import session_covariances, wear_drift
+    from wearbench.validation.estimation.track import session_covariances, wear_drift
 
     shared, own = session_covariances(model)
     weight = np.linalg.inv(shared + model.stats[model.reference].within / 20 + own + wear_drift(model))

@@ -122,6 +122,7 @@ def test_mutated_streams_resynchronise(specs, data):
     frames = [Frame(t, s, p) for t, s, p in specs]
     encoded = [encode_frame(f.type, f.sequence, f.payload) for f in frames]
     hit = data.draw(st.sets(st.integers(0, len(frames) - 1)))
+    tails = {}  # truncated frame -> the bytes cut off its end
     for i in hit:  # flip a byte, truncate, or duplicate a slice inside frame i
         b = bytearray(encoded[i])
         kind = data.draw(st.sampled_from(["flip", "truncate", "insert"]))
@@ -129,13 +130,17 @@ def test_mutated_streams_resynchronise(specs, data):
         if kind == "flip":
             b[pos] ^= data.draw(st.integers(1, 255))
         elif kind == "truncate":
+            tails[i] = bytes(b[pos:])
             del b[pos:]
         else:
             b[pos:pos] = data.draw(st.binary(min_size=1, max_size=20))
         encoded[i] = bytes(b)
     parser = FrameParser()
     got = parser.feed(b"".join(encoded)) + parser.flush()
-    intact = [f for i, f in enumerate(frames) if i not in hit]
+    # A cut whose lost tail equals the bytes that follow it leaves a stream no parser can tell from the
+    # frame whole and the next one missing its head (hypothesis found it: a CRC byte equal to SYNC[0]).
+    swallowed = {i + 1 for i, tail in tails.items() if b"".join(encoded[i + 1:]).startswith(tail)}
+    intact = [f for i, f in enumerate(frames) if i not in hit and i not in swallowed]
     it = iter(got)
     assert all(any(g == f for g in it) for f in intact)
     if any(encoded[i] for i in hit):  # a damaged frame is noticed, not delivered
@@ -213,3 +218,14 @@ def test_eds_loads_as_a_cia402_drive():
     assert [v.index for v in node.rpdo[1].map] == [0x6040, 0x60FF]
     assert [v.index for v in node.tpdo[1].map] == [0x6041, 0x606C]
     assert [v.index for v in node.tpdo[2].map] == [0x6064, 0x603F, 0x6061]
+
+
+def test_a_cut_whose_lost_tail_equals_what_follows_reads_as_the_frame_whole():
+    """Frame (100, 12663, b'-') ends in 0xA5, the first sync byte: cut that byte off and the next
+    frame's sync completes it. The stream is the frame whole and a next frame without its head, and
+    the parser reads it so (the case the mutation test excuses)."""
+    first, second = encode_frame(100, 12663, b"-"), encode_frame(0, 0, b"")
+    assert first[-1:] == second[:1]
+    parser = FrameParser()
+    assert parser.feed(first[:-1] + second) + parser.flush() == [Frame(100, 12663, b"-")]
+    assert parser.stats.bytes_skipped == len(second) - 1

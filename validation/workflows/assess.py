@@ -27,13 +27,13 @@ from wearbench.validation.comparison.windows import (
     score_windows,
     window_theory,
 )
+from wearbench.validation.estimation.estimate import Estimate
 from wearbench.validation.inference.calibration import Calibration
 from wearbench.validation.inference.ensemble import (
     Ensemble,
     EnsembleSettings,
     EnsembleSize,
 )
-from wearbench.validation.inference.estimate import Estimate
 from wearbench.validation.inference.identify import (
     Identification,
     IdentifyOptions,

@@ -13,14 +13,7 @@ from pathlib import Path
 from wearbench.bench.content import bench_key
 from wearbench.bench.schema import WearState
 from wearbench.compute.options import Compute
-from wearbench.validation.inference.calibration import Calibration, calibration_key, fit_calibration
-from wearbench.validation.inference.ensemble import (
-    Ensemble,
-    EnsembleSettings,
-    EnsembleSize,
-    resolve_settings,
-)
-from wearbench.validation.inference.estimate import (
+from wearbench.validation.estimation.estimate import (
     DesignRequest,
     Estimate,
     Estimator,
@@ -30,9 +23,16 @@ from wearbench.validation.inference.estimate import (
     fit_estimator,
     fmt_mm,
 )
+from wearbench.validation.estimation.move import Move, stored_move
+from wearbench.validation.estimation.track import Track, track_features
+from wearbench.validation.inference.calibration import Calibration, calibration_key, fit_calibration
+from wearbench.validation.inference.ensemble import (
+    Ensemble,
+    EnsembleSettings,
+    EnsembleSize,
+    resolve_settings,
+)
 from wearbench.validation.inference.identify import IdentifyOptions, fit_states, identify_features
-from wearbench.validation.inference.move import Move, stored_move
-from wearbench.validation.inference.track import Track, track_features
 from wearbench.validation.measurement.scaling import resolve_analysis
 from wearbench.validation.measurement.session import MeasuredSession
 from wearbench.validation.workflows.assess import Assessment
@@ -121,7 +121,7 @@ def estimate_sessions(sessions: Sessions, *, design: EstimatorDesign | DesignReq
     if estimator is None:
         sessions.require_benches("the estimator needs its bench")
     elif not isinstance(estimator, Estimator):
-        from wearbench.validation.inference.estimate import load_estimator
+        from wearbench.validation.estimation.estimate import load_estimator
 
         estimator = load_estimator(estimator)
     sessions.check_artefacts(estimator=estimator, design=design, theory=("estimator",))
@@ -242,7 +242,7 @@ def track_sessions(sessions: Sessions, cycles_run: Sequence[float] | None = None
     cycles_run, differ = _cycles_run(sessions.sessions, cycles_run)
     check_life_order(sessions.sessions, cycles_run)
     if estimator is not None and not isinstance(estimator, Estimator):
-        from wearbench.validation.inference.estimate import load_estimator
+        from wearbench.validation.estimation.estimate import load_estimator
 
         estimator = load_estimator(estimator)
     sessions.check_artefacts(estimator=estimator, design=design, theory=("estimator",))

@@ -21,6 +21,14 @@ from wearbench.bench.content import file_digest
 from wearbench.bench.load import load_states
 from wearbench.bench.schema import Bench, WearState
 from wearbench.compute.options import Compute
+from wearbench.validation.estimation.estimate import (
+    DesignRequest,
+    Estimator,
+    EstimatorDesign,
+    build_estimator,
+    load_estimator,
+    resolve_design,
+)
 from wearbench.validation.inference.artefacts import ArtefactError
 from wearbench.validation.inference.calibration import (
     Calibration,
@@ -35,14 +43,6 @@ from wearbench.validation.inference.ensemble import (
     check_ensembles_fit,
     load_ensembles,
     resolve_settings,
-)
-from wearbench.validation.inference.estimate import (
-    DesignRequest,
-    Estimator,
-    EstimatorDesign,
-    build_estimator,
-    load_estimator,
-    resolve_design,
 )
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 from wearbench.validation.measurement.session import MeasuredSession, load_session

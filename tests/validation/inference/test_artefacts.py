@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
+from wearbench.validation.estimation.estimate import load_estimator, save_estimator
 from wearbench.validation.inference import artefacts
 from wearbench.validation.inference.ensemble import load_ensembles
-from wearbench.validation.inference.estimate import load_estimator, save_estimator
 
 BENCH = load_bench(shipped_bench("ninebar-testbed"))
 SHIPPED_ENSEMBLES = artefacts.shipped_path("ensembles", BENCH.name)
@@ -73,9 +73,9 @@ def test_ship_refuses_in_an_installed_package_and_over_a_shipped_file_without_fo
 
 
 def test_a_hand_made_estimator_names_no_bench_and_reads_back(tmp_path):
-    from wearbench.validation.inference.estimate import Estimator
+    from wearbench.validation.estimation.estimate import Estimator
 
-    from .test_estimate import DESIGN
+    from ..estimation.test_estimate import DESIGN
 
     est = Estimator("synthetic", "k", DESIGN, np.zeros((5, 4, 3, 2, 4)), np.zeros((5, 4)), 2 * np.pi)
     back = load_estimator(save_estimator(est, tmp_path / "e.npz"))

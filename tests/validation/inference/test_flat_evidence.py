@@ -9,14 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
-from wearbench.validation.inference.estimate import (
+from wearbench.validation.estimation.estimate import (
     PRIOR_ONLY,
     Estimator,
     EstimatorDesign,
     estimate_features,
     fit_estimator,
 )
+from wearbench.validation.estimation.track import track_features
+from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.inference.identify import (
     FLAT,
     INDISTINCT,
@@ -24,7 +25,6 @@ from wearbench.validation.inference.identify import (
     identify_features,
     prior_distance,
 )
-from wearbench.validation.inference.track import track_features
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
 SPEC = FeatureSpec()

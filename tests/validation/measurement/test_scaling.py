@@ -14,8 +14,8 @@ from wearbench.bench.content import bench_key
 from wearbench.bench.load import load_bench, parse_bench, shipped_bench
 from wearbench.bench.schema import BenchError
 from wearbench.validation.comparison.windows import WindowOptions, window_theory
+from wearbench.validation.estimation.estimate import EstimatorDesign
 from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
-from wearbench.validation.inference.estimate import EstimatorDesign
 from wearbench.validation.inference.sensor_path import PathSpread, SensorPath
 from wearbench.validation.measurement.features import FeatureSpec
 from wearbench.validation.measurement.scaling import resolve_analysis

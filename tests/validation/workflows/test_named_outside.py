@@ -3,7 +3,7 @@
 from types import SimpleNamespace
 
 from wearbench.bench.load import load_bench, shipped_bench
-from wearbench.validation.inference.estimate import Interval
+from wearbench.validation.estimation.estimate import Interval
 from wearbench.validation.workflows.measure import named_outside
 
 

@@ -45,8 +45,8 @@ def test_record_stores_the_cycles_run_and_track_reads_them(sessions, tmp_path, m
         about = None
 
     def fake_track(features, cycles_run, model, **kw):
-        from wearbench.validation.inference.estimate import Interval
-        from wearbench.validation.inference.track import Track
+        from wearbench.validation.estimation.estimate import Interval
+        from wearbench.validation.estimation.track import Track
 
         seen.append(list(cycles_run))
         i = Interval(1.0, 1.0, 1.0, 1.0, 1.0)

@@ -51,7 +51,7 @@ the drift's shape (linear up to 200k: 0.20), not an emulator error along the tra
 the same truths gave 0.80 (median 1.13). The design's mean move is the mean of its M benches' moves,
 so it carries an error common to every bench the estimator judges (covariance about ``D / M``); with
 five sessions the slope across them tells the factor despite it, with two or three it does not.
-:func:`~wearbench.validation.inference.move.life_move` measures that error on lives of known truth, and
+:func:`~wearbench.validation.estimation.move.life_move` measures that error on lives of known truth, and
 ``track_features(move=...)`` carries its mean and its standard error (see ``benchmarks/validation/estimate.py``:
 lives scored with a move measured on other lives). The move is stored beside the estimator it was
 measured against (``track_move.py``) and ``track`` uses it by default.
@@ -101,8 +101,8 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 import pandas as pd
 from scipy import linalg, special, stats
-from wearbench.validation.inference.estimate import EstimatorModel, Interval
-from wearbench.validation.inference.move import Move, Rate
+from wearbench.validation.estimation.estimate import EstimatorModel, Interval
+from wearbench.validation.estimation.move import Move, Rate
 from wearbench.validation.inference.statistics import nearest_psd, shrunk_covariance
 from wearbench.validation.measurement.features import CycleFeatures
 

@@ -10,8 +10,7 @@ import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.bench.schema import WearState
 from wearbench.compute.options import SERIAL
-from wearbench.validation.inference.ensemble import EnsembleSettings
-from wearbench.validation.inference.estimate import (
+from wearbench.validation.estimation.estimate import (
     NO_VALUE,
     EstimatorDesign,
     build_estimator,
@@ -19,6 +18,7 @@ from wearbench.validation.inference.estimate import (
     estimator_key,
     fit_estimator,
 )
+from wearbench.validation.inference.ensemble import EnsembleSettings
 from wearbench.validation.measurement.features import cycle_features
 
 pytestmark = pytest.mark.slow
@@ -86,7 +86,8 @@ def test_a_larger_design_simulates_only_the_realisations_a_shipped_smaller_one_l
     """Realisation i is seed + i at every size: DESIGN grown from a shipped estimator of its first 3
     realisations simulates seeds 4-6 only and equals DESIGN built whole, bit for bit; a shipped one
     of another first seed gives nothing (all 6 simulated)."""
-    from wearbench.validation.inference import artefacts, estimate
+    from wearbench.validation.estimation import estimate
+    from wearbench.validation.inference import artefacts
 
     monkeypatch.setenv("WEARBENCH_CACHE", str(cache))
     small = replace(DESIGN, settings=replace(DESIGN.settings, realisations=3))

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 from scipy import stats
 from wearbench.cli import main
-from wearbench.validation.inference.estimate import Estimator, fit_estimator, save_estimator
-from wearbench.validation.inference.track import LimitAhead, limit_ahead, track_features
+from wearbench.validation.estimation.estimate import Estimator, fit_estimator, save_estimator
+from wearbench.validation.estimation.track import LimitAhead, limit_ahead, track_features
 from wearbench.validation.measurement.features import CycleFeatures
 
 from ...acquisition.conftest import FAST

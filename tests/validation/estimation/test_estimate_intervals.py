@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 from scipy import stats
-from wearbench.validation.inference.estimate import Interval, estimate_features
+from wearbench.validation.estimation.estimate import Interval, estimate_features
 from wearbench.validation.measurement.features import CycleFeatures
 
 from .test_estimate import SPEC, model, session  # noqa: F401 (model: the module's fixture)

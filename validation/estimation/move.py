@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from wearbench.validation.estimation.estimate import Estimator, EstimatorModel
 from wearbench.validation.inference import artefacts
-from wearbench.validation.inference.estimate import Estimator, EstimatorModel
 from wearbench.validation.inference.statistics import shrunk_covariance
 
 __all__ = ["Move", "Rate", "life_move", "load_move", "move_path", "save_move", "stored_move"]

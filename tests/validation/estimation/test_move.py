@@ -11,8 +11,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from wearbench.cli import main
-from wearbench.validation.inference.estimate import load_estimator, save_estimator
-from wearbench.validation.inference.move import (
+from wearbench.validation.estimation.estimate import load_estimator, save_estimator
+from wearbench.validation.estimation.move import (
     Move,
     life_move,
     load_move,
@@ -20,7 +20,7 @@ from wearbench.validation.inference.move import (
     save_move,
     stored_move,
 )
-from wearbench.validation.inference.track import track_features
+from wearbench.validation.estimation.track import track_features
 from wearbench.validation.measurement.features import CycleFeatures
 
 from ...acquisition.conftest import FAST

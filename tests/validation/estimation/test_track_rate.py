@@ -11,8 +11,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from wearbench.validation.inference.move import Rate, life_move, load_move, save_move
-from wearbench.validation.inference.track import (
+from wearbench.validation.estimation.move import Rate, life_move, load_move, save_move
+from wearbench.validation.estimation.track import (
     RATE_SPREAD,
     _spread_rate,
     life_rate,

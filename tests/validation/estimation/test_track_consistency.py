@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from wearbench.validation.inference.track import CONSISTENCY, NO_LIFE, track_features
+from wearbench.validation.estimation.track import CONSISTENCY, NO_LIFE, track_features
 from wearbench.validation.measurement.features import CycleFeatures
 
 from . import test_estimate

@@ -10,8 +10,7 @@ and the posterior at the candidate states must rank them as ``identify`` does.
 import numpy as np
 import pytest
 from scipy import stats
-from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
-from wearbench.validation.inference.estimate import (
+from wearbench.validation.estimation.estimate import (
     NO_VALUE,
     Estimator,
     EstimatorDesign,
@@ -20,6 +19,7 @@ from wearbench.validation.inference.estimate import (
     load_estimator,
     save_estimator,
 )
+from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.inference.identify import IdentifyOptions, fit_states, identify_features
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
@@ -130,7 +130,7 @@ def test_design_must_be_a_grid_of_stages():
 
 
 def test_interval_of_a_known_distribution():
-    from wearbench.validation.inference.estimate import Interval
+    from wearbench.validation.estimation.estimate import Interval
 
     x = np.linspace(-6, 6, 2001)
     i = Interval.from_weights(x, stats.norm.pdf(x))
@@ -158,7 +158,7 @@ def test_track_recovers_a_wear_coefficient_1_3_times_the_files(model, tmp_path):
     lives, and so do those of the cycles until a 0.45 mm limit (depth 4 um per 200k cycles of the
     file's rate here: the truth reaches 50 um of growth after 50e-6 / (2e-11 x 1.3) = 1.92M cycles)."""
     from wearbench.reports.track import track_figure
-    from wearbench.validation.inference.track import track_features
+    from wearbench.validation.estimation.track import track_features
 
     rng = np.random.default_rng(6)
     runs = [0.0, 1e5, 2e5, 3e5, 4e5]
@@ -210,7 +210,7 @@ def test_the_joint_likelihood_of_a_benchs_sessions_is_their_stacked_gaussian(mod
     sensor path, each session's own cycle-to-cycle and estimator error); with one session it is the
     estimator's own distance."""
     from scipy import linalg
-    from wearbench.validation.inference.track import joint_log_likelihood
+    from wearbench.validation.estimation.track import joint_log_likelihood
 
     rng = np.random.default_rng(11)
     st = model.stats[model.reference]
@@ -236,7 +236,7 @@ def test_the_edge_note_fires_when_a_tenth_of_the_factor_lies_at_the_grids_edge(m
     the dense stacked Gaussian, decides the note (> 0.1). At 4.45x it is 0.05-0.1: counted twice,
     the note would fire."""
     from scipy import linalg, special
-    from wearbench.validation.inference.track import K_RANGE, track_features
+    from wearbench.validation.estimation.track import K_RANGE, track_features
 
     runs, n = [0.0, 1e5], 20
     ks = np.geomspace(*K_RANGE, 161)
@@ -268,7 +268,7 @@ def test_the_wear_drift_is_measured_from_the_designs_shared_benches_and_enters_t
     worn: wear_drift recovers that variance, and not the cycle-to-cycle noise; with the drift, the
     sessions' likelihood equals the dense stacked Gaussian's log density, determinant included."""
     from scipy import linalg
-    from wearbench.validation.inference.track import joint_log_likelihood, wear_drift
+    from wearbench.validation.estimation.track import joint_log_likelihood, wear_drift
 
     rng = np.random.default_rng(12)
     m = 40
