@@ -28,20 +28,30 @@ def _check(out, taps: int) -> None:
     assert abs(result.latency - DELAY) < 2e-5
 
 
-@pytest.mark.parametrize("backend", ["can", "canopen"])
-def test_a_tap_session_over_can(bench, tmp_path, backend):
+def _record_over_can(bench, tmp_path, backend: str, taps: int, command_delay: float = 0.0):
+    """A tap session over the CAN emulator; each tap command reaches the drive ``command_delay`` s late."""
+    import threading
+
     from wearbench.hardware.emulators.can_server import CanEmulator
 
     channel = f"wearbench-tap-{backend}-{tmp_path.name}"
     out = tmp_path / "taps.mcap"
     with CanEmulator(bench, channel=channel, config=_config(bench)):
         rig = open_rig(bench, backend, {"interface": "virtual", "channel": channel})
+        if command_delay:
+            send = rig.drive.tap
+            rig.drive.tap = lambda *args: threading.Timer(command_delay, send, args).start()
         try:
-            result = Recorder(rig, bench, SessionPlan(0.0, taps=3, settle=0.2), out).run()
+            result = Recorder(rig, bench, SessionPlan(0.0, taps=taps, settle=0.2), out).run()
         finally:
             rig.close()
     assert result.completed, result.reason
-    _check(out, 3)
+    return out
+
+
+@pytest.mark.parametrize("backend", ["can", "canopen"])
+def test_a_tap_session_over_can(bench, tmp_path, backend):
+    _check(_record_over_can(bench, tmp_path, backend, 3), 3)
 
 
 def test_a_tap_session_over_serial(bench, tmp_path):
@@ -66,19 +76,4 @@ def test_a_tap_latched_late_keeps_its_whole_response(bench, tmp_path):
     """A busy host: every tap command reaches the drive 0.2 s after the recorder sent it, so the last
     latch comes 0.2 s later than the plan's interval allows for. The session records on until the
     accelerometer covers the last latch's response, and the tap test gets its whole window."""
-    import threading
-
-    from wearbench.hardware.emulators.can_server import CanEmulator
-
-    channel = f"wearbench-tap-late-{tmp_path.name}"
-    out = tmp_path / "taps.mcap"
-    with CanEmulator(bench, channel=channel, config=_config(bench)):
-        rig = open_rig(bench, "can", {"interface": "virtual", "channel": channel})
-        send = rig.drive.tap
-        rig.drive.tap = lambda *args: threading.Timer(0.2, send, args).start()
-        try:
-            result = Recorder(rig, bench, SessionPlan(0.0, taps=2, settle=0.2), out).run()
-        finally:
-            rig.close()
-    assert result.completed, result.reason
-    _check(out, 2)
+    _check(_record_over_can(bench, tmp_path, "can", 2, command_delay=0.2), 2)
