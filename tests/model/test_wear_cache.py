@@ -9,6 +9,7 @@ subprocesses: compile and cache, edit the callee (``surface_tables.depth_eval``,
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -34,8 +35,10 @@ print(json.dumps({"overlap": f, "hb": hb, "cache": config.CACHE_DIR,
 
 
 def _run(root: Path) -> dict:
+    # the copy caches in its own __pycache__ (where stale caches are removed), whatever NUMBA_CACHE_DIR says
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     out = subprocess.run([sys.executable, "-c", PROBE, str(root)], capture_output=True, text=True, timeout=300,
-                         check=False)
+                         check=False, env=env)
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 

@@ -12,6 +12,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -236,10 +237,12 @@ def _size(path: Path) -> int:
 @pytest.mark.slow
 @pytest.mark.parametrize("moment", list(HIL_MOMENTS))
 def test_a_terminal_ctrl_c_in_a_lab_suite_stops_the_run_as_interrupted(moment, tmp_path):
-    suite, base, tmp = tmp_path / "hil", tmp_path / "base", tmp_path / "tmp"
+    suite, base = tmp_path / "hil", tmp_path / "base"
     shutil.copytree(HIL, suite)
-    tmp.mkdir()
-    env = {**os.environ, "TMPDIR": str(tmp)}  # the emulators' temporary folders: here, to be counted
+    # the emulators' temporary folders: here, to be counted; short, as a lab's is: multiprocessing's fork
+    # server listens on a socket inside it, and a socket's path holds at most 107 bytes
+    tmp = Path(tempfile.mkdtemp(prefix="wb-hil-"))
+    env = {**os.environ, "TMPDIR": str(tmp)}
     proc = subprocess.Popen([sys.executable, "-m", "pytest", "--wearbench-speedup", "4", "--basetemp", str(base)],
                             cwd=suite, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
@@ -282,3 +285,4 @@ def test_a_terminal_ctrl_c_in_a_lab_suite_stops_the_run_as_interrupted(moment, t
         time.sleep(0.1)
     assert not left, [" ".join(psutil.Process(p).cmdline()) for p in left]
     assert sorted(p.name for p in tmp.iterdir() if p.name.startswith("wearbench-")) == []
+    shutil.rmtree(tmp, ignore_errors=True)
