@@ -311,7 +311,15 @@ def start_serial_emulator(bench: Bench, config: EmulatorConfig | Mapping | None 
     process = context.Process(target=_serve_from_file, name=f"wearbench-emulator-{bench.name}", daemon=True,
                               args=(str(bench_path), table, None if sent_log is None else str(sent_log), send,
                                     float(speedup)))
-    process.start()
+    try:
+        process.start()
+    except OSError as exc:  # the fork server listens on a socket in the temporary folder
+        shutil.rmtree(tmp, ignore_errors=True)
+        if "AF_UNIX path too long" not in str(exc):
+            raise
+        raise RuntimeError(f"serial emulator for {bench.name}: multiprocessing's fork server could not open its socket "
+                           f"in the temporary folder {tempfile.gettempdir()!r} ({exc}); a socket's path holds at "
+                           "most 107 bytes: set TMPDIR to a shorter folder") from None
     send.close()
     port = ""
     try:

@@ -214,3 +214,23 @@ def test_a_drawn_truth_reaches_the_host_over_the_pty(testbed, tmp_path, monkeypa
     assert status.speed == pytest.approx(6.2832 * scale, rel=5e-4)
     x = np.concatenate([a.samples for a in host.of(m.AccelData)])
     assert np.abs(x).max() > 5 * np.sqrt(np.mean(x**2))  # impacts stand out of the mechanism's motion
+
+
+def test_a_temporary_folder_too_long_for_a_socket_is_named(tmp_path):
+    """The fork server that starts the emulator listens on a socket in TMPDIR; with a TMPDIR of 120
+    bytes the start fails with an error naming the folder and the fix, not multiprocessing's bare one."""
+    import os
+    import subprocess
+    import sys
+
+    long_tmp = tmp_path / ("x" * max(1, 120 - len(str(tmp_path))))
+    long_tmp.mkdir()
+    probe = ("from wearbench.bench.load import load_bench, shipped_bench\n"
+             "from wearbench.hardware.emulators.serial_server import start_serial_emulator\n"
+             "try:\n    start_serial_emulator(load_bench(shipped_bench('ninebar-testbed')))\n"
+             "except RuntimeError as exc:\n    print(exc)\n")
+    out = subprocess.run([sys.executable, "-c", probe], env={**os.environ, "TMPDIR": str(long_tmp)},
+                         capture_output=True, text=True, timeout=120, check=False)
+    assert out.returncode == 0, out.stderr
+    assert str(long_tmp) in out.stdout and "set TMPDIR to a shorter folder" in out.stdout, out.stdout
+    assert not [p for p in long_tmp.iterdir() if p.name.startswith("wearbench-emu-")]
