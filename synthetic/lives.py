@@ -16,16 +16,18 @@ every stage. The top layer: imports the model, the emulators and the validation 
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Mapping
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
-from wearbench.bench.schema import Bench
+from wearbench.bench.schema import Bench, WearState
 from wearbench.compute.options import DEFAULT, Compute
 from wearbench.validation.estimation.estimate import Estimator, EstimatorDesign
 from wearbench.validation.measurement.features import FeatureSpec
 
 __all__ = ["life_cost", "life_features", "life_means", "life_plan", "life_revolutions", "measure_move", "move_with_rate",
-           "truth_features"]
+           "state_session", "surfaces_wear", "truth_features"]
 
 
 def _sensor_chain(bench: Bench, spread: bool | str, seed: int):
@@ -48,18 +50,38 @@ def _sensor_chain(bench: Bench, spread: bool | str, seed: int):
     return chain
 
 
+def surfaces_wear(files: Mapping[str, str | Path]) -> tuple[float, float]:
+    """Cycles run and wear depth (m: the largest bearing plus journal depth of any joint, what the
+    estimator calls the depth) of worn-surface files ``{joint: path}``; (0, 0) for none."""
+    from wearbench.model.surfaces import JointSurfaces
+
+    worn = [JointSurfaces.load(f) for f in files.values()]
+    return max((w.cycles for w in worn), default=0.0), max((sum(w.max_depth) for w in worn), default=0.0)
+
+
+def state_session(bench: Bench, state: WearState, seed: int, cycles: int, spread: bool | str, *,
+                  label: str | None = None):
+    """A compute task: one session of :func:`truth_features` of ``bench`` drawn with ``seed`` in the
+    worn ``state``, on the state's own surface files (keyed by their content)."""
+    from wearbench.bench.content import bench_key, file_digest
+    from wearbench.compute import Task, task_key
+
+    clearance = max(state.clearances.values() or [j.clearance.radial_clearance for j in bench.clearance_joints])
+    return Task(truth_features, {"bench": bench, "clearance": clearance, "cycles_run": 0.0, "seed": seed,
+                                 "cycles": cycles, "spread": spread, "files": dict(state.surfaces)},
+                task_key("state-session", bench_key(bench), state.name, clearance,
+                         {j: file_digest(f) for j, f in state.surfaces.items()}, seed, cycles, spread),
+                label or f"{state.name} {seed}")
+
+
 def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int, cycles: int,
                    spread: bool | str, files: dict | None = None, spec: FeatureSpec | None = None) -> dict:
     """One truth's cycle features through the sensor chain (a compute-layer task); ``spread``: False
     (the file's path), True (a drawn axial path) or "cross-axis" (a drawn path with cross-axis);
     ``files``: worn surfaces to use instead of a wear run of ``cycles_run``; ``spec``: the features
     (default the bench's own at its speed, ``measurement.scaling``; an estimator's ``spec``)."""
-    from pathlib import Path
-
-    from wearbench.bench.schema import WearState
     from wearbench.hardware.emulators.carriage import lateral_force
     from wearbench.model.realisation import simulate_state
-    from wearbench.model.surfaces import JointSurfaces
     from wearbench.model.wear_stages import StagePlan, run_stages
     from wearbench.validation.measurement.features import cycle_features
     from wearbench.validation.measurement.scaling import resolve_analysis
@@ -68,7 +90,7 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     chain = _sensor_chain(bench, spread, seed)
     joints = [j.name for j in bench.clearance_joints]
     files = dict(files or {})
-    depth = max((sum(JointSurfaces.load(f).max_depth) for f in files.values()), default=0.0)  # the wear model's depth
+    _, depth = surfaces_wear(files)
     with tempfile.TemporaryDirectory() as tmp:
         if cycles_run > 0:
             run = run_stages(bench, StagePlan.from_bench(bench, stages=1, stage_cycles=cycles_run),
@@ -93,8 +115,6 @@ def life_features(bench: Bench, clearance: float, factor: float, step: float, st
     the file's wear coefficient through ``stages`` stages of ``step`` cycles; a session of ``cycles``
     through the sensor chain at 0 and after every stage but the last; the truth's depth after each
     (features of ``spec``, as :func:`truth_features`)."""
-    from pathlib import Path
-
     from wearbench.model.wear_stages import StagePlan, run_stages
 
     _sensor_chain(bench, spread, seed)  # a bad spread or sensor path fails before the wear stages
@@ -123,7 +143,6 @@ def life_revolutions(cycles: int, stages: int = 5) -> float:
 def life_cost(bench: Bench, design: EstimatorDesign, speed: float):
     """What a life's revolutions cost (``compute.cost.Cost``): the bench at the middle of the design's
     clearances at commanded ``speed``, on the emulated sensor chain's internal rate."""
-    from wearbench.bench.schema import WearState
     from wearbench.compute.cost import Cost
 
     c = design.clearances[len(design.clearances) // 2]

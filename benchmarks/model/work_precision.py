@@ -111,11 +111,11 @@ def main() -> None:
             continue
         full = _errors(res, ref, acc.size)
         hor = _errors(res, ref, n_h)
-        rows.append((name, setting, wall, full, hor, res.summary["steps"], res.summary["rejected_steps"],
-                     _tracking(res, ref)))
-        print(f"{name:<10} {setting:>14} {wall:8.3f} {res.summary['steps']:7d} {res.summary['rejected_steps']:6d} | "
+        steps, rejected, track = res.summary["steps"], res.summary["rejected_steps"], _tracking(res, ref)
+        rows.append((name, setting, wall, full, hor, steps, rejected, track))
+        print(f"{name:<10} {setting:>14} {wall:8.3f} {steps:7d} {rejected:6d} | "
               f"{full[0]:11.2%} {full[1]:7.2%} {full[2]:7.2%} | {hor[0]:15.3%} {hor[1]:7.2%} {hor[2]:7.2%} | "
-              f"{_tracking(res, ref) * 1e3:9.1f}")
+              f"{track * 1e3:9.1f}")
 
     print()
     default_speed = [w for n, s, w, *_ in rows if n == "default" and s == "rtol=1e-06"]

@@ -30,15 +30,9 @@ import time
 import numpy as np
 
 from benchmarks.result_json import Run, column, table, write_result
+from benchmarks.validation.identify import wilson
 
 KNOWN = "0.3 mm new"
-
-
-def wilson_text(k: int, n: int) -> tuple[float, float]:
-    from scipy.stats import binomtest
-
-    ci = binomtest(k, n).proportion_ci(method="wilson")
-    return float(ci.low), float(ci.high)
 
 
 def main() -> None:
@@ -53,9 +47,8 @@ def main() -> None:
     run = Run()
 
     from wearbench.bench.load import load_bench, shipped_bench
-    from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
-    from wearbench.model.surfaces import JointSurfaces
-    from wearbench.synthetic.lives import truth_features
+    from wearbench.compute import TaskFailure, compute_client, run_tasks
+    from wearbench.synthetic.lives import state_session, surfaces_wear
     from wearbench.validation.estimation.estimate import EstimatorDesign, build_estimator
     from wearbench.validation.inference.ensemble import build_ensembles
 
@@ -72,32 +65,29 @@ def main() -> None:
         t_build = time.perf_counter() - t0
         t0 = time.perf_counter()
         keys = [(path, s, name) for path in paths for s in seeds for name in life]
-        tasks = [Task(truth_features, {"bench": bench, "clearance": states[name].clearances["A"], "cycles_run": 0.0,
-                                       "seed": s, "cycles": args.cycles, "spread": paths[path],
-                                       "files": dict(states[name].surfaces)},
-                      task_key("calibration-gain-session", name, {j: str(p) for j, p in states[name].surfaces.items()},
-                               s, args.cycles, paths[path]), f"{path} {s} {name}") for path, s, name in keys]
+        tasks = [state_session(bench, states[name], s, args.cycles, paths[path], label=f"{path} {s} {name}")
+                 for path, s, name in keys]
         done = dict(zip(keys, run_tasks(tasks, progress="sessions"), strict=True))
+        given = {name: task.kwargs for (_, _, name), task in zip(keys, tasks, strict=True)}  # one per state
+        truths = {name: (kw["clearance"], surfaces_wear(kw["files"])[0]) for name, kw in given.items()}
     t_sessions = time.perf_counter() - t0
     failed = [k for k, r in done.items() if isinstance(r, TaskFailure)]
     for k in failed:
         print(f"session {k} failed: {done[k]}")
     good = [s for s in seeds if not any((p, s, n) in failed for p in paths for n in life)]
-    cycles_run = {name: max((JointSurfaces.load(f).cycles for f in states[name].surfaces.values()), default=0.0)
-                  for name in life}
     print(f"{len(good)} benches x {len(paths)} sensor paths x {len(life)} sessions ({len(failed)} failed); ensembles and "
           f"estimator {t_build:.0f} s, sessions {t_sessions:.0f} s")
     t0 = time.perf_counter()
-    rows = judge(bench, ensembles, est, done, good, paths, life, cycles_run, args.cycles)
+    rows = judge(bench, ensembles, est, done, good, paths, life, truths, args.cycles)
     print(f"judged in {time.perf_counter() - t0:.0f} s")
     report(rows, life[1:])
     if args.json:
         write_json(args.json, rows, life[1:], good, args, run, est)
 
 
-def judge(bench, ensembles, est, done, seeds, paths, life, cycles_run, cycles) -> list[dict]:
+def judge(bench, ensembles, est, done, seeds, paths, life, truths, cycles) -> list[dict]:
     """Every worn session identified and estimated four ways (path x with/without the calibration on
-    the bench's first session): one row each."""
+    the bench's first session): one row each; ``truths``: per state its (clearance, cycles run)."""
     from dataclasses import replace
 
     from wearbench.validation.estimation.estimate import estimate_features, fit_estimator
@@ -129,7 +119,7 @@ def judge(bench, ensembles, est, done, seeds, paths, life, cycles_run, cycles) -
                     ident = identify_features(f, models, label=f"{s} {name}")
                     e = estimate_features(f, model, label=f"{s} {name}")
                     rows.append({"path": path, "way": way, "seed": s, "state": name, "verdict": ident.verdict,
-                                 "p_top": ident.p_top, "estimate": e, "truth": (0.3e-3, cycles_run[name]),
+                                 "p_top": ident.p_top, "estimate": e, "truth": truths[name],
                                  "calibration_p": cal.p_value})
     return rows
 
@@ -161,7 +151,7 @@ def report(rows, worn) -> None:
         sel = [r for r in rows if r["path"] == path and r["way"] == way]
         for state in worn:
             t = tally(sel, state)
-            lo, hi = wilson_text(t["right"], t["n"])
+            lo, hi = wilson(t["right"], t["n"])
             print(f"{path:13s}  {way:33s}  {state:20s}  {t['right']:2d}/{t['n']:<2d} [{lo:.2f}, {hi:.2f}]        "
                   f"{t['wrong']:4d}  {t['undecided']:9d}  {t['none']:4d}   {t['c_width'] * 1e3:.3f} / {t['c_hold']:2d}"
                   f"                     {t['n_width']:9,.0f} / {t['n_hold']:2d}")
@@ -181,7 +171,7 @@ def write_json(path, rows, worn, seeds, args, run, est) -> None:
         sel = [r for r in rows if r["path"] == p and r["way"] == way]
         for state in worn:
             t = tally(sel, state)
-            out.append([p, way, state, t["n"], t["right"], t["right"] / t["n"], *wilson_text(t["right"], t["n"]),
+            out.append([p, way, state, t["n"], t["right"], t["right"] / t["n"], *wilson(t["right"], t["n"]),
                         t["wrong"], t["undecided"], t["none"], t["c_width"] * 1e3, t["c_hold"], t["n_width"] / 1e3,
                         t["n_hold"]])
     first = worn[0]

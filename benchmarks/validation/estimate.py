@@ -50,7 +50,14 @@ import tempfile
 import time
 
 import numpy as np
-from wearbench.synthetic.lives import life_features, life_means, move_with_rate, truth_features
+from wearbench.synthetic.lives import (
+    life_features,
+    life_means,
+    move_with_rate,
+    state_session,
+    surfaces_wear,
+    truth_features,
+)
 
 from benchmarks.result_json import Run, column, table, write_result
 
@@ -171,12 +178,8 @@ def main() -> None:
 
         done = run(at_truths, "truths at --at") + run(truths, "truths from the prior")  # the shorter batch first
         truths = at_truths + truths
-        state_done = run_tasks([Task(truth_features, {"bench": bench, "clearance": max(st.clearances.values()),
-                                                      "cycles_run": 0.0, "seed": s, "cycles": args.cycles,
-                                                      "spread": args.sensor_paths, "files": dict(st.surfaces)},
-                                     task_key("estimate-state-truth", st.name, dict(st.clearances), file_digests(st),
-                                              s, args.cycles, args.sensor_paths), f"{st.name} {s}")
-                                for st, s in state_truths], progress="sessions of the worn states")
+        state_tasks = [state_session(bench, st, s, args.cycles, args.sensor_paths) for st, s in state_truths]
+        state_done = run_tasks(state_tasks, progress="sessions of the worn states")
         t_truth = time.perf_counter() - t0
         t0 = time.perf_counter()
         life_runs = run_tasks([Task(life_features, {"bench": bench, "clearance": c, "factor": args.life_factor,
@@ -190,7 +193,7 @@ def main() -> None:
     reported = [report_truths(est, t_build, ok, failed, t_truth, args) for est, t_build in built]
     est, (model, tables) = built[0][0], reported[0]
     if state_truths:
-        tables["states"] = report_states(model, state_truths, state_done, args)
+        tables["states"] = report_states(model, state_truths, state_tasks, state_done, args)
         pooled = tables["states"]["rows"][-1]
         tables["findings"].append(
             f"On {pooled[1]} sessions of the bench file's worn states, on surface files no design ran, the 90 % intervals "
@@ -314,40 +317,33 @@ def report_truths(est, t_build: float, ok, failed, t_truth: float, args):
     return model, tables
 
 
-def file_digests(state) -> dict[str, str]:
-    """The content of a state's surface files, for its sessions' cache key."""
-    import hashlib
-
-    return {j: hashlib.sha256(p.read_bytes()).hexdigest()[:16] for j, p in sorted(state.surfaces.items())}
-
-
-def report_states(model, state_truths, done, args) -> dict:
-    """Score the sessions of the bench file's worn states (their own surface files): per state the
-    truth, the medians of the estimate and how many 90 % intervals hold it; one row for all."""
+def report_states(model, state_truths, tasks, done, args) -> dict:
+    """Score the sessions of the bench file's worn states (``tasks``: ``state_session``, on their own
+    surface files): per state the truth, the medians of the estimate and how many 90 % intervals hold
+    it; one row for all."""
     from wearbench.compute import TaskFailure
-    from wearbench.model.surfaces import JointSurfaces
     from wearbench.validation.estimation.estimate import estimate_features
     from wearbench.validation.measurement.features import CycleFeatures
 
+    cycles_run = {st.name: surfaces_wear(st.surfaces)[0] for st, _ in state_truths}
     per_state: dict[str, list] = {}
-    for (st, _), d in zip(state_truths, done, strict=True):
+    for (st, _), task, d in zip(state_truths, tasks, done, strict=True):
         if isinstance(d, TaskFailure):
             print(f"{st.name}: a session failed: {d}")
             continue
-        truth = (max(st.clearances.values()), max(JointSurfaces.load(f).cycles for f in st.surfaces.values()), d["depth"])
+        truth = (task.kwargs["clearance"], cycles_run[st.name], d["depth"])
         f = d["features"][:args.cycles]
         per_state.setdefault(st.name, []).append((truth, estimate_features(CycleFeatures(model.estimator.spec, f,
                                                                                           np.zeros(len(f))), model)))
+    parts = (lambda e: e.clearance, lambda e: e.cycles_run, lambda e: e.depth)
     rows = []
     print(f"\nthe bench file's worn states, {args.states} sessions each on their own surface files:")
     print("state                 sessions  truth (mm, k cycles, um)   median estimate (mm, k cycles, um)   "
           "90 % holds c / N / depth   explained")
     for name, rs in list(per_state.items()) + [("all worn states", [r for v in per_state.values() for r in v])]:
         n = len(rs)
-        holds = [sum(e.explains and iv(e).contains(t[k]) for t, e in rs)
-                 for k, iv in enumerate((lambda e: e.clearance, lambda e: e.cycles_run, lambda e: e.depth))]
-        med = [float(np.median([iv(e).median for _, e in rs]))
-               for iv in (lambda e: e.clearance, lambda e: e.cycles_run, lambda e: e.depth)]
+        holds = [sum(e.explains and part(e).contains(t[k]) for t, e in rs) for k, part in enumerate(parts)]
+        med = [float(np.median([part(e).median for _, e in rs])) for part in parts]
         t = rs[0][0]
         rows.append([name, n, t[0] * 1e3, t[1] / 1e3, t[2] * 1e6, med[0] * 1e3, med[1] / 1e3, med[2] * 1e6,
                      *(h / n for h in holds), sum(e.explains for _, e in rs) / n])

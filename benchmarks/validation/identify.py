@@ -344,12 +344,18 @@ def held_out(ensembles, feats, truth_names, names, options, calibrations=None, m
               f"max p {max(r.p_top for r in rs):.3f}")
 
 
-def rate_interval(k: int, n: int) -> str:
-    """``k`` of ``n`` as a rate with its 95 % Wilson score interval: ``0.90 [0.77, 0.96] 36/40``."""
+def wilson(k: int, n: int) -> tuple[float, float]:
+    """The 95 % Wilson score interval of the rate ``k`` of ``n``."""
     from scipy.stats import binomtest
 
     ci = binomtest(k, n).proportion_ci(method="wilson")
-    return f"{k / n:.2f} [{ci.low:.2f}, {ci.high:.2f}] {k}/{n}"
+    return float(ci.low), float(ci.high)
+
+
+def rate_interval(k: int, n: int) -> str:
+    """``k`` of ``n`` as a rate with its 95 % Wilson score interval: ``0.90 [0.77, 0.96] 36/40``."""
+    lo, hi = wilson(k, n)
+    return f"{k / n:.2f} [{lo:.2f}, {hi:.2f}] {k}/{n}"
 
 
 def accuracy_table(variant, session_models, feats, truth_names, names, full, options):

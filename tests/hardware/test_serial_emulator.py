@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -219,10 +222,6 @@ def test_a_drawn_truth_reaches_the_host_over_the_pty(testbed, tmp_path, monkeypa
 def test_a_temporary_folder_too_long_for_a_socket_is_named(tmp_path):
     """The fork server that starts the emulator listens on a socket in TMPDIR; with a TMPDIR of 120
     bytes the start fails with an error naming the folder and the fix, not multiprocessing's bare one."""
-    import os
-    import subprocess
-    import sys
-
     long_tmp = tmp_path / ("x" * max(1, 120 - len(str(tmp_path))))
     long_tmp.mkdir()
     probe = ("from wearbench.bench.load import load_bench, shipped_bench\n"
