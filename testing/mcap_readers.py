@@ -71,8 +71,10 @@ def read_with_node(paths: list[Path], folder: Path) -> list[dict]:
     """One result per file from ``read_mcap.mjs`` (see its header for the fields)."""
     if not paths:
         return []
+    # --single-threaded (a V8 flag): no background compile jobs, which can deadlock node's exit (a
+    # worker waits for a main-thread GC while the main thread joins it: nodejs/node#54918; seen in CI)
     try:
-        r = subprocess.run(["node", str(folder / SCRIPT.name), *map(str, paths)], cwd=folder,
+        r = subprocess.run(["node", "--single-threaded", str(folder / SCRIPT.name), *map(str, paths)], cwd=folder,
                            capture_output=True, text=True, timeout=300, check=False)
     except subprocess.TimeoutExpired as exc:
         printed = (exc.stdout or b"")[-300:]

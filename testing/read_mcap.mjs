@@ -90,6 +90,6 @@ const results = [];
 for (const path of process.argv.slice(2)) {
   results.push(await read(path));
 }
-// Exit once the line is flushed rather than when the event loop drains: a CI run once saw node print
-// the whole result and then stay alive until the caller's 300 s timeout killed it.
+// Run with --single-threaded (mcap_readers.py): node's exit can deadlock on a background compile job
+// (nodejs/node#54918), which CI saw as a reader that printed its result and never exited.
 process.stdout.write(JSON.stringify(results) + "\n", () => process.exit(0));

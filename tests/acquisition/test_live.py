@@ -190,7 +190,7 @@ def test_the_foxglove_ws_protocol_client_connects(subprotocol):
     with LiveView(port=0) as live:
         offered = _publishing(live, stop)
         try:
-            r = subprocess.run(["node", str(folder / WS_SCRIPT.name), live.url, subprotocol, "/events", "5"],
+            r = subprocess.run(["node", "--single-threaded", str(folder / WS_SCRIPT.name), live.url, subprotocol, "/events", "5"],
                                cwd=folder, capture_output=True, text=True, timeout=60, check=False)
         finally:
             stop.set()
