@@ -94,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.compute import Task, TaskFailure, compute_client, run_tasks, task_key
     from wearbench.reports.assessment import write_assessment_report
     from wearbench.validation import load_session
-    from wearbench.validation.estimation.estimate import save_estimator
+    from wearbench.validation.estimation.estimate import save_estimator, save_estimator_spread
+    from wearbench.validation.estimation.spread import spread_path
     from wearbench.validation.inference.ensemble import EnsembleSettings, build_ensembles
     from wearbench.validation.workflows.assess import assess_sessions
     from wearbench.validation.workflows.measure import estimate_assessed
@@ -151,6 +152,8 @@ def run(args: argparse.Namespace) -> int:
         report = write_assessment_report(assessed, tmp, title=f"wearbench demo: {bench.name}, which state explains "
                                          f"each session, clearance and wear ({'twin' if args.twin else 'non-twin truths'})")
         save_estimator(estimator, tmp / "estimator.npz")
+        if estimator.spread is not None:  # beside it, so that 'estimate --estimator' gives the same numbers
+            save_estimator_spread(estimator, spread_path(tmp / "estimator.npz"))
     report = report.moved_to(report_dir)
     print(summary_text([s.name for s in states], assessed))
     print(f"\n{estimate_text([s.name for s in states], assessed)}")

@@ -59,6 +59,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ship", action="store_true",
                    help="save where wearbench looks for a shipped bench's precomputed estimator (maintainers: only "
                    "in a source checkout, and replacing the shipped file only with --force)")
+    p.add_argument("--wear-runs", type=int, default=None, metavar="K",
+                   help="wear runs of drawn benches per design clearance beside the reference run, whose spread "
+                   "widens the intervals of cycles run and wear depth where wear realisations disagree; saved "
+                   "beside the estimator (FILE.spread.npz; default 3 for designs of 12 or more realisations, else 0)")
     p.add_argument("--lives", type=positive_int, metavar="N",
                    help="also simulate N lives of the bench (known truth, sessions at five cycles-run values) on the "
                    "compute layer and store the benches' move from new to worn beyond the estimator's beside it "
@@ -83,15 +87,23 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.bench.output_file import check_output, output_file
     from wearbench.validation.estimation.estimate import (
         build_estimator,
+        default_spread,
         estimator_key,
         load_estimator,
         save_estimator,
+        save_estimator_spread,
+        with_spread,
     )
     from wearbench.validation.estimation.move import move_path, save_move
+    from wearbench.validation.estimation.spread import SpreadDesign, spread_path
     from wearbench.validation.inference import artefacts
 
     bench = load_bench(resolve_bench(args.bench))
     design = design_from_args(args).resolve(bench)  # every value checked against the bench before any work
+    spread = default_spread(design) if args.wear_runs is None else SpreadDesign(args.wear_runs, 12)
+    if spread.runs and spread.realisations > design.settings.realisations:
+        raise ValueError(f"--wear-runs {spread.runs}: the spread pairs {spread.realisations} realisations per worn point "
+                         f"with the design's first seeds: expected --realisations of at least {spread.realisations}")
     if args.lives is not None and args.lives < MIN_LIVES:
         raise ValueError(f"--lives {args.lives}: expected at least {MIN_LIVES} lives (the move's mean and its error "
                          "need three independent benches; 20 or more)")
@@ -104,7 +116,8 @@ def run(args: argparse.Namespace) -> int:
     out = artefacts.shipped_path("estimator", bench.name) if args.ship else Path(args.out or f"{bench.name}-estimator.npz")
     option = "--ship" if args.ship else "--out"
     key = estimator_key(bench, design, bench.speed)
-    kept = load_estimator(out, key=key) if args.lives and out.is_file() else None
+    # --lives, --ship: a file that already holds this design's estimator is kept, what it lacks added
+    kept = load_estimator(out, key=key) if (args.lives or args.ship) and out.is_file() else None
     replaced = None
     if kept is None:  # refused before the design is simulated
         if args.ship:
@@ -115,6 +128,10 @@ def run(args: argparse.Namespace) -> int:
         if args.ship:
             artefacts.check_shipping(move_path(out))
         check_output(move_path(out), force=args.force, option="--lives")
+    if spread.runs:
+        if args.ship:
+            artefacts.check_shipping(spread_path(out))
+        check_output(spread_path(out), force=args.force, option="--wear-runs")
     compute = compute_options(args, bench)
     if args.lives:  # the lives' cost said before anything starts, with the estimator's own plan
         from wearbench.compute.cost import plan_line
@@ -122,7 +139,8 @@ def run(args: argparse.Namespace) -> int:
 
         compute.announce(plan_line("lives", [("lives", args.lives, life_revolutions(args.life_cycles))],
                                    life_cost(bench, design, bench.speed), workers=compute.workers_known))
-    est = kept or build_estimator(bench, design, compute=compute)  # grows a shipped smaller one
+    est = (with_spread(bench, kept, spread, speed=bench.speed, compute=compute) if kept is not None
+           else build_estimator(bench, design, compute=compute, spread=spread))  # grows a shipped smaller one
     if kept is None:
         with output_file(out, force=args.force, option=option) as tmp:
             save_estimator(est, tmp)
@@ -131,6 +149,10 @@ def run(args: argparse.Namespace) -> int:
           f"{est.depth.max() * 1e6:.1f} um")
     print(f"{'kept (this design, key matches)' if kept is not None else 'saved'}: {out}"
           + (f" (replaced the shipped {replaced.describe()}, key {replaced.key[:12]})" if replaced else ""))
+    if est.spread is not None and (kept is None or kept.spread is None or kept.spread.key != est.spread.key):
+        with output_file(spread_path(out), force=args.force, option="--wear-runs") as tmp:
+            save_estimator_spread(est, tmp)
+        print(f"wear spread: {est.spread.describe()}\nsaved: {spread_path(out)}")
     if args.lives:
         from wearbench.synthetic.lives import measure_move
 

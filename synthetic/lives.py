@@ -75,17 +75,24 @@ def state_session(bench: Bench, state: WearState, seed: int, cycles: int, spread
 
 
 def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int, cycles: int,
-                   spread: bool | str, files: dict | None = None, spec: FeatureSpec | None = None) -> dict:
+                   spread: bool | str, files: dict | None = None, spec: FeatureSpec | None = None, *,
+                   wear: str = "nominal") -> dict:
     """One truth's cycle features through the sensor chain (a compute-layer task); ``spread``: False
     (the file's path), True (a drawn axial path) or "cross-axis" (a drawn path with cross-axis);
     ``files``: worn surfaces to use instead of a wear run of ``cycles_run``; ``spec``: the features
-    (default the bench's own at its speed, ``measurement.scaling``; an estimator's ``spec``)."""
+    (default the bench's own at its speed, ``measurement.scaling``; an estimator's ``spec``);
+    ``wear``: who wears through ``cycles_run`` in one stage, "nominal" (the bench file's bench) or
+    "drawn" (the truth's own bench, drawn with ``seed``, at its true speed from its random start:
+    ``estimate.wear_trajectory``)."""
     from wearbench.hardware.emulators.carriage import lateral_force
     from wearbench.model.realisation import simulate_state
-    from wearbench.model.wear_stages import StagePlan, run_stages
+    from wearbench.model.surfaces import JointSurfaces
+    from wearbench.validation.estimation.estimate import wear_trajectory
     from wearbench.validation.measurement.features import cycle_features
     from wearbench.validation.measurement.scaling import resolve_analysis
 
+    if wear not in ("nominal", "drawn"):
+        raise ValueError(f"truth_features: wear = {wear!r}: expected 'nominal' or 'drawn'")
     spec = spec or resolve_analysis(bench).features
     chain = _sensor_chain(bench, spread, seed)
     joints = [j.name for j in bench.clearance_joints]
@@ -93,9 +100,9 @@ def truth_features(bench: Bench, clearance: float, cycles_run: float, seed: int,
     _, depth = surfaces_wear(files)
     with tempfile.TemporaryDirectory() as tmp:
         if cycles_run > 0:
-            run = run_stages(bench, StagePlan.from_bench(bench, stages=1, stage_cycles=cycles_run),
-                             clearances=dict.fromkeys(joints, clearance))
-            for j, s in run.final.items():
+            worn = wear_trajectory(bench, clearance, 1, cycles_run, bench.speed, seed if wear == "drawn" else None)
+            for j, (b, jr, cyc) in worn[-1].items():
+                s = JointSurfaces(b, jr, cyc, f"truth {seed}")
                 files[j] = s.save(Path(tmp) / f"{j}.npz")
                 depth = max(depth, sum(s.max_depth))
         state = WearState("truth", dict.fromkeys(joints, clearance), files)

@@ -12,7 +12,7 @@ import wearbench
 
 CONTRACT = ["ArtefactError", "Assessment", "Bench", "BenchError", "Calibration", "Compute", "EnsembleSettings",
             "Estimate", "Estimator", "EstimatorDesign", "Identification", "Interval", "MeasuredSession", "Results",
-            "SessionComparison", "SessionResult", "SessionSet", "SimulationError", "SimulationResult", "Track",
+            "SessionComparison", "SessionResult", "SessionSet", "SimulationError", "SimulationResult", "SpreadDesign", "Track",
             "build_ensembles", "build_estimator", "calibrate", "compare", "estimate", "identify", "load_bench",
             "load_ensembles", "load_estimator", "load_session", "record", "save_calibration", "simulate", "track",
             "write_report"]

@@ -52,15 +52,21 @@ def test_estimator_defaults_are_the_shipped_estimator():
     from wearbench.cli.estimator import design_from_args
     from wearbench.validation.estimation.estimate import (
         EstimatorDesign,
+        default_spread,
         estimator_key,
         load_estimator,
     )
+    from wearbench.validation.estimation.spread import spread_key
     from wearbench.validation.inference.artefacts import shipped_path
 
     bench = load_bench(shipped_bench("ninebar-testbed"))
     assert design_from_args(build_parser().parse_args(["estimator", "b.toml"])).resolve(bench) == EstimatorDesign()
     key = estimator_key(bench, EstimatorDesign(), bench.speed)
-    assert load_estimator(shipped_path("estimator", bench.name), key=key) is not None, "stale: the model, bench or design changed"
+    est = load_estimator(shipped_path("estimator", bench.name), key=key)
+    assert est is not None, "stale: the model, bench or design changed"
+    # its wear spread beside it (`wearbench estimator ninebar-testbed --ship` adds a missing or stale one)
+    assert est.spread is not None and est.spread.key == spread_key(key, default_spread(EstimatorDesign()))
+    assert est.spread.covariance[0].max() == 0 and est.spread.covariance[-1].trace() > 0
 
 
 def test_bench_check_reports_degrees_of_freedom(capsys):

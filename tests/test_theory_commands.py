@@ -94,6 +94,19 @@ def test_a_small_design_is_offered_and_priced(sessions, tmp_path, no_simulation,
     assert "estimator: 3 wear runs and 27 realisations" in err  # 3 x 3 points x 3 realisations
 
 
+def test_the_wear_spread_is_priced_in_the_estimators_plan_and_checked_first(tmp_path, no_simulation, capsys):
+    """A design of 12 realisations gets the default spread: 3 drawn benches' wear runs per clearance
+    and 12 realisations of each of their 3 worn points, priced in the one plan line before anything
+    starts; a spread the design cannot pair is refused before it."""
+    argv = ["estimator", "fourbar", "--out", str(tmp_path / "e.npz"), "--workers", "0", "--ensemble-cycles", "6"]
+    assert main([*argv, "--realisations", "12"]) == 2
+    err = capsys.readouterr().err
+    assert "estimator: 5 wear runs and 240 realisations and 15 spread wear runs and 540 spread realisations, about" in err
+    assert main([*argv, "--realisations", "8", "--wear-runs", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "--wear-runs 2: the spread pairs 12 realisations" in err and REACHED not in err
+
+
 def test_the_pilot_prices_a_revolution_once_and_keeps_it(monkeypatch):
     """The price of a revolution is measured (CPU clock) on the bench, state and speed, then read back."""
     from wearbench.bench.load import load_bench

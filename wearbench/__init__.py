@@ -55,13 +55,14 @@ _FACE: dict[str, str] = {
     "Estimator": "wearbench.validation.estimation.estimate:Estimator",
     "build_estimator": "wearbench.validation.estimation.estimate:build_estimator",
     "load_estimator": "wearbench.validation.estimation.estimate:load_estimator",
+    "SpreadDesign": "wearbench.validation.estimation.spread:SpreadDesign",
     "ArtefactError": "wearbench.validation.inference.artefacts:ArtefactError",
     "Compute": "wearbench.compute.options:Compute",
 }
 
 __all__ = ["ArtefactError", "Assessment", "Bench", "BenchError", "Calibration", "Compute", "EnsembleSettings",
            "Estimate", "Estimator", "EstimatorDesign", "Identification", "Interval", "MeasuredSession", "Results",
-           "SessionComparison", "SessionResult", "SessionSet", "SimulationError", "SimulationResult", "Track",
+           "SessionComparison", "SessionResult", "SessionSet", "SimulationError", "SimulationResult", "SpreadDesign", "Track",
            "build_ensembles", "build_estimator", "calibrate", "compare", "estimate", "identify", "load_bench",
            "load_ensembles", "load_estimator", "load_session", "record", "save_calibration", "simulate", "track",
            "write_report"]

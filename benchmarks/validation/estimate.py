@@ -1,10 +1,11 @@
 """Clearance-and-wear estimates on non-twin truths drawn from the prior: calibration, widths, cost.
 
 Truths are never the estimator's training draws: each truth draws a clearance uniformly over the
-design's range and a cycles-run value uniformly over [0, the design's last], wears the nominal
-bench from that clearance through those cycles in its own wear run (one stage), draws its bench
-from the bench file's [tolerances] with its own seed (20000 + k; the design uses 1..M) and a random
-start, and is seen through the emulator's sensor chain (the bench file's [emulator.accelerometer]:
+design's range and a cycles-run value uniformly over [0, the design's last], draws its bench from
+the bench file's [tolerances] with its own seed (20000 + k; the design uses 1..M, its wear spread
+30000 + 100 i + k) and a random start, wears that bench from that clearance through those cycles in
+its own wear run (one stage: a wear realisation no design ran; ``--truth-wear nominal``: the nominal
+bench wears, as before 0.10), and is seen through the emulator's sensor chain (the bench file's [emulator.accelerometer]:
 mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with --sensor-paths a
 mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %; with
 --cross-axis also a cross-axis sensitivity of 1-5 % to the carriage's lateral mode, 0.3-3 kHz), applied
@@ -49,6 +50,8 @@ import os
 import tempfile
 import time
 
+from dataclasses import replace
+
 import numpy as np
 from wearbench.synthetic.lives import (
     life_features,
@@ -83,6 +86,9 @@ def main() -> None:
     ap.add_argument("--sensor-paths", action="store_true", help="draw each truth's sensor path (see above)")
     ap.add_argument("--cross-axis", action="store_true", help="with --sensor-paths: draw the cross-axis part too "
                     "(SensorSpread's whole draw; the cached drawn lives and the shipped move are axial only)")
+    ap.add_argument("--truth-wear", choices=("drawn", "nominal"), default="drawn",
+                    help="who wears a truth through its cycles run: its own drawn bench from its random start (drawn, "
+                    "a wear realisation no design ran) or the bench file's nominal bench (nominal, as before 0.10)")
     ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
     ap.add_argument("--at-truths", type=int, default=0, help="extra truths at --at cycles run (0)")
     ap.add_argument("--states", type=int, default=0, help="sessions per worn state of the bench file, on the state's "
@@ -149,7 +155,7 @@ def main() -> None:
     state_truths = [(st, args.seed + 7000 + 100 * i + k) for i, st in enumerate(worn) for k in range(args.states)]
 
     def truth_key(c, n, s):
-        return task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths)
+        return task_key("estimate-truth", c, n, s, args.cycles, args.sensor_paths, args.truth_wear)
 
     def life_key(c, s, spread=args.sensor_paths):
         return task_key("estimate-life", c, args.life_factor, args.life_step, s, args.life_cycles, spread)
@@ -163,16 +169,12 @@ def main() -> None:
         print(f"cached only: {len(truths)} of {asked[0]} truths from the prior, {len(at_truths)} of {asked[1]} at "
               f"--at, {len(lives)} of {asked[2]} lives")
     with compute_client(workers=args.workers):
-        built = []
-        for d in designs:  # a larger one reuses a shipped smaller one's realisations (build_estimator)
-            t0 = time.perf_counter()
-            built.append((build_estimator(bench, d, label=f"estimator ({d.settings.realisations})",
-                                          shipped=args.shipped), time.perf_counter() - t0))
         t0 = time.perf_counter()
 
         def run(batch, name):
             return run_tasks([Task(truth_features, {"bench": bench, "clearance": c, "cycles_run": n, "seed": s,
-                                                    "cycles": args.cycles, "spread": args.sensor_paths},
+                                                    "cycles": args.cycles, "spread": args.sensor_paths,
+                                                    "wear": args.truth_wear},
                                    truth_key(c, n, s), f"truth {s}")
                               for c, n, s in batch], progress=name)
 
@@ -188,10 +190,22 @@ def main() -> None:
                                     life_key(c, s), f"life {s}")
                                for c, s in lives], progress="lives") if lives else []
         t_lives = time.perf_counter() - t0
+        built = []  # after the truths, which never depend on it
+        for d in designs:  # a larger one reuses a shipped smaller one's realisations (build_estimator)
+            t0 = time.perf_counter()
+            built.append((build_estimator(bench, d, label=f"estimator ({d.settings.realisations})",
+                                          shipped=args.shipped), time.perf_counter() - t0))
     ok = [(t, d) for t, d in zip(truths, done, strict=True) if not isinstance(d, TaskFailure)]
     failed = [d for d in done if isinstance(d, TaskFailure)]
     reported = [report_truths(est, t_build, ok, failed, t_truth, args) for est, t_build in built]
     est, (model, tables) = built[0][0], reported[0]
+    if est.spread is not None:  # the same truths judged by the estimator without its wear spread
+        print("\nthe same estimator without its wear spread (one wear run per design clearance):")
+        _, alone = report_truths(replace(est, spread=None), 0.0, ok, failed, t_truth, args)
+        tables["without spread"] = {**alone["calibration"], "title": alone["calibration"]["title"] + ", without the "
+                                    "estimator's wear spread (one wear run per design clearance)"}
+        tables["findings"].append("Without its wear spread the same estimator's 90 % intervals hold the truth in "
+                                  + ", ".join(f"{r[1]:.2f} ({r[0]})" for r in alone["calibration"]["rows"]) + ".")
     if state_truths:
         tables["states"] = report_states(model, state_truths, state_tasks, state_done, args)
         pooled = tables["states"]["rows"][-1]
@@ -207,7 +221,9 @@ def main() -> None:
                      tables=list(tables.values()),
                      notes=[f"Truths: a clearance uniform over {d.clearances[0] * 1e3:g}-{d.clearances[-1] * 1e3:g} mm and "
                             f"cycles run uniform over 0-{d.cycles[-1]:,.0f}, each bench drawn from the bench file's "
-                            "[tolerances] with a seed the estimator does not use, worn in its own wear run, seen "
+                            "[tolerances] with a seed the estimator does not use, worn in its own wear run ("
+                            + ("the drawn bench itself, from its random start: a wear realisation no design ran"
+                               if args.truth_wear == "drawn" else "the nominal bench") + "), seen "
                             "through the emulator's sensor chain"
                             + (" with a drawn mount" if args.sensor_paths else "") + ".",
                             ("A calibrated 90 % interval holds the truth in 0.90 of truths, within about two standard "
@@ -633,7 +649,7 @@ def rank(e, value: float, name: str, model) -> float:
     elif name == "cycles run":
         grid, w = model.grid_n, post.sum(axis=0)
     else:
-        grid, w = model.grid_depth.ravel(), post.ravel()
+        grid, w = model.depth_values(post)
         order = np.argsort(grid, kind="stable")
         grid, w = grid[order], w[order]
     cdf = np.cumsum(w) - 0.5 * w

@@ -17,6 +17,9 @@ parameters; an MCMC or a neural estimator adds nothing there):
    not in the surfaces: the features move smoothly with wear, surfaces worn partway are not
    linear in ``N`` where the contact zone moves. Together the design's ensembles are the estimator
    artefact, keyed like the ensembles (:func:`estimator_key`; shipped ones: ``artefacts.shipped_path``).
+   That one wear run per clearance is one wear realisation; the spread between realisations (more
+   wear runs of drawn benches, ``spread.py``) is measured beside it (:func:`with_spread`) and kept in
+   a sidecar file.
 2. **Statistics.** ``identify.fit_states`` over the design points as if they were candidate states:
    pooled between-bench and cycle-to-cycle covariances, the sensor path marginalised, and the
    temperature that calibrates the likelihood on held-out realisations. The feature mean between
@@ -31,7 +34,9 @@ parameters; an MCMC or a neural estimator adds nothing there):
 3. **Posterior** on a grid over the design box (uniform prior), tempered as ``identify`` tempers;
    marginal medians, 50 % and 90 % credible intervals of ``c``, ``N`` and the wear depth (the
    largest clearance growth of any joint, its bearing's and journal's deepest points added,
-   interpolated from the wear runs: what a clearance limit is checked against). Intervals are
+   interpolated from the wear runs: what a clearance limit is checked against). With a wear spread,
+   its covariance at the posterior's cycles run joins the likelihood's (one covariance over the grid,
+   :meth:`EstimatorModel.log_posterior`), and the depth draws on every run's. Intervals are
    central, or one-sided from an end of the range where the posterior piles there
    (:meth:`Interval.from_weights`: the shortest 90 % interval then reaches that end; "at most" /
    "at least"), and say which (``Interval.kind``).
@@ -52,6 +57,16 @@ from scipy import linalg, optimize, special, stats
 from wearbench.bench.schema import Bench, WearState
 from wearbench.bench.units import parse_quantity
 from wearbench.compute.options import DEFAULT, Compute
+from wearbench.validation.estimation.spread import (
+    SpreadDesign,
+    WearSpread,
+    load_spread,
+    measure_spread,
+    save_spread,
+    spread_key,
+    spread_path,
+    spread_seed,
+)
 from wearbench.validation.inference import artefacts
 from wearbench.validation.inference.ensemble import (
     Ensemble,
@@ -263,6 +278,7 @@ class Estimator:
     speed: float
     path: Path | None = field(default=None, compare=False)  # the file it was loaded from (its move beside it)
     about: artefacts.About | None = field(default=None, compare=False)  # its record, when loaded from a file
+    spread: WearSpread | None = field(default=None, compare=False)  # between wear realisations (``spread.py``)
 
     @property
     def spec(self) -> FeatureSpec:
@@ -272,14 +288,23 @@ class Estimator:
 # ---- building ---------------------------------------------------------------------------------
 
 
-def wear_trajectory(bench: Bench, clearance: float, stages: int, stage_cycles: float, speed: float
-                    ) -> list[dict[str, tuple[np.ndarray, np.ndarray, float]]]:
+def wear_trajectory(bench: Bench, clearance: float, stages: int, stage_cycles: float, speed: float,
+                    seed: int | None = None) -> list[dict[str, tuple[np.ndarray, np.ndarray, float]]]:
     """The surfaces after each of ``stages`` wear stages from ``clearance`` (a compute-layer task):
-    per stage {joint: (bearing depth, journal depth, cycles)}."""
+    per stage {joint: (bearing depth, journal depth, cycles)}; ``seed``: of the bench drawn from the
+    tolerances (``realisation.draw_realisation``), its true speed and random start; None: the nominal bench."""
+    from wearbench.model import build_scene
+    from wearbench.model.realisation import draw_realisation, realisation_start
     from wearbench.model.wear_stages import StagePlan, run_stages
 
     plan = StagePlan.from_bench(bench, stages=stages, stage_cycles=stage_cycles)
-    run = run_stages(bench, plan, clearances={j.name: clearance for j in bench.clearance_joints}, speed=speed)
+    clearances = {j.name: clearance for j in bench.clearance_joints}
+    start = None
+    if seed is not None:  # a bench as built wears its own way
+        real = draw_realisation(bench, seed)
+        bench, speed = real.bench, speed * real.speed_scale
+        start = realisation_start(real, build_scene(bench.with_speed(speed), clearances=clearances), speed)
+    run = run_stages(bench, plan, clearances=clearances, speed=speed, start=start)
     return [{j: (s.bearing, s.journal, s.cycles) for j, s in st.surfaces.items()} for st in run.stages]
 
 
@@ -302,59 +327,70 @@ def estimator_key(bench: Bench, design: EstimatorDesign, speed: float) -> str:
                     round(speed, 9))
 
 
+def default_spread(design: EstimatorDesign) -> SpreadDesign:
+    """The wear-run spread a design gets unless asked otherwise: three drawn benches' wear runs per
+    design clearance, 12 realisations of each worn point (paired with the design's first 12 seeds);
+    none for a design of fewer than 12 realisations (a first look, :meth:`EstimatorDesign.small`)."""
+    m = design.settings.realisations
+    return SpreadDesign(3, 12) if m >= 12 else SpreadDesign(0)
+
+
+def spread_plan(design: EstimatorDesign, spread: SpreadDesign) -> list[tuple[str, int, float]]:
+    """What a spread simulates, as ``compute.cost.plan_line`` parts (noun, count, revolutions of each)."""
+    if not spread.runs:
+        return []
+    nc, nn = len(design.clearances), len(design.cycles)
+    return [("spread wear runs", nc * spread.runs, wear_revolutions(nn - 1)),
+            ("spread realisations", nc * spread.runs * (nn - 1) * spread.realisations,
+             realisation_revolutions(replace(design.settings, realisations=spread.realisations)))]
+
+
 def build_estimator(bench: Bench, design: EstimatorDesign | DesignRequest | None = None, *,
                     speed: float | None = None, compute: Compute = DEFAULT, cache: bool = True, shipped: bool = True,
-                    label: str = "estimator") -> Estimator:
+                    label: str = "estimator", spread: SpreadDesign | None = None) -> Estimator:
     """The estimator of ``bench``: a shipped one when its key matches, else the design's wear runs
-    (one per clearance) and ensembles (one per design point) on the compute layer, cached by content.
-    A shipped estimator of the same design with fewer realisations holds the first of them
-    (realisation i is seed + i at every size): only the seeds it lacks are simulated."""
+    (one per clearance) and ensembles (one per design point) on the compute layer, cached by content;
+    with the spread between wear realisations of ``spread`` (default :func:`default_spread`; ``spread.py``),
+    shipped beside it or built. A shipped estimator of the same design with fewer realisations holds
+    the first of them (realisation i is seed + i at every size): only the seeds it lacks are simulated."""
     from wearbench.bench.content import cache_folder
     from wearbench.compute import Task, TaskFailure, task_key
-    from wearbench.compute.cost import Cost, plan_line
-    from wearbench.model.surfaces import JointSurfaces
+    from wearbench.compute.cost import plan_line
 
     speed = bench.speed if speed is None else float(speed)
     joints = [j.name for j in bench.clearance_joints]
     if not joints:
         raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
     design = resolve_design(design, bench, speed)
+    spread = default_spread(design) if spread is None else spread
     key = estimator_key(bench, design, speed)
     base, m0 = None, 0  # a shipped smaller estimator of this design and how many realisations it gives
     if shipped and cache and artefacts.shipped_path("estimator", bench.name).exists():
         found = load_estimator(artefacts.shipped_path("estimator", bench.name))
         if found.key == key:
-            return found
+            return with_spread(bench, found, spread, speed=speed, compute=compute, cache=cache, label=label)
         base, m0 = found, _first_realisations(bench, design, speed, found)
     stages, stage = len(design.cycles) - 1, design.cycles[1]
     wkeys = [task_key("estimator-wear", key, c) for c in design.clearances]
-    middle = WearState("design", dict.fromkeys(joints, design.clearances[len(design.clearances) // 2]))
     settings = design.settings
     points = len(design.clearances) * len(design.cycles)
     if compute.progress:  # the whole plan, before the wear runs start
         compute.announce(plan_line(label, [("wear runs", len(design.clearances), wear_revolutions(stages)),
                                            ("realisations", points * (settings.realisations - m0),
-                                            realisation_revolutions(settings))],
-                                   Cost(bench, middle, speed, settings.output_rate), workers=compute.workers_known))
+                                            realisation_revolutions(settings)), *spread_plan(design, spread)],
+                                   _cost(bench, design, speed), workers=compute.workers_known))
     runs = compute.run([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages, "stage_cycles": stage,
                                              "speed": speed}, k, f"wear {c * 1e3:.3g} mm", wear_revolutions(stages))
                       for c, k in zip(design.clearances, wkeys, strict=True)],
-                     label=f"{label}: wear", cache=cache, cost=Cost(bench, middle, speed, noun="wear runs"))
+                     label=f"{label}: wear", cache=cache, cost=_cost(bench, design, speed, "wear runs"))
     failed = [r for r in runs if isinstance(r, TaskFailure)]
     if failed:
         raise RuntimeError(f"estimator {bench.name}: wear run failed: {failed[0]}")
     folder = cache_folder("estimator-surfaces")
     states, depth = [], np.zeros((len(design.clearances), len(design.cycles)))
     for i, (run, wk) in enumerate(zip(runs, wkeys, strict=True)):
-        for j in range(len(design.cycles)):
-            files = {}
-            for jn, (b, jr, cyc) in (run[j - 1].items() if j else ()):
-                path = folder / f"{wk[:24]}_{jn}_{j}.npz"
-                if not path.exists():
-                    JointSurfaces(b, jr, cyc, f"{point_name(design.clearances[i], design.cycles[j])}").save(path)
-                files[jn] = path
-                depth[i, j] = max(depth[i, j], float(np.max(b)) + float(np.max(jr)))
-            states.append(design.state(i, j, files, joints))
+        worn, depth[i] = _worn_states(design, i, run, wk, folder, joints)
+        states += worn
     if m0 and not np.array_equal(base.depth, depth):
         m0 = 0  # its wear runs are not these: its realisations saw other surfaces
     settings = design.settings if not m0 else replace(design.settings, seed=design.settings.seed + m0,
@@ -366,7 +402,88 @@ def build_estimator(bench: Bench, design: EstimatorDesign | DesignRequest | None
     if m0:
         c = min(base.features.shape[3], est.features.shape[3])
         est = replace(est, features=np.concatenate([base.features[:, :, :, :c], est.features[:, :, :, :c]], axis=2))
-    return est
+    return with_spread(bench, est, spread, speed=speed, compute=compute, cache=cache, label=label, announce=False)
+
+
+def _cost(bench: Bench, design: EstimatorDesign, speed: float, noun: str = "simulations"):
+    """What a design's simulations cost, priced at its middle clearance."""
+    from wearbench.compute.cost import Cost
+
+    middle = WearState("design", dict.fromkeys([j.name for j in bench.clearance_joints],
+                                               design.clearances[len(design.clearances) // 2]))
+    return Cost(bench, middle, speed, design.settings.output_rate, noun)
+
+
+def _worn_states(design: EstimatorDesign, i: int, run: list, run_key: str, folder: Path, joints: Sequence[str],
+                 name: str = "") -> tuple[list[WearState], np.ndarray]:
+    """The design points of clearance ``i`` on wear ``run`` (``wear_trajectory``'s stages; surface files
+    kept in ``folder`` under ``run_key``) as states (named by :func:`point_name` and ``name``) and
+    their wear depths."""
+    from wearbench.model.surfaces import JointSurfaces
+
+    states, depth = [], np.zeros(len(design.cycles))
+    for j in range(len(design.cycles)):
+        files = {}
+        for jn, (b, jr, cyc) in (run[j - 1].items() if j else ()):
+            path = folder / f"{run_key[:24]}_{jn}_{j}.npz"
+            if not path.exists():
+                JointSurfaces(b, jr, cyc, f"{point_name(design.clearances[i], design.cycles[j])}{name}").save(path)
+            files[jn] = path
+            depth[j] = max(depth[j], float(np.max(b)) + float(np.max(jr)))
+        state = design.state(i, j, files, joints)
+        states.append(replace(state, name=state.name + name))
+    return states, depth
+
+
+def with_spread(bench: Bench, est: Estimator, spread: SpreadDesign, *, speed: float, compute: Compute = DEFAULT,
+                cache: bool = True, label: str = "estimator", announce: bool = True) -> Estimator:
+    """``est`` with the spread between wear realisations of ``spread`` (none: ``spread.runs`` 0): the one
+    it carries when its key matches, else ``spread.runs`` wear runs per design clearance of benches drawn
+    with :func:`~wearbench.validation.estimation.spread.spread_seed` and ``spread.realisations`` of
+    every worn point (the design's first seeds) on the compute layer, cached by content (``announce``:
+    print its plan first)."""
+    from wearbench.bench.content import cache_folder
+    from wearbench.compute import Task, TaskFailure, task_key
+    from wearbench.compute.cost import plan_line
+
+    if not spread.runs:
+        return replace(est, spread=None)
+    key = spread_key(est.key, spread)
+    if est.spread is not None and est.spread.key == key:
+        return est
+    d, m = est.design, est.features.shape[2]
+    if spread.realisations > m:
+        raise ValueError(f"wear spread: {spread.realisations} realisations per worn point, paired with the design's "
+                         f"first seeds: expected at most the design's {m}")
+    if announce and compute.progress:
+        compute.announce(plan_line(f"{label}: wear spread", spread_plan(d, spread), _cost(bench, d, speed),
+                                   workers=compute.workers_known))
+    stages, joints = len(d.cycles) - 1, [j.name for j in bench.clearance_joints]
+    cases = [(i, c, spread_seed(i, q)) for i, c in enumerate(d.clearances) for q in range(spread.runs)]
+    wkeys = [task_key("estimator-spread-wear", est.key, c, s) for _, c, s in cases]
+    runs = compute.run([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages,
+                                               "stage_cycles": d.cycles[1], "speed": speed, "seed": s}, k,
+                             f"wear {c * 1e3:.3g} mm, bench {s}", wear_revolutions(stages))
+                        for (_, c, s), k in zip(cases, wkeys, strict=True)],
+                       label=f"{label}: spread wear", cache=cache, cost=_cost(bench, d, speed, "wear runs"))
+    failed = [r for r in runs if isinstance(r, TaskFailure)]
+    if failed:
+        raise RuntimeError(f"estimator {bench.name}: a wear run of the spread failed: {failed[0]}")
+    folder = cache_folder("estimator-surfaces")
+    nc, nn = len(d.clearances), len(d.cycles)
+    states, depth, names = [], np.zeros((spread.runs, nc, nn)), {}
+    for (i, _, s), run, wk in zip(cases, runs, wkeys, strict=True):
+        q = s - spread_seed(i, 0)
+        worn, depth[q, i] = _worn_states(d, i, run, wk, folder, joints, f", bench {s}")
+        names.update({(q, i, j): st.name for j, st in enumerate(worn) if j})
+        states += worn[1:]  # 0 cycles: unworn surfaces, the reference's point
+    settings = replace(d.settings, realisations=spread.realisations)
+    ens = build_ensembles(bench, states, speed=speed, settings=settings, compute=compute, cache=cache, shipped=False,
+                          label=f"{label}: spread ensembles")
+    r, cyc = spread.realisations, min(e.features.shape[1] for e in ens.values())
+    feats = np.array([[[ens[names[q, i, j]].features[:r, :cyc] for j in range(1, nn)] for i in range(nc)]
+                      for q in range(spread.runs)])  # (runs, clearances, cycles - 1, R, C, p)
+    return replace(est, spread=WearSpread(est.key, key, spread, d.cycles, measure_spread(est.features, feats), depth))
 
 
 def _first_realisations(bench: Bench, design: EstimatorDesign, speed: float, est: Estimator) -> int:
@@ -392,11 +509,22 @@ def estimator_from_ensembles(bench: str, key: str, design: EstimatorDesign, ense
 
 def save_estimator(est: Estimator, path: str | Path) -> Path:
     """Write ``est`` as an artefact naming the bench, speed and sensor path it was built for (an
-    estimator made by hand, not built from a bench, names no bench key)."""
-    about = est.about or artefacts.About("estimator", est.key, est.bench, "", est.speed,
-                                         sensor_paths_text(est.design.settings))
-    return artefacts.write(path, about, {"features": est.features, "depth": est.depth,
-                                         "design": np.array(json.dumps(est.design.to_dict()))})
+    estimator made by hand, not built from a bench, names no bench key); its wear spread, when it
+    carries one, goes beside it with :func:`save_estimator_spread`."""
+    return artefacts.write(path, _about(est), {"features": est.features, "depth": est.depth,
+                                               "design": np.array(json.dumps(est.design.to_dict()))})
+
+
+def save_estimator_spread(est: Estimator, path: str | Path) -> Path:
+    """Write ``est``'s wear spread to ``path`` (``spread.spread_path`` of where ``est`` is saved)."""
+    if est.spread is None:
+        raise ValueError(f"estimator {est.bench}: no wear spread to save (built with --wear-runs 0)")
+    return save_spread(est.spread, path, _about(est))
+
+
+def _about(est: Estimator) -> artefacts.About:
+    return est.about or artefacts.About("estimator", est.key, est.bench, "", est.speed,
+                                        sensor_paths_text(est.design.settings))
 
 
 def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | None:
@@ -411,10 +539,12 @@ def load_estimator(path: str | Path, *, key: str | None = None) -> Estimator | N
         d = json.loads(str(data["design"]))
         design = EstimatorDesign(tuple(d["clearances"]), tuple(d["cycles"]),
                                  EnsembleSettings.from_dict(d["settings"]))
-        return Estimator(about.bench, about.key, design, data["features"], data["depth"], about.speed, Path(path),
-                         about)
+        est = Estimator(about.bench, about.key, design, data["features"], data["depth"], about.speed, Path(path),
+                        about)
     except (KeyError, ValueError, TypeError) as exc:
         raise artefacts.ArtefactError(f"{path}: an estimator missing or damaging {exc}") from None
+    beside = spread_path(path)
+    return replace(est, spread=load_spread(beside, est.key)) if beside.is_file() else est
 
 
 # ---- fitting ----------------------------------------------------------------------------------
@@ -455,6 +585,11 @@ class EstimatorModel:
     grid_depth: np.ndarray  # (gc, gn)
     null: tuple[float, float]
     reference: str  # the design point whose covariance (with its sensor nuisance) the grid uses
+    run_depth: np.ndarray | None = None  # (runs, gc, gn): the wear spread's runs' depths (None: no spread)
+
+    @property
+    def spread(self) -> WearSpread | None:
+        return self.estimator.spread
 
     def scaled(self, c: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         d = self.estimator.design
@@ -468,12 +603,43 @@ class EstimatorModel:
     def covariance(self, cycles: float) -> np.ndarray:
         return self.stats[self.reference].covariance(cycles) + np.diag(self.discrepancy)
 
-    def distances(self, xbar: np.ndarray, cycles: float) -> np.ndarray:
-        """Squared Mahalanobis distance of a session mean over ``cycles`` to every grid point (gc, gn)."""
-        chol = linalg.cholesky(self.covariance(cycles), lower=True)
+    def distances(self, xbar: np.ndarray, cycles: float, extra: np.ndarray | None = None) -> np.ndarray:
+        """Squared Mahalanobis distance of a session mean over ``cycles`` to every grid point (gc, gn);
+        ``extra``: a covariance (p, p) added to the tempered likelihood's (it is divided by the
+        temperature here: ``temperature x`` the covariance is what the likelihood uses)."""
+        cov = self.covariance(cycles) + (0 if extra is None else extra / self.temperature)
+        chol = linalg.cholesky(cov, lower=True)
         d = (np.asarray(xbar, float) - self.grid_mean).reshape(-1, self.grid_mean.shape[-1])
         z = linalg.solve_triangular(chol, d.T, lower=True)
         return np.sum(z * z, axis=0).reshape(self.grid_mean.shape[:2])
+
+    def log_posterior(self, xbar: np.ndarray, cycles: float, *, passes: int = 2) -> tuple[np.ndarray, np.ndarray]:
+        """The tempered log posterior (gc, gn), normalised (uniform prior on the grid), of a session
+        mean over ``cycles``, and its distances. With a wear spread, the spread at the cycles run the
+        posterior gives (its weighted mean over the grid's columns) is added to the covariance, the
+        posterior taken again, ``passes`` times: one covariance over the grid, so that how widely a
+        session scatters about the emulated mean does not itself count as evidence of wear (a
+        covariance growing with cycles run would, and would read wear from the reference run's
+        smoothness)."""
+        d2 = self.distances(xbar, cycles)
+        logp = -0.5 * d2 / self.temperature
+        logp -= special.logsumexp(logp)
+        for _ in range(passes if self.spread is not None else 0):
+            w = np.exp(logp).sum(axis=0)
+            extra = sum(wk * self.spread.at(n) for wk, n in zip(w, self.grid_n, strict=True) if wk > 0)
+            d2 = self.distances(xbar, cycles, extra)
+            logp = -0.5 * d2 / self.temperature
+            logp -= special.logsumexp(logp)
+        return logp, d2
+
+    def depth_values(self, posterior: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Wear depths and their weights under ``posterior`` (gc, gn): the reference run's depth at
+        every grid point and, with a wear spread, every spread run's, the runs weighted alike."""
+        if self.run_depth is None:
+            return self.grid_depth.ravel(), posterior.ravel()
+        runs = 1 + self.run_depth.shape[0]
+        return (np.concatenate([self.grid_depth.ravel(), self.run_depth.ravel()]),
+                np.tile(posterior.ravel(), runs) / runs)
 
     def log_likelihood(self, xbar: np.ndarray, cycles: float, c: float, n: float) -> float:
         """Untempered Gaussian log likelihood at one parameter value (what ranks candidate states)."""
@@ -514,12 +680,10 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
     gn = np.linspace(0.0, d.cycles[-1], grid[1])
     gu, gv = np.meshgrid(2 * (gc - lo) / (hi - lo) - 1, 2 * gn / d.cycles[-1] - 1, indexing="ij")
     basis = _basis(gu, gv, degrees)
-    # wear depth: linear in N along each design clearance's run, then linear in c
-    along = np.stack([np.interp(gn, d.cycles, est.depth[i]) for i in range(nc)])  # (nc, gn)
-    grid_depth = np.stack([np.interp(gc, d.clearances, along[:, k]) for k in range(gn.size)], axis=1)
     centre = names[(nc // 2) * nn + nn // 2]
+    runs = None if est.spread is None else np.stack([_grid_depth(d, r, gc, gn) for r in est.spread.depth])
     model = EstimatorModel(est, fitted, options, sensor, 1.0, coef, degrees, discrepancy, gc, gn, basis @ coef,
-                           grid_depth, (1.0, 1.0), centre)
+                           _grid_depth(d, est.depth, gc, gn), (1.0, 1.0), centre, runs)
     # held-out realisations of the design: each one's distances to the grid with the emulator refitted
     # without it (its design point's mean moves; the covariances are kept), for the temperature and the
     # consistency null
@@ -550,6 +714,13 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
     own_min = d2s_a.min(axis=1)
     model.null = gamma_by_moments(own_min)
     return model
+
+
+def _grid_depth(design: EstimatorDesign, depth: np.ndarray, gc: np.ndarray, gn: np.ndarray) -> np.ndarray:
+    """A wear run's depth (clearances, cycles) on the grid: linear in N along each design clearance,
+    then linear in c."""
+    along = np.stack([np.interp(gn, design.cycles, row) for row in depth])  # (nc, gn)
+    return np.stack([np.interp(gc, design.clearances, along[:, k]) for k in range(gn.size)], axis=1)
 
 
 # ---- estimating -------------------------------------------------------------------------------
@@ -702,9 +873,16 @@ def predictive_band(model: EstimatorModel, posterior: np.ndarray, *, draws: int 
     fixed seed (a session gets the same band every time)."""
     rng = np.random.default_rng(seed)
     w = posterior.ravel() / posterior.sum()
-    means = model.grid_mean.reshape(w.size, -1)[rng.choice(w.size, size=draws, p=w)]
-    chol = linalg.cholesky(model.covariance(1.0), lower=True)
-    x = means + rng.standard_normal(means.shape) @ chol.T
+    pick = rng.choice(w.size, size=draws, p=w)
+    means = model.grid_mean.reshape(w.size, -1)[pick]
+    z = rng.standard_normal(means.shape)
+    if model.spread is None:
+        x = means + z @ linalg.cholesky(model.covariance(1.0), lower=True).T
+    else:  # the wear spread at each draw's cycles run
+        x, column = means.copy(), pick % model.grid_n.size
+        for k in np.unique(column):
+            at = column == k
+            x[at] += z[at] @ linalg.cholesky(model.covariance(1.0) + model.spread.at(model.grid_n[k]), lower=True).T
     return np.percentile(x, [5.0, 50.0, 95.0], axis=0)
 
 
@@ -715,13 +893,12 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     if n < 1:
         raise ValueError(f"estimate {label}: the session holds no complete crank cycle")
     xbar = x.mean(axis=0)
-    d2 = model.distances(xbar, n)
-    logp = -0.5 * d2 / model.temperature
-    post = np.exp(logp - special.logsumexp(logp))
+    logp, d2 = model.log_posterior(xbar, n)
+    post = np.exp(logp)
     gc, gn = model.grid_c, model.grid_n
     c_int = Interval.from_weights(gc, post.sum(axis=1), edges=True)
     n_int = Interval.from_weights(gn, post.sum(axis=0), edges=True)
-    depth_int = Interval.from_weights(model.grid_depth.ravel(), post.ravel(), edges=True)
+    depth_int = Interval.from_weights(*model.depth_values(post), edges=True)
     i, j = np.unravel_index(int(np.argmax(post)), post.shape)
     cc, nn = np.meshgrid(gc, gn, indexing="ij")
     mc, mn = float((post * cc).sum()), float((post * nn).sum())
@@ -759,6 +936,10 @@ def estimate_features(features: CycleFeatures, model: EstimatorModel, *, label: 
     if explains and verdict != PRIOR_ONLY and one_sided:
         notes.append("one-sided 90 % interval" + ("s" if len(one_sided) > 1 else "") + " where the posterior piles at "
                      "the edge of the estimator's range: " + ", ".join(one_sided))
+    if explains and verdict != PRIOR_ONLY and model.spread is None:
+        notes.append("the estimator holds one wear run per design clearance: how far another bench's wear "
+                     "realisation lies from it is not in the intervals of cycles run and wear depth (build it with "
+                     "'wearbench estimator --wear-runs 3')")
     if n < SHORT_SESSION:
         notes.append(f"only {n} complete crank cycle{'s' if n > 1 else ''}: the estimator's statistics hold for "
                      f"sessions of {SHORT_SESSION} or more; record longer for intervals to trust")

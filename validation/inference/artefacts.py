@@ -1,11 +1,12 @@
 """Keyed artefacts: theory built once, kept in a file that says what it is for.
 
-Four kinds of result are built from a bench and kept: theory ensembles of candidate states
-(``ensemble.py``), a clearance-and-wear estimator (``estimate.py``), the benches' move measured
-against one estimator (``move.py``) and a sensor-path calibration (``calibration.py``). Every such
+Five kinds of result are built from a bench and kept: theory ensembles of candidate states
+(``ensemble.py``), a clearance-and-wear estimator (``estimate.py``), the spread between wear
+realisations and the benches' move, both measured against one estimator (``spread.py``, ``move.py``),
+and a sensor-path calibration (``calibration.py``). Every such
 file carries an :class:`About` record: its kind, its content key, the bench it was built for (name
 and physics key), the commanded motor speed, the sensor path it assumes and the wearbench version.
-This module owns what the four share:
+This module owns what the five share:
 
 - writing and reading that record with the arrays (:func:`write`, :func:`read`), and the one error
   vocabulary: no such file, a file that is no artefact, an artefact of another kind ("FILE is an
@@ -52,6 +53,7 @@ KINDS: dict[str, str] = {
     "estimator": "an estimator ('wearbench estimator')",
     "move": "a move ('wearbench estimator --lives')",
     "calibration": "a calibration ('wearbench calibrate')",
+    "wear-spread": "a wear spread ('wearbench estimator --wear-runs')",
 }
 FORMAT = 2  # version of the record; files without one come from wearbench before keyed records
 SHIPPED = Path(__file__).with_name("shipped")  # precomputed artefacts of the shipped benches, by kind
