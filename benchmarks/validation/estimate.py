@@ -49,7 +49,6 @@ import argparse
 import os
 import tempfile
 import time
-
 from dataclasses import replace
 
 import numpy as np
