@@ -5,8 +5,8 @@ design's range and a cycles-run value uniformly over [0, the design's last], dra
 the bench file's [tolerances] with its own seed (20000 + k; the design uses 1..M, its wear spread
 30000 + 100 i + k) and a random start, wears that bench from that clearance through those cycles in
 its own wear run (one stage: a wear realisation no design ran; ``--truth-wear nominal``: the nominal
-bench wears, as before 0.10), and is seen through the emulator's sensor chain (the bench file's [emulator.accelerometer]:
-mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with --sensor-paths a
+bench wears, as truths did before this option), and is seen through the emulator's sensor chain
+(the bench file's [emulator.accelerometer]: mount resonance, anti-alias filter at 4x oversampling, noise, 16-bit ADC; with --sensor-paths a
 mount/carriage mode drawn per truth in 0.3-3 kHz, damping 0.02-0.1, sensitivity +/-5 %; with
 --cross-axis also a cross-axis sensitivity of 1-5 % to the carriage's lateral mode, 0.3-3 kHz), applied
 in-process to the model's acceleration (no MCAP round trip: benchmarks/validation/identify.py covers that).
@@ -87,7 +87,7 @@ def main() -> None:
                     "(SensorSpread's whole draw; the cached drawn lives and the shipped move are axial only)")
     ap.add_argument("--truth-wear", choices=("drawn", "nominal"), default="drawn",
                     help="who wears a truth through its cycles run: its own drawn bench from its random start (drawn, "
-                    "a wear realisation no design ran) or the bench file's nominal bench (nominal, as before 0.10)")
+                    "a wear realisation no design ran) or the bench file's nominal bench (nominal, as truths wore before this option)")
     ap.add_argument("--at", type=float, default=200_000.0, help="cycles run of the --at-truths (200000)")
     ap.add_argument("--at-truths", type=int, default=0, help="extra truths at --at cycles run (0)")
     ap.add_argument("--states", type=int, default=0, help="sessions per worn state of the bench file, on the state's "
