@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     from wearbench.bench.output_file import check_output, output_file
     from wearbench.validation.estimation.estimate import (
         build_estimator,
+        check_spread,
         default_spread,
         estimator_key,
         load_estimator,
@@ -100,10 +101,8 @@ def run(args: argparse.Namespace) -> int:
 
     bench = load_bench(resolve_bench(args.bench))
     design = design_from_args(args).resolve(bench)  # every value checked against the bench before any work
-    spread = default_spread(design) if args.wear_runs is None else SpreadDesign(args.wear_runs, 12)
-    if spread.runs and spread.realisations > design.settings.realisations:
-        raise ValueError(f"--wear-runs {spread.runs}: the spread pairs {spread.realisations} realisations per worn point "
-                         f"with the design's first seeds: expected --realisations of at least {spread.realisations}")
+    spread = default_spread(design) if args.wear_runs is None else SpreadDesign(args.wear_runs)
+    check_spread(design, spread)
     if args.lives is not None and args.lives < MIN_LIVES:
         raise ValueError(f"--lives {args.lives}: expected at least {MIN_LIVES} lives (the move's mean and its error "
                          "need three independent benches; 20 or more)")

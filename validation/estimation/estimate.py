@@ -331,8 +331,16 @@ def default_spread(design: EstimatorDesign) -> SpreadDesign:
     """The wear-run spread a design gets unless asked otherwise: three drawn benches' wear runs per
     design clearance, 12 realisations of each worn point (paired with the design's first 12 seeds);
     none for a design of fewer than 12 realisations (a first look, :meth:`EstimatorDesign.small`)."""
-    m = design.settings.realisations
-    return SpreadDesign(3, 12) if m >= 12 else SpreadDesign(0)
+    spread = SpreadDesign()
+    return spread if design.settings.realisations >= spread.realisations else SpreadDesign(0)
+
+
+def check_spread(design: EstimatorDesign, spread: SpreadDesign) -> None:
+    """Refuse (one ValueError naming the option) a spread ``design`` cannot pair: its realisations run
+    with the design's first seeds, so it needs at least as many in the design."""
+    if spread.runs and spread.realisations > design.settings.realisations:
+        raise ValueError(f"--wear-runs {spread.runs}: the spread pairs {spread.realisations} realisations per worn point "
+                         f"with the design's first seeds: expected --realisations of at least {spread.realisations}")
 
 
 def spread_plan(design: EstimatorDesign, spread: SpreadDesign) -> list[tuple[str, int, float]]:
@@ -363,6 +371,7 @@ def build_estimator(bench: Bench, design: EstimatorDesign | DesignRequest | None
         raise ValueError(f"{bench.name}: no clearance joints: nothing to estimate")
     design = resolve_design(design, bench, speed)
     spread = default_spread(design) if spread is None else spread
+    check_spread(design, spread)  # before anything is simulated
     key = estimator_key(bench, design, speed)
     base, m0 = None, 0  # a shipped smaller estimator of this design and how many realisations it gives
     if shipped and cache and artefacts.shipped_path("estimator", bench.name).exists():
@@ -451,20 +460,18 @@ def with_spread(bench: Bench, est: Estimator, spread: SpreadDesign, *, speed: fl
     key = spread_key(est.key, spread)
     if est.spread is not None and est.spread.key == key:
         return est
-    d, m = est.design, est.features.shape[2]
-    if spread.realisations > m:
-        raise ValueError(f"wear spread: {spread.realisations} realisations per worn point, paired with the design's "
-                         f"first seeds: expected at most the design's {m}")
+    d = est.design
+    check_spread(d, spread)
     if announce and compute.progress:
         compute.announce(plan_line(f"{label}: wear spread", spread_plan(d, spread), _cost(bench, d, speed),
                                    workers=compute.workers_known))
     stages, joints = len(d.cycles) - 1, [j.name for j in bench.clearance_joints]
-    cases = [(i, c, spread_seed(i, q)) for i, c in enumerate(d.clearances) for q in range(spread.runs)]
-    wkeys = [task_key("estimator-spread-wear", est.key, c, s) for _, c, s in cases]
+    cases = [(q, i, c, spread_seed(i, q)) for i, c in enumerate(d.clearances) for q in range(spread.runs)]
+    wkeys = [task_key("estimator-spread-wear", est.key, c, s) for *_, c, s in cases]
     runs = compute.run([Task(wear_trajectory, {"bench": bench, "clearance": c, "stages": stages,
                                                "stage_cycles": d.cycles[1], "speed": speed, "seed": s}, k,
                              f"wear {c * 1e3:.3g} mm, bench {s}", wear_revolutions(stages))
-                        for (_, c, s), k in zip(cases, wkeys, strict=True)],
+                        for (*_, c, s), k in zip(cases, wkeys, strict=True)],
                        label=f"{label}: spread wear", cache=cache, cost=_cost(bench, d, speed, "wear runs"))
     failed = [r for r in runs if isinstance(r, TaskFailure)]
     if failed:
@@ -472,8 +479,7 @@ def with_spread(bench: Bench, est: Estimator, spread: SpreadDesign, *, speed: fl
     folder = cache_folder("estimator-surfaces")
     nc, nn = len(d.clearances), len(d.cycles)
     states, depth, names = [], np.zeros((spread.runs, nc, nn)), {}
-    for (i, _, s), run, wk in zip(cases, runs, wkeys, strict=True):
-        q = s - spread_seed(i, 0)
+    for (q, i, _, s), run, wk in zip(cases, runs, wkeys, strict=True):
         worn, depth[q, i] = _worn_states(d, i, run, wk, folder, joints, f", bench {s}")
         names.update({(q, i, j): st.name for j, st in enumerate(worn) if j})
         states += worn[1:]  # 0 cycles: unworn surfaces, the reference's point

@@ -141,3 +141,16 @@ def test_a_spread_design_is_checked():
     with pytest.raises(ValueError, match="at least 3"):
         SpreadDesign(2, 2)
     assert SpreadDesign(0, 0).runs == 0
+
+
+def test_a_spread_the_design_cannot_pair_is_refused_before_anything_is_simulated(monkeypatch):
+    from wearbench.bench.load import load_bench, shipped_bench
+    from wearbench.compute.options import Compute
+    from wearbench.validation.estimation.estimate import EstimatorDesign, build_estimator
+    from wearbench.validation.inference.ensemble import EnsembleSettings
+
+    monkeypatch.setattr(Compute, "run", lambda *a, **k: pytest.fail("a batch of simulations was started"))
+    bench = load_bench(shipped_bench("fourbar"))
+    design = EstimatorDesign((0.3e-3, 0.6e-3), (0.0, 200_000.0), EnsembleSettings(realisations=6, cycles=4))
+    with pytest.raises(ValueError, match="--wear-runs 2: the spread pairs 12 realisations"):
+        build_estimator(bench, design, spread=SpreadDesign(2), shipped=False)
