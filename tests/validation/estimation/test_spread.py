@@ -154,3 +154,25 @@ def test_a_spread_the_design_cannot_pair_is_refused_before_anything_is_simulated
     design = EstimatorDesign((0.3e-3, 0.6e-3), (0.0, 200_000.0), EnsembleSettings(realisations=6, cycles=4))
     with pytest.raises(ValueError, match="--wear-runs 2: the spread pairs 12 realisations"):
         build_estimator(bench, design, spread=SpreadDesign(2), shipped=False)
+
+
+def test_a_damaged_spread_beside_an_estimator_is_named_and_the_files_are_left_as_they_were(tmp_path):
+    """A cut sidecar, or another artefact under its name, is refused in one line naming the file; the
+    estimator and the sidecar stay byte for byte."""
+    from wearbench.validation.inference.artefacts import ArtefactError
+
+    rng = np.random.default_rng(16)
+    ref, runs, _ = synthetic(2, rng)
+    est = _estimator(ref, runs)
+    path, beside = tmp_path / "e.npz", spread_path(tmp_path / "e.npz")
+    save_estimator(est, path)
+    save_estimator_spread(est, beside)
+    beside.write_bytes(beside.read_bytes()[:500])  # cut while copied
+    kept = path.read_bytes(), beside.read_bytes()
+    with pytest.raises(ArtefactError, match=f"{beside}"):
+        load_estimator(path)
+    assert (path.read_bytes(), beside.read_bytes()) == kept
+    save_estimator(est, beside)  # an estimator where the spread belongs
+    with pytest.raises(ArtefactError, match=rf"{beside} is an estimator, not a wear spread"):
+        load_estimator(path)
+    assert path.read_bytes() == kept[0]
