@@ -1,5 +1,14 @@
 """Suite-wide fixtures.
 
+- Test files run heaviest first (``tests/durations.json``, written by
+  ``benchmarks/compute/suite_durations.py --schedule``): with ``-n``, xdist hands whole files to the
+  workers in this order (``--dist loadfile --no-loadscope-reorder``), so the long files start at
+  once and the short ones fill in at the end. A file not listed yet runs after the listed ones.
+- With ``-n`` on a fresh checkout, the model's kernels are compiled once, in a process of its own,
+  while the workers collect and run the tests that compile kernels of their own (``own_kernels``:
+  an empty numba cache, another commit's model); every other test waits for it. Otherwise every
+  worker, and the commands the tests start, would compile them at once: about a minute and a half
+  of CPU each.
 - Every test gets its own result cache (unless a module fixture chose one) and no user compute config.
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
   (``wearbench.testing.mcap_readers``): @mcap/core's indexed reader under node and the Python mcap
@@ -11,14 +20,68 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
 from pathlib import Path
 
 import pytest
 from wearbench.testing import mcap_readers
 
 NODE_FOLDER = mcap_readers.cache_dir()
+DURATIONS = Path(__file__).with_name("durations.json")
+KERNELS_READY = "WEARBENCH_TEST_KERNELS_READY"  # a file that exists once the run's shared compile is done
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Whole files: those with a test that compiles its own kernels first, then the heaviest by
+    their recorded seconds; within a file, its ``own_kernels`` tests first, then the tests' own order."""
+    seconds = json.loads(DURATIONS.read_text(encoding="utf-8")) if DURATIONS.exists() else {}
+    first, own = {}, set()
+    for i, item in enumerate(items):
+        file = item.nodeid.split("::")[0]
+        first.setdefault(file, i)
+        if item.get_closest_marker("own_kernels"):
+            own.add(file)
+    rank = {id(item): i for i, item in enumerate(items)}
+
+    def key(item: pytest.Item) -> tuple[bool, float, int, bool, int]:
+        file = item.nodeid.split("::")[0]
+        return (file not in own, -seconds.get(file, 0.0), first[file], not item.get_closest_marker("own_kernels"),
+                rank[id(item)])
+
+    items.sort(key=key)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """On the controller of a run with workers, when the kernels are not in their on-disk cache:
+    compile them in a process of its own, and tell the workers where it will say it is done."""
+    if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
+        return
+    from wearbench.compute.cluster import kernels_compiled
+
+    if kernels_compiled():
+        return
+    done = Path(tempfile.mkdtemp(prefix="wearbench-kernels-")) / "done"
+    warming = subprocess.Popen([sys.executable, "-c", "from wearbench.compute.cluster import warm_up\nwarm_up()\n"])
+    threading.Thread(target=lambda: (warming.wait(), done.touch()), daemon=True).start()
+    os.environ[KERNELS_READY] = str(done)  # the workers start after this hook, with this environment
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem):
+    """A test waits for the shared compile unless it compiles kernels of its own (``own_kernels``);
+    before its setup, so the wait is no test's duration."""
+    done = os.environ.get(KERNELS_READY)
+    if done and not item.get_closest_marker("own_kernels"):
+        while not os.path.exists(done):
+            time.sleep(0.2)
+    return (yield)
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -15,6 +15,7 @@ import time
 
 import numba
 import psutil
+import pytest
 from numba.core import event
 from wearbench.cli.progress import COMPILING, compile_note
 
@@ -83,6 +84,7 @@ def _said(lines: list[str]) -> list[str]:
     return [x for x in lines if not re.search(r"\(\d+ s\)$", x)]
 
 
+@pytest.mark.own_kernels
 def test_record_on_the_sim_backend_says_it_compiles(tmp_path):
     """The sim backend's emulator simulates the model: the first `record` compiled silently."""
     code, lines, _ = _cold_start(["record", "ninebar-testbed", "--backend", "sim", "--duration", "0.3s",
@@ -91,11 +93,13 @@ def test_record_on_the_sim_backend_says_it_compiles(tmp_path):
     assert not (tmp_path / "s.mcap").exists()  # stopped before its session began
 
 
+@pytest.mark.own_kernels
 def test_emulate_says_it_compiles(tmp_path):
     code, lines, _ = _cold_start(["emulate", "ninebar-testbed", "--serial"], tmp_path)
     assert _said(lines) == [COMPILING, "wearbench emulate: interrupted"] and code == 130, lines
 
 
+@pytest.mark.own_kernels
 def test_a_local_cluster_compiles_once_here_and_says_so(tmp_path):
     """On a cold cache each worker compiled the kernels in its warm-up, all at once and unheard (the
     command's note listens in its own process): the command compiles them first, saying so, and the

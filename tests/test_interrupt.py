@@ -79,6 +79,7 @@ def test_compare_stops_at_once_wherever_it_is(tmp_path):
         _assert_one_line(code, err, took, "compare")
 
 
+@pytest.mark.own_kernels
 def test_a_cold_start_says_it_compiles_and_stops_while_compiling(tmp_path):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # nothing compiled yet
     code, err, took = _interrupt(["simulate", "slider-crank"], after=1.0, env=env, once=COMPILING)

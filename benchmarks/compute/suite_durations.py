@@ -1,18 +1,21 @@
 """Where does the test suite's time go? Runs pytest on the suite (as CI does) and tabulates its wall
 time, the time by test folder and the slowest tests, from pytest's JUnit XML (``--junitxml``: per
-test, its setup, call and teardown together).
+test, its setup, call and teardown together). ``--schedule`` also writes each test file's time to
+``tests/durations.json``, the order in which ``tests/conftest.py`` hands files to the workers
+(heaviest first).
 
 The run's wall time depends on the machine and what else runs on it: the result names both (its
 ``environment``). ``--pytest-args`` passes options through, e.g. ``-m "not slow"`` for the developer
 loop.
 
-    python -m benchmarks.compute.suite_durations [--pytest-args ARGS] [--top 25] [--json PATH]
+    python -m benchmarks.compute.suite_durations [--pytest-args ARGS] [--top 25] [--json PATH] [--schedule]
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import json
 import shlex
 import subprocess
 import sys
@@ -22,6 +25,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from benchmarks.result_json import ROOT, Run, column, table, write_result
+
+SCHEDULE = ROOT / "tests" / "durations.json"
 
 
 def read_junit(path: Path) -> list[tuple[str, str, float]]:
@@ -42,6 +47,8 @@ def main() -> None:
     ap.add_argument("--pytest-args", default="", help="options passed to pytest (quoted), e.g. '-m \"not slow\"'")
     ap.add_argument("--top", type=int, default=25, help="slowest tests listed (25)")
     ap.add_argument("--json", metavar="PATH", help="also write the result (docs/results/data/ for the docs)")
+    ap.add_argument("--schedule", action="store_true",
+                    help=f"also write each test file's seconds to {SCHEDULE.relative_to(ROOT)} (the workers' order)")
     args = ap.parse_args()
     run = Run()
     with tempfile.TemporaryDirectory() as tmp:
@@ -55,8 +62,13 @@ def main() -> None:
             raise SystemExit(f"pytest wrote no JUnit XML (exit {done.returncode})")
         cases = read_junit(junit)
     by_folder: dict[str, list[float]] = collections.defaultdict(list)
+    by_file: dict[str, float] = collections.defaultdict(float)
     for file, _, s in cases:
         by_folder[str(Path(file).parent)].append(s)
+        by_file[file] += s
+    if args.schedule:
+        SCHEDULE.write_text(json.dumps({f: round(s, 1) for f, s in sorted(by_file.items())}, indent=1) + "\n")
+        print(f"schedule: {SCHEDULE.relative_to(ROOT)} ({len(by_file)} files)")
     folders = sorted(by_folder.items(), key=lambda kv: -sum(kv[1]))
     slowest = sorted(cases, key=lambda c: -c[2])[:args.top]
     total = sum(s for *_, s in cases)

@@ -45,6 +45,7 @@ def test_results_are_keyed_on_the_stated_digest():
 
 
 @pytest.mark.slow
+@pytest.mark.own_kernels  # the stated commit's model, compiled in its own folder
 def test_the_stated_equivalence_holds_bit_for_bit(tmp_path):
     """The current source's entry (if any): its commit's model/ has the stated digest, and every
     output of trajectory_identity.py's cases is identical between that commit and this code."""

@@ -44,6 +44,7 @@ def _run(root: Path) -> dict:
 
 
 @pytest.mark.slow
+@pytest.mark.own_kernels  # a copy of the model, compiled in the copy's __pycache__
 def test_editing_a_callee_recompiles_the_cached_kernel(tmp_path):
     src = Path(model_pkg.__file__).parent
     import wearbench.bench as bench_pkg
