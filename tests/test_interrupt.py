@@ -185,20 +185,19 @@ def _listening(proc: psutil.Process) -> bool:
         return False
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("moment", list(MOMENTS))
-def test_ctrl_c_at_any_moment_of_identify_building_ensembles(moment, tmp_path):
-    """A terminal's Ctrl-C (SIGINT to the process group) when the moment comes: exit 130 within 5 s,
-    the one line, no process left, nothing half-written in the output folder."""
-    (tmp_path / "states.toml").write_text(ONE_STATE)
-    out = tmp_path / "out"
+def _identify_interrupted_at(moment: str, folder: Path) -> tuple[int, str, float, set[int], Path]:
+    """Run the build in ``folder`` and send a terminal's Ctrl-C when ``moment`` comes. Returns the exit
+    code, stderr, seconds from the Ctrl-C to the exit, the worker pids seen and the output folder."""
+    folder.mkdir()
+    (folder / "states.toml").write_text(ONE_STATE)
+    out = folder / "out"
     out.mkdir()
-    env = {**os.environ, "WEARBENCH_CACHE": str(tmp_path / "cache")}  # nothing built yet
+    env = {**os.environ, "WEARBENCH_CACHE": str(folder / "cache")}  # nothing built yet
     session = Path(__file__).parent / "acquisition" / "data" / "session_layout1.mcap"
-    args = ["identify", str(session), "--candidates", str(tmp_path / "states.toml"), "--realisations", "4",
+    args = ["identify", str(session), "--candidates", str(folder / "states.toml"), "--realisations", "4",
             "--ensemble-cycles", "6", "--workers", "2", "--out", str(out / "report"), "--json", str(out / "r.json")]
     proc = subprocess.Popen([sys.executable, "-m", "wearbench.cli", *args], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path, start_new_session=True)
+                            stderr=subprocess.PIPE, text=True, env=env, cwd=folder, start_new_session=True)
     err: list[str] = []
     reader = threading.Thread(target=lambda: err.extend(proc.stderr), daemon=True)
     reader.start()
@@ -230,8 +229,28 @@ def test_ctrl_c_at_any_moment_of_identify_building_ensembles(moment, tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
     reader.join(timeout=30)  # stderr ends when the last process holding it (the resource tracker) is gone
-    said = "".join(err)
-    assert proc.returncode == 130, said
+    return proc.returncode, "".join(err), took, spawned, out
+
+
+def _finished_whole(code: int, out: Path) -> bool:
+    """The command had finished when the Ctrl-C landed (the moment was its last instant): exit 0, the
+    report and the JSON written whole, nothing half-written beside them."""
+    names = sorted(p.name for p in out.iterdir())
+    return code == 0 and names == ["r.json", "report"] and (out / "report" / "report.html").is_file()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("moment", list(MOMENTS))
+def test_ctrl_c_at_any_moment_of_identify_building_ensembles(moment, tmp_path):
+    """A terminal's Ctrl-C (SIGINT to the process group) when the moment comes: exit 130 within 5 s,
+    the one line, no process left, nothing half-written in the output folder. A Ctrl-C sent as the
+    command writes its last file can land after it finished, whole (on a loaded machine, once in a few
+    runs): that try is run again, up to three times; a Ctrl-C must have been heard at the moment."""
+    for attempt in range(3):
+        code, said, took, spawned, out = _identify_interrupted_at(moment, tmp_path / f"try{attempt}")
+        if not _finished_whole(code, out):
+            break
+    assert code == 130, said
     assert _said(said) == ["wearbench identify: interrupted"], said
     assert took < IDENTIFY_WITHIN, took
     left = [p for p in spawned if psutil.pid_exists(p) and psutil.Process(p).status() != psutil.STATUS_ZOMBIE]

@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 import collections
 import json
+import os
+import resource
 import shlex
 import subprocess
 import sys
@@ -55,9 +57,11 @@ def main() -> None:
         junit = Path(tmp) / "junit.xml"
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", f"--junitxml={junit}",
                *shlex.split(args.pytest_args)]
-        t0 = time.monotonic()
+        t0, c0 = time.monotonic(), resource.getrusage(resource.RUSAGE_CHILDREN)
         done = subprocess.run(cmd, cwd=ROOT, check=False)
-        wall = time.monotonic() - t0
+        wall, c1 = time.monotonic() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+        # pytest, its workers and every process they started and waited for (commands, clusters)
+        cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
         if not junit.exists():
             raise SystemExit(f"pytest wrote no JUnit XML (exit {done.returncode})")
         cases = read_junit(junit)
@@ -66,15 +70,15 @@ def main() -> None:
     for file, _, s in cases:
         by_folder[str(Path(file).parent)].append(s)
         by_file[file] += s
-    if args.schedule:
-        SCHEDULE.write_text(json.dumps({f: round(s, 1) for f, s in sorted(by_file.items())}, indent=1) + "\n")
-        print(f"schedule: {SCHEDULE.relative_to(ROOT)} ({len(by_file)} files)")
     folders = sorted(by_folder.items(), key=lambda kv: -sum(kv[1]))
     slowest = sorted(cases, key=lambda c: -c[2])[:args.top]
     total = sum(s for *_, s in cases)
     top_share = sum(s for *_, s in slowest) / total if total else 0.0
+    cores = os.cpu_count() or 1
+    floor = (f"the run used {cpu / 60:.1f} min of CPU (user and system, every process it waited for): on "
+             f"{cores} cores no order of these tests takes less than {cpu / cores / 60:.1f} min of wall time")
     print(f"pytest exit {done.returncode}: {len(cases)} tests, wall {wall:.0f} s, summed test time {total:.0f} s; "
-          f"the {len(slowest)} slowest hold {top_share:.0%}")
+          f"the {len(slowest)} slowest hold {top_share:.0%}; {floor}")
     for _, name, s in slowest:
         print(f"{s:8.1f} s  {name}")
     if args.json:
@@ -82,7 +86,7 @@ def main() -> None:
         write_result(args.json, question="Where does the test suite's time go?", script=__file__, run=run, seeds={},
                      findings=[(f"pytest {label}: {len(cases)} tests in {wall / 60:.1f} min of wall time "
                                f"(exit {done.returncode}); the {len(slowest)} slowest tests hold {top_share:.0%} "
-                               "of the summed test time.")],
+                               "of the summed test time."), floor[0].upper() + floor[1:] + "."],
                      tables=[table("by test folder", [column("folder"), column("tests"),
                                                       column("time", "s", ".0f"), column("share", None, ".0%")],
                                    [[f, len(v), sum(v), sum(v) / total] for f, v in folders]),
@@ -90,6 +94,9 @@ def main() -> None:
                                    [column("test"), column("time", "s", ".1f")], [[n, s] for _, n, s in slowest])],
                      notes=["One run on the machine named below; wall times on a busy machine are longer."])
         print(f"results: {args.json}")
+    if args.schedule:  # after the result, which records whether the checkout was clean
+        SCHEDULE.write_text(json.dumps({f: round(s, 1) for f, s in sorted(by_file.items())}, indent=1) + "\n")
+        print(f"schedule: {SCHEDULE.relative_to(ROOT)} ({len(by_file)} files)")
     raise SystemExit(done.returncode)
 
 
