@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -42,18 +43,18 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Whole files: those with a test that compiles its own kernels first, then the heaviest by
     their recorded seconds; within a file, its ``own_kernels`` tests first, then the tests' own order."""
     seconds = json.loads(DURATIONS.read_text(encoding="utf-8")) if DURATIONS.exists() else {}
-    first, own = {}, set()
+    first, own_files, own_items = {}, set(), set()
     for i, item in enumerate(items):
         file = item.nodeid.split("::")[0]
         first.setdefault(file, i)
         if item.get_closest_marker("own_kernels"):
-            own.add(file)
+            own_files.add(file)
+            own_items.add(id(item))
     rank = {id(item): i for i, item in enumerate(items)}
 
     def key(item: pytest.Item) -> tuple[bool, float, int, bool, int]:
         file = item.nodeid.split("::")[0]
-        return (file not in own, -seconds.get(file, 0.0), first[file], not item.get_closest_marker("own_kernels"),
-                rank[id(item)])
+        return file not in own_files, -seconds.get(file, 0.0), first[file], id(item) not in own_items, rank[id(item)]
 
     items.sort(key=key)
 
@@ -71,6 +72,13 @@ def pytest_configure(config: pytest.Config) -> None:
     warming = subprocess.Popen([sys.executable, "-c", "from wearbench.compute.cluster import warm_up\nwarm_up()\n"])
     threading.Thread(target=lambda: (warming.wait(), done.touch()), daemon=True).start()
     os.environ[KERNELS_READY] = str(done)  # the workers start after this hook, with this environment
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """The controller removes the compile's folder (a worker leaves it alone)."""
+    done = os.environ.get(KERNELS_READY)
+    if done and not hasattr(config, "workerinput"):
+        shutil.rmtree(Path(done).parent, ignore_errors=True)
 
 
 @pytest.hookimpl(wrapper=True)
