@@ -134,8 +134,11 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
         command = _Interrupt.command = f"wearbench {args.command}"
         from wearbench.cli.progress import compile_note_on
+        from wearbench.compute.threads import one_blas_thread
 
-        with compile_note_on():  # any command may run the model: its first compile says so, whichever
+        # any command may run the model: its first compile says so, whichever; its linear algebra runs
+        # on one BLAS thread, as a Dask worker's does
+        with compile_note_on(), one_blas_thread():
             return int(args.func(args) or 0)
     except BaseException as exc:
         if _interrupted(exc):  # Ctrl-C: one line, exit 130 (a recording has finished its file by now)

@@ -29,6 +29,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -90,6 +91,16 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem):
         while not os.path.exists(done):
             time.sleep(0.2)
     return (yield)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread() -> Iterator[None]:
+    """The tests' own linear algebra on one BLAS thread, as the commands' and the workflows' (two
+    workers each with a spinning team of BLAS threads cost a third more CPU on two cores)."""
+    from wearbench.compute.threads import one_blas_thread
+
+    with one_blas_thread():
+        yield
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -344,6 +344,7 @@ PROCESS_LAUNCHES: dict[str, str] = {
     "wearbench.compute.cluster": "the Dask LocalCluster's worker processes",
     "wearbench.hardware.emulators.serial_server": "the serial emulator in its own process (forkserver)",
     "wearbench.testing.mcap_readers": "npm and node: the reader Foxglove uses, checking the files we write",
+    "benchmarks.compute.blas_threads": "fresh interpreters, one per BLAS setting, alone and two at once",
     "benchmarks.compute.scale_out": "a process pool timed against the cluster",
     "benchmarks.compute.suite_durations": "pytest on the suite, timed as CI runs it",
     "benchmarks.model.trajectory_identity": "a fresh interpreter per model source, for bit identity",

@@ -2,7 +2,9 @@
 path, a simulation from a bench, a recording in one call, and the validation workflows with the
 options a lab sets, returning lists that turn into tables.
 
-Everything here wires the packages below; nothing computes. Imports every library layer.
+Everything here wires the packages below; nothing computes. The validation workflows run their
+linear algebra on one BLAS thread (``compute.threads``), as the command line does. Imports every
+library layer.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import pandas as pd
 
 from wearbench.bench.schema import Bench, WearState
 from wearbench.compute.options import Compute
+from wearbench.compute.threads import on_one_blas_thread
 
 if TYPE_CHECKING:
     from wearbench.validation.comparison.compare import CompareOptions
@@ -85,6 +88,7 @@ def record(bench: Bench | str | Path, out: str | Path, *, cycles: float | None =
     return record_session(open_rig(bench, backend, options), bench, plan, out, writer=writer)
 
 
+@on_one_blas_thread
 def identify(sessions: Sessions, *, candidates: str | Path | Sequence[WearState] | None = None,
              ensembles: Mapping | str | Path | None = None, settings: EnsembleSettings | None = None,
              estimator: Estimator | EstimatorDesign | str | Path | None = None, threshold: float = 0.9,
@@ -114,6 +118,7 @@ def identify(sessions: Sessions, *, candidates: str | Path | Sequence[WearState]
     return Results(assessed)
 
 
+@on_one_blas_thread
 def estimate(sessions: Sessions, *, estimator: Estimator | str | Path | None = None,
              design: EstimatorDesign | None = None, calibration: str | Path | None = "auto",
              mount: str = "", compute: Compute | None = None) -> Results:
@@ -127,6 +132,7 @@ def estimate(sessions: Sessions, *, estimator: Estimator | str | Path | None = N
                                      mount=mount, compute=compute))
 
 
+@on_one_blas_thread
 def track(sessions: Sessions, cycles_run: Sequence[float] | None = None, *, limit: float | None = None,
           estimator: Estimator | str | Path | None = None, design: EstimatorDesign | None = None,
           calibration: str | Path | None = "auto", mount: str = "",
@@ -140,6 +146,7 @@ def track(sessions: Sessions, cycles_run: Sequence[float] | None = None, *, limi
                           calibration=calibration, mount=mount, move=move, compute=compute)
 
 
+@on_one_blas_thread
 def calibrate(sessions: Sessions, state: str, *, candidates: str | Path | Sequence[WearState] | None = None,
               ensembles: Mapping | str | Path | None = None, settings: EnsembleSettings | None = None,
               mount: str = "", compute: Compute | None = None):
@@ -152,6 +159,7 @@ def calibrate(sessions: Sessions, state: str, *, candidates: str | Path | Sequen
                               mount=mount, compute=compute)
 
 
+@on_one_blas_thread
 def compare(sessions: Sessions, theory: Sequence | None = None, *, options: CompareOptions | None = None) -> Results:
     """Each session scored window by window against one theory (simulated from its bench at the
     measured speed, or ``theory``: one table for all sessions or one per session), the paper's
