@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 
@@ -28,6 +29,32 @@ def test_each_subcommand_has_useful_help(name, capsys):
     assert f"wearbench {name}" in out
     assert "not built yet" not in out
     assert len(out.splitlines()) >= 6
+
+
+def _commands(parser) -> dict:
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def test_a_command_builds_its_own_parser_only_and_it_is_the_full_parsers():
+    """``wearbench COMMAND`` parses with that command's parser alone: the same help, so the same
+    options and defaults, as in the full parser (``wearbench --help``, the reference)."""
+    full = _commands(build_parser())
+    for name in COMMANDS:
+        own = _commands(build_parser(name))
+        assert list(own) == [name]
+        assert own[name].format_help() == full[name].format_help()
+
+
+def test_a_command_starts_without_the_other_commands_imports():
+    """In a fresh interpreter, ``inspect``'s parser loads neither the demo's truths nor the model's
+    compiler; the full parser does (what every command paid before)."""
+    heavy = ("wearbench.cli.demo", "wearbench.synthetic.truths", "numba", "scipy.signal")
+    code = ("import sys\nfrom wearbench.cli import build_parser\nbuild_parser({})\n"
+            f"print(sorted(m for m in {heavy!r} if m in sys.modules))\n")
+    loaded = {c: subprocess.run([sys.executable, "-c", code.format(c)], capture_output=True, text=True, check=True,
+                                timeout=120).stdout.strip() for c in ("'inspect'", "None")}
+    assert loaded["'inspect'"] == "[]"
+    assert loaded["None"] == repr(sorted(heavy))
 
 
 @pytest.mark.parametrize("command", ["identify", "compare", "calibrate"])

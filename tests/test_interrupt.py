@@ -123,7 +123,7 @@ def test_a_ctrl_c_before_the_command_is_parsed_still_names_it(monkeypatch, capsy
     line still names the command the user typed."""
     from wearbench import cli
 
-    def interrupted():
+    def interrupted(command=None):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(cli, "build_parser", interrupted)

@@ -41,7 +41,7 @@ def test_inside_the_block_numpy_and_scipy_run_one_thread_and_the_limits_come_bac
 def test_a_command_runs_on_one_blas_thread(two_threads, monkeypatch):
     seen = []
 
-    def parser() -> argparse.ArgumentParser:
+    def parser(command: str | None = None) -> argparse.ArgumentParser:
         p = argparse.ArgumentParser()
         p.add_argument("command")
         p.set_defaults(func=lambda args: seen.append(blas_threads()))

@@ -705,7 +705,7 @@ def fit_estimator(est: Estimator, options: IdentifyOptions | None = None, *, sen
         for r in range(m_real):
             x = est.features[i, j, r].mean(axis=0)
             moved = (x - est.features[i, j].mean(axis=(0, 1))) / (1 - m_real)  # the mean without r, less the mean
-            grid_loo = grid_w + whiten(np.outer(basis_w @ pinv[:, k], moved))
+            grid_loo = grid_w + np.outer(basis_w @ pinv[:, k], whiten(moved[None])[0])  # whitening is linear
             d2 = np.sum((whiten(x[None])[0] - grid_loo) ** 2, axis=1)
             d2s.append(d2)
             truth.append(cell_c[i] * gn.size + cell_n[j])

@@ -55,15 +55,14 @@ def shrunk_covariance(x: np.ndarray, weights: np.ndarray | None = None) -> np.nd
         sd = np.sqrt(a @ (xc * xc) / (1.0 - 1.0 / n_eff))
     sd_safe = np.where(sd > 0, sd, 1.0)
     z = xc / sd_safe
-    w = z[:, :, None] * z[:, None, :]  # (n, p, p)
-    if weights is None:
-        wbar = w.mean(axis=0)
-        r = wbar * n / (n - 1)
-        var_r = n / (n - 1) ** 3 * ((w - wbar) ** 2).sum(axis=0)
-    else:
-        wbar = np.tensordot(a, w, axes=1)
-        r = wbar * n_eff / (n_eff - 1)
-        var_r = n_eff ** 2 / (n_eff - 1) ** 3 * np.tensordot(a, (w - wbar) ** 2, axes=1)
+    # w_k = z_k z_k^T: its weighted mean and spread as matrix products, sum a_k (w_k - wbar)^2 =
+    # sum a_k w_k^2 - wbar^2 (sum a_k = 1), without the (n, p, p) products themselves
+    z2 = z * z
+    wbar = (z.T * a) @ z
+    spread = np.clip((z2.T * a) @ z2 - wbar * wbar, 0.0, None)
+    ne = float(n) if weights is None else n_eff
+    r = wbar * ne / (ne - 1)
+    var_r = ne ** 2 / (ne - 1) ** 3 * spread
     off = ~np.eye(p, dtype=bool)
     denom = float((r[off] ** 2).sum())
     lam = 1.0 if denom == 0 else float(np.clip(var_r[off].sum() / denom, 0.0, 1.0))

@@ -64,6 +64,30 @@ def test_too_coarse_a_record_is_refused():
         cycle_features(t, 2 * np.pi * t, np.cos(2 * np.pi * t), FeatureSpec(bins=36, lowpass=5, bands=((6, 9),)))
 
 
+def schafer_strimmer(x: np.ndarray) -> np.ndarray:
+    """Schäfer & Strimmer's target D written out from the paper's definitions, sample by sample:
+    r_ij the correlations, Var(r_ij) = n / (n - 1)^3 sum_k (w_kij - wbar_ij)^2."""
+    n, p = x.shape
+    z = (x - x.mean(axis=0)) / x.std(axis=0, ddof=1)
+    w = np.array([np.outer(zk, zk) for zk in z])
+    r = w.sum(axis=0) / (n - 1)
+    var_r = n / (n - 1) ** 3 * sum((wk - w.mean(axis=0)) ** 2 for wk in w)
+    off = ~np.eye(p, dtype=bool)
+    lam = min(1.0, max(0.0, var_r[off].sum() / (r[off] ** 2).sum()))
+    rs = np.where(off, r * (1 - lam), 1.0)
+    return rs * np.outer(x.std(axis=0, ddof=1), x.std(axis=0, ddof=1))
+
+
+@pytest.mark.parametrize("n", [3, 25, 400])
+def test_the_shrunk_covariance_is_the_papers_estimator(n):
+    """The matrix-product form against the definitions summed sample by sample, with strongly and
+    weakly correlated features (the intensity between 0 and 1), and a duplicated one (r = 1)."""
+    rng = np.random.default_rng(n)
+    x = rng.normal(size=(n, 6)) @ rng.normal(size=(6, 6))
+    x[:, 5] = 2 * x[:, 0]
+    np.testing.assert_allclose(shrunk_covariance(x), schafer_strimmer(x), rtol=1e-12, atol=1e-12 * np.abs(x).max() ** 2)
+
+
 def test_shrinkage_beats_the_sample_covariance_when_features_outnumber_samples():
     rng = np.random.default_rng(3)
     p, n = 40, 20
