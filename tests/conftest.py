@@ -96,7 +96,7 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem):
 @pytest.fixture(scope="session", autouse=True)
 def _one_blas_thread() -> Iterator[None]:
     """The tests' own linear algebra on one BLAS thread, as the commands' and the workflows' (two
-    workers each with a spinning team of BLAS threads cost a third more CPU on two cores)."""
+    workers each with a spinning team of BLAS threads cost about 30 % more CPU on two cores)."""
     from wearbench.compute.threads import one_blas_thread
 
     with one_blas_thread():

@@ -16,6 +16,7 @@ rounding (the largest relative difference is printed).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import subprocess
@@ -55,14 +56,10 @@ def work() -> dict:
 
 
 def child(setting: str) -> None:
-    if setting == "one":
-        from wearbench.compute.threads import one_blas_thread
+    from wearbench.compute.threads import one_blas_thread
 
-        with one_blas_thread():
-            result = work()
-    else:
-        result = work()
-    print(json.dumps(result))
+    with one_blas_thread() if setting == "one" else contextlib.nullcontext():
+        print(json.dumps(work()))
 
 
 def run(setting: str, processes: int) -> list[dict]:
@@ -96,12 +93,10 @@ def main() -> None:
                 results = run(setting, processes)
                 by.setdefault((setting, processes), []).extend(results)
                 values.setdefault(setting, results[0]["values"])
-    for (setting, processes), results in by.items():
-        cpu = float(np.mean([r["cpu"] for r in results]))
-        wall = float(np.mean([r["wall"] for r in results]))
-        base = by[("default", processes)]
-        rows.append([SETTINGS[setting], processes, wall, cpu, cpu / float(np.mean([r["cpu"] for r in base])),
-                     wall / float(np.mean([r["wall"] for r in base]))])
+    mean = {k: (float(np.mean([r["wall"] for r in v])), float(np.mean([r["cpu"] for r in v]))) for k, v in by.items()}
+    for (setting, processes), (wall, cpu) in mean.items():
+        base_wall, base_cpu = mean[("default", processes)]
+        rows.append([SETTINGS[setting], processes, wall, cpu, cpu / base_cpu, wall / base_wall])
     a, b = np.asarray(values["default"]), np.asarray(values["one"])
     rel = float(np.max(np.abs(a - b) / np.maximum(np.abs(a), 1e-300)))
     cols = [column("BLAS threads"), column("processes at once"), column("wall per process", "s", ".1f"),
