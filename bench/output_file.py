@@ -92,15 +92,20 @@ def check_output(path: str | Path, *, force: bool = False, option: str = "--out"
 def _check_writable(path: Path, option: str, folder: bool) -> None:
     """Refuse, before any work, a place the output cannot be written: the nearest existing folder of
     ``path`` (where its temporary name goes) and, for an existing output folder, the folder itself;
-    tried by writing a probe file, so a read-only mount is refused for every user, root included."""
+    tried by writing a probe file, so a read-only mount is refused for every user, root included; the
+    probe is an unfinished name while it exists, so a Ctrl-C's forced exit never leaves it behind."""
     places = [next(q for q in (path.parent, *path.parent.parents) if q.exists())]
     if folder and path.is_dir():
         places.append(path)
     for place in places:
         probe = place / f".wearbench-probe-{os.getpid()}"
         try:
-            probe.touch(exist_ok=False)
-            probe.unlink()
+            with _unfinished(probe):  # a Ctrl-C's forced exit removes it too
+                try:
+                    probe.touch(exist_ok=False)
+                finally:
+                    if probe.exists():  # an interrupt or an error after the touch: the probe still goes
+                        probe.unlink()
         except OSError as exc:
             raise PermissionError(f"{option} {path}: cannot write in {place} ({exc.strerror}); choose another "
                                   "place") from None

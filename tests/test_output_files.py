@@ -496,3 +496,25 @@ def test_a_forced_exit_leaves_nothing_half_written(tmp_path):
     assert old.read_bytes() != OLD  # a process that was not killed finishes as usual
     remove_unfinished()  # nothing registered any more: nothing removed
     assert old.exists()
+
+
+@pytest.mark.parametrize("forced", [True, False], ids=["forced-exit", "keyboard-interrupt"])
+def test_a_ctrl_c_while_the_place_is_probed_leaves_no_probe(tmp_path, monkeypatch, forced):
+    """The check before writing tries the folder with a probe file; a Ctrl-C that comes between
+    creating and removing it (seen in CI: `.wearbench-probe-<pid>` left in the output folder) removes
+    it, whether the watchdog's forced exit takes the process or the interrupt unwinds it."""
+    from wearbench.bench.output_file import check_output, remove_unfinished
+
+    touch = Path.touch
+
+    def touch_then_ctrl_c(self, *args, **kwargs):
+        touch(self, *args, **kwargs)
+        if forced:
+            remove_unfinished()  # the watchdog's way out, right after the probe was created
+            raise SystemExit(130)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Path, "touch", touch_then_ctrl_c)
+    with pytest.raises((SystemExit, KeyboardInterrupt)):
+        check_output(tmp_path / "r.json")
+    assert list(tmp_path.iterdir()) == []
