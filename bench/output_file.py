@@ -170,19 +170,19 @@ def output_folder(path: str | Path, *, force: bool = False, option: str = "--out
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        with _unfinished(tmp):
+        with _unfinished(tmp):  # until every file is in place: a forced exit while moving them removes the rest
             yield tmp
-        if not path.exists():
-            os.replace(tmp, path)
-            return
-        for src in sorted(tmp.rglob("*")):
-            dst = path / src.relative_to(tmp)
-            if src.is_dir():
-                if dst.exists() and not dst.is_dir():
-                    check_output(dst, force=force, option=option, folder=True)
-                dst.mkdir(exist_ok=True)
-            else:
-                check_output(dst, force=force, option=option)
-                os.replace(src, dst)
+            if not path.exists():
+                os.replace(tmp, path)
+                return
+            for src in sorted(tmp.rglob("*")):
+                dst = path / src.relative_to(tmp)
+                if src.is_dir():
+                    if dst.exists() and not dst.is_dir():
+                        check_output(dst, force=force, option=option, folder=True)
+                    dst.mkdir(exist_ok=True)
+                else:
+                    check_output(dst, force=force, option=option)
+                    os.replace(src, dst)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

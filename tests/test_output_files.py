@@ -518,3 +518,29 @@ def test_a_ctrl_c_while_the_place_is_probed_leaves_no_probe(tmp_path, monkeypatc
     with pytest.raises((SystemExit, KeyboardInterrupt)):
         check_output(tmp_path / "r.json")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_forced_exit_while_a_folder_is_moved_into_place_leaves_no_partial_folder(tmp_path, monkeypatch):
+    """``--force`` into a folder that exists: the new files are moved in one by one; a forced exit
+    between two moves leaves the files moved so far and the old ones, never the temporary folder."""
+    from wearbench.bench import output_file as module
+
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "a.png").write_bytes(OLD)
+    (report / "b.png").write_bytes(OLD)
+    check, at_exit = module.check_output, []
+
+    def check_then_forced_exit(path, **kwargs):
+        if Path(path).name == "b.png":  # a.png is in place, b.png not yet
+            module.remove_unfinished()  # then os._exit: no finally runs, what is on disk now stays
+            at_exit.extend(sorted(p.name for p in tmp_path.iterdir()))
+            assert (report / "a.png").read_text() == "new" and (report / "b.png").read_bytes() == OLD
+            raise SystemExit(130)
+        return check(path, **kwargs)
+
+    with pytest.raises(SystemExit), module.output_folder(report, force=True) as folder:
+        (folder / "a.png").write_text("new")
+        (folder / "b.png").write_text("new")
+        monkeypatch.setattr(module, "check_output", check_then_forced_exit)
+    assert at_exit == ["report"]
