@@ -3,16 +3,18 @@ changed in the file's text so every comment and every other line stays as it was
 
 The edit is checked before it is kept: the new text, parsed, must equal the old one with only that
 key changed. Where the file does not lay the table out as a ``[sensor.chain]`` header under the
-accelerometer's ``[[sensor]]`` (an inline table, a dotted key), nothing is written. Imports tomllib only.
+accelerometer's ``[[sensor]]`` (an inline table, a dotted key), nothing is written. Imports tomllib and
+the output-file policy (:mod:`~wearbench.bench.output_file`) only.
 """
 
 from __future__ import annotations
 
 import copy
-import os
 import re
 import tomllib
 from pathlib import Path
+
+from wearbench.bench.output_file import output_file
 
 __all__ = ["ChainEditError", "set_chain_latency", "with_chain_latency"]
 
@@ -78,10 +80,9 @@ def with_chain_latency(text: str, latency_ms: float) -> str:
 
 
 def set_chain_latency(path: str | Path, latency_ms: float) -> None:
-    """Set the latency in the bench file at ``path`` in place (written to a temporary file beside it,
-    then renamed over it, so a crash leaves the old file or the new one, never half of one)."""
+    """Set the latency in the bench file at ``path`` in place (:func:`~wearbench.bench.output_file.output_file`:
+    a crash or a Ctrl-C leaves the old file or the new one, never half of one, nor a temporary file)."""
     path = Path(path)
     new_text = with_chain_latency(path.read_text(), latency_ms)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(new_text)
-    os.replace(tmp, path)
+    with output_file(path, force=True, option="--write-latency") as tmp:
+        tmp.write_text(new_text)

@@ -187,6 +187,27 @@ def test_an_inline_chain_table_is_not_edited():
         with_chain_latency(text, 0.1)
 
 
+def test_a_failed_latency_write_leaves_the_bench_file_whole_and_nothing_beside_it(tmp_path, monkeypatch):
+    """A full disk (or a Ctrl-C) while the edited bench file is written: the old file stays as it was
+    and no temporary file is left beside it."""
+    from wearbench.bench.chain_latency import set_chain_latency
+
+    bench = tmp_path / "tb.toml"
+    shutil.copy(BENCH_DIR / "ninebar-testbed.toml", bench)
+    before = bench.read_bytes()
+    write_text = Path.write_text
+
+    def half_then_full_disk(self, data, *args, **kwargs):
+        write_text(self, data[: len(data) // 2], *args, **kwargs)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_text", half_then_full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        set_chain_latency(bench, 0.5)
+    assert bench.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["tb.toml"]
+
+
 def test_taptest_command_records_and_writes_the_latency_only_when_asked(wearbench_bench, tmp_path, capsys):
     from wearbench.cli import main
 
