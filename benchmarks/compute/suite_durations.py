@@ -6,9 +6,10 @@ test, its setup, call and teardown together). ``--schedule`` also writes each te
 
 The run's wall time depends on the machine and what else runs on it: the result names both (its
 ``environment``). ``--pytest-args`` passes options through, e.g. ``-m "not slow"`` for the developer
-loop.
+loop, and ``--question`` names that run on its results page.
 
-    python -m benchmarks.compute.suite_durations [--pytest-args ARGS] [--top 25] [--json PATH] [--schedule]
+    python -m benchmarks.compute.suite_durations [--pytest-args ARGS] [--question TEXT] [--top 25] [--json PATH]
+        [--schedule]
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from pathlib import Path
 from benchmarks.result_json import ROOT, Run, column, table, write_result
 
 SCHEDULE = ROOT / "tests" / "durations.json"
+QUESTION = "Where does the test suite's time go?"
 
 
 def read_junit(path: Path) -> list[tuple[str, str, float]]:
@@ -47,6 +49,7 @@ def read_junit(path: Path) -> list[tuple[str, str, float]]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--pytest-args", default="", help="options passed to pytest (quoted), e.g. '-m \"not slow\"'")
+    ap.add_argument("--question", default=QUESTION, help=f"the results page's title ({QUESTION!r})")
     ap.add_argument("--top", type=int, default=25, help="slowest tests listed (25)")
     ap.add_argument("--json", metavar="PATH", help="also write the result (docs/results/data/ for the docs)")
     ap.add_argument("--schedule", action="store_true",
@@ -83,7 +86,7 @@ def main() -> None:
         print(f"{s:8.1f} s  {name}")
     if args.json:
         label = args.pytest_args or "the whole suite"
-        write_result(args.json, question="Where does the test suite's time go?", script=__file__, run=run, seeds={},
+        write_result(args.json, question=args.question, script=__file__, run=run, seeds={},
                      findings=[(f"pytest {label}: {len(cases)} tests in {wall / 60:.1f} min of wall time "
                                f"(exit {done.returncode}); the {len(slowest)} slowest tests hold {top_share:.0%} "
                                "of the summed test time."), floor[0].upper() + floor[1:] + "."],
