@@ -31,24 +31,32 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 _UNFINISHED: set[Path] = set()
 
 
+def _remove(tmp: Path) -> None:
+    if tmp.is_dir():
+        shutil.rmtree(tmp, ignore_errors=True)
+    else:
+        tmp.unlink(missing_ok=True)
+
+
 def remove_unfinished() -> None:
     """Remove the temporary files and folders this process is still writing (its way out, on a forced
     exit); the finished outputs and the old ones they would replace stay as they are."""
     for tmp in list(_UNFINISHED):
-        if tmp.is_dir():
-            shutil.rmtree(tmp, ignore_errors=True)
-        else:
-            tmp.unlink(missing_ok=True)
+        _remove(tmp)
     _UNFINISHED.clear()
 
 
 @contextmanager
 def _unfinished(tmp: Path) -> Iterator[Path]:
+    """``tmp`` is a temporary name for the block: removed when the block ends, however it ends (an
+    error, an interrupt; a forced exit through :func:`remove_unfinished`); rename it away inside the
+    block to keep what it holds."""
     _UNFINISHED.add(tmp)
     try:
         yield tmp
     finally:
         _UNFINISHED.discard(tmp)
+        _remove(tmp)
 
 
 def holds_session(path: str | Path) -> bool:
@@ -92,20 +100,16 @@ def check_output(path: str | Path, *, force: bool = False, option: str = "--out"
 def _check_writable(path: Path, option: str, folder: bool) -> None:
     """Refuse, before any work, a place the output cannot be written: the nearest existing folder of
     ``path`` (where its temporary name goes) and, for an existing output folder, the folder itself;
-    tried by writing a probe file, so a read-only mount is refused for every user, root included; the
-    probe is an unfinished name while it exists, so a Ctrl-C's forced exit never leaves it behind."""
+    tried by writing a probe file (an unfinished name: a Ctrl-C never leaves it behind), so a read-only
+    mount is refused for every user, root included."""
     places = [next(q for q in (path.parent, *path.parent.parents) if q.exists())]
     if folder and path.is_dir():
         places.append(path)
     for place in places:
         probe = place / f".wearbench-probe-{os.getpid()}"
         try:
-            with _unfinished(probe):  # a Ctrl-C's forced exit removes it too
-                try:
-                    probe.touch(exist_ok=False)
-                finally:
-                    if probe.exists():  # an interrupt or an error after the touch: the probe still goes
-                        probe.unlink()
+            with _unfinished(probe):
+                probe.touch(exist_ok=False)
         except OSError as exc:
             raise PermissionError(f"{option} {path}: cannot write in {place} ({exc.strerror}); choose another "
                                   "place") from None
@@ -128,13 +132,10 @@ def save_npz(path: str | Path, **arrays) -> Path:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temporary(path)
-    try:
-        with _unfinished(tmp), open(tmp, "wb") as f:  # a file object: numpy appends ".npz" to a name that lacks it
+    with _unfinished(_temporary(path)) as tmp:
+        with open(tmp, "wb") as f:  # a file object: numpy appends ".npz" to a name that lacks it
             np.savez_compressed(f, **arrays)
         os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return path
 
 
@@ -146,17 +147,13 @@ def output_file(path: str | Path, *, force: bool = False, option: str = "--out",
     removed and ``path`` is as it was."""
     path = check_output(path, force=force, option=option, session=session)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temporary(path)
-    try:
-        with _unfinished(tmp):
-            yield tmp
+    with _unfinished(_temporary(path)) as tmp:
+        yield tmp
         check_output(path, force=force, option=option, session=session)  # nothing appeared meanwhile
         replaces_session = holds_session(path)
         os.replace(tmp, path)
-        if replaces_session:
-            _say_replaced(path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    if replaces_session:
+        _say_replaced(path)
 
 
 @contextmanager
@@ -169,20 +166,17 @@ def output_folder(path: str | Path, *, force: bool = False, option: str = "--out
     tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
-    try:
-        with _unfinished(tmp):  # until every file is in place: a forced exit while moving them removes the rest
-            yield tmp
-            if not path.exists():
-                os.replace(tmp, path)
-                return
-            for src in sorted(tmp.rglob("*")):
-                dst = path / src.relative_to(tmp)
-                if src.is_dir():
-                    if dst.exists() and not dst.is_dir():
-                        check_output(dst, force=force, option=option, folder=True)
-                    dst.mkdir(exist_ok=True)
-                else:
-                    check_output(dst, force=force, option=option)
-                    os.replace(src, dst)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    with _unfinished(tmp):  # until every file is in place: a forced exit while moving them removes the rest
+        yield tmp
+        if not path.exists():
+            os.replace(tmp, path)
+            return
+        for src in sorted(tmp.rglob("*")):
+            dst = path / src.relative_to(tmp)
+            if src.is_dir():
+                if dst.exists() and not dst.is_dir():
+                    check_output(dst, force=force, option=option, folder=True)
+                dst.mkdir(exist_ok=True)
+            else:
+                check_output(dst, force=force, option=option)
+                os.replace(src, dst)
