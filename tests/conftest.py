@@ -82,15 +82,25 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         shutil.rmtree(Path(done).parent, ignore_errors=True)
 
 
+def _wait_for_shared_kernels() -> None:
+    done = os.environ.get(KERNELS_READY)
+    while done and not os.path.exists(done):
+        time.sleep(0.2)
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem):
     """A test waits for the shared compile unless it compiles kernels of its own (``own_kernels``);
     before its setup, so the wait is no test's duration."""
-    done = os.environ.get(KERNELS_READY)
-    if done and not item.get_closest_marker("own_kernels"):
-        while not os.path.exists(done):
-            time.sleep(0.2)
+    if not item.get_closest_marker("own_kernels"):
+        _wait_for_shared_kernels()
     return (yield)
+
+
+@pytest.fixture
+def shared_kernels() -> None:
+    """For an ``own_kernels`` test that turns out to need only the shared kernels: waits for their compile."""
+    _wait_for_shared_kernels()
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -19,15 +19,25 @@ and, where recorded, the contact records. Cases (test bed ``ninebar-testbed``):
 Prints one row per case and exits with status 1 if any output differs. The motion is chaotic, so one
 changed rounding anywhere shows within a revolution.
 
+The earlier version's outputs can be recorded once (``--record FILE``, with ``--baseline``): a SHA-256
+of every array, kept per environment, i.e. what besides the source decides the bits (interpreter,
+numerical libraries, the CPU numba compiles for). ``--recorded FILE`` then runs this version only and
+compares it with the record made in this environment (the same bits give the same digests), and exits
+with status 3 when there is none, so the caller can run the baseline instead.
+
 Run:  git archive main | tar -x -C /tmp/wb_main/wearbench   (mkdir -p it first)
       .venv/bin/python -m benchmarks.model.trajectory_identity --baseline /tmp/wb_main [--revolutions 3] [--seeds 2]
+      ... --baseline /tmp/wb_main --record FILE     (the baseline's digests, added to FILE)
+      ... --recorded FILE                           (this version against FILE's record)
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
+import platform
 import subprocess
 import sys
 import tempfile
@@ -36,6 +46,8 @@ import time
 import numpy as np
 
 STATES = {"new": "0.3 mm new", "worn": "0.3 mm second wear"}
+RECORD_SCHEMA = "wearbench-trajectory-record/1"
+NOT_RECORDED = 3  # exit status of --recorded when FILE holds no record made in this environment
 
 
 def _cases(revolutions: float, seeds: int) -> list[dict]:
@@ -133,6 +145,35 @@ def _run(case: dict) -> dict[str, np.ndarray]:
     return out
 
 
+def environment() -> dict[str, str]:
+    """What decides a compiled run's bits besides the source: the interpreter, the numerical
+    libraries and the CPU numba compiles for (its name and a digest of its feature list)."""
+    import llvmlite
+    import llvmlite.binding as llvm
+    import numba
+    import pandas
+    import scipy
+
+    cpu = numba.config.CPU_NAME or llvm.get_host_cpu_name()
+    features = numba.config.CPU_FEATURES or llvm.get_host_cpu_features().flatten()
+    return {"python": platform.python_version(), "machine": platform.machine(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "pandas": pandas.__version__, "numba": numba.__version__,
+            "llvmlite": llvmlite.__version__, "cpu": cpu,
+            "cpu_features": hashlib.sha256(features.encode()).hexdigest()[:16]}
+
+
+def _digest(a: np.ndarray) -> str:
+    """SHA-256 of an array's dtype, shape and bytes: equal exactly where ``_same`` finds the arrays equal."""
+    a = np.ascontiguousarray(a)
+    return hashlib.sha256(f"{a.dtype.str}{a.shape}".encode() + a.tobytes()).hexdigest()
+
+
+def digests(path: str) -> dict[str, str]:
+    """Every array of a dump, by its key, as its digest."""
+    with np.load(path) as arrays:
+        return {k: _digest(arrays[k]) for k in arrays.files}
+
+
 def _dump(path: str, revolutions: float, seeds: int) -> None:
     import wearbench.model
 
@@ -144,7 +185,8 @@ def _dump(path: str, revolutions: float, seeds: int) -> None:
             arrays[f"{case['name']}|{key}"] = value
         clock[case["name"]] = time.process_time() - t0
     np.savez(path, **arrays)
-    print(json.dumps({"source": os.path.dirname(wearbench.model.__file__), "cpu": clock}))
+    print(json.dumps({"source": os.path.dirname(wearbench.model.__file__), "cpu": clock,
+                      "environment": environment()}))
 
 
 def _in_process(pythonpath: str | None, path: str, revolutions: float, seeds: int) -> dict:
@@ -168,33 +210,90 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.array_equal(a, b))
 
 
-def compare(base: str, this: str) -> list[tuple[str, int, int, str]]:
-    """Per case: (name, arrays compared, arrays differing, first difference) between two dumps."""
-    A, B = np.load(base), np.load(this)
-    names = sorted({k.split("|")[0] for k in A.files} | {k.split("|")[0] for k in B.files})
+def _by_case(base: set[str], this: set[str], difference) -> list[tuple[str, int, int, str]]:
+    """Per case: (name, arrays compared, arrays differing, first difference); ``difference(key)`` says
+    how the key's two arrays differ ("" if not at all)."""
     rows = []
-    for name in names:
-        keys = sorted({k for k in A.files + B.files if k.startswith(name + "|")})
+    for name in sorted({k.split("|")[0] for k in base | this}):
+        keys = sorted(k for k in base | this if k.startswith(name + "|"))
         bad = []
         for k in keys:
-            if k not in A.files or k not in B.files:
-                bad.append(f"{k.split('|')[1]} only in {'this' if k in B.files else 'baseline'}")
-            elif not _same(A[k], B[k]):
-                a, b = A[k], B[k]
-                where = ""
-                if a.shape == b.shape:
-                    i = int(np.argmax(~((a == b) | (np.isnan(a) & np.isnan(b))).ravel()))
-                    where = f" first at flat index {i}: {a.ravel()[i]!r} vs {b.ravel()[i]!r}"
-                else:
-                    where = f" shapes {a.shape} vs {b.shape}"
+            if k not in base or k not in this:
+                bad.append(f"{k.split('|')[1]} only in {'this' if k in this else 'baseline'}")
+            elif where := difference(k):
                 bad.append(f"{k.split('|')[1]}{where}")
         rows.append((name, len(keys), len(bad), bad[0] if bad else ""))
     return rows
 
 
+def compare(base: str, this: str) -> list[tuple[str, int, int, str]]:
+    """Per case: (name, arrays compared, arrays differing, first difference) between two dumps."""
+    A, B = np.load(base), np.load(this)
+
+    def difference(k: str) -> str:
+        a, b = A[k], B[k]
+        if _same(a, b):
+            return ""
+        if a.shape != b.shape:
+            return f" shapes {a.shape} vs {b.shape}"
+        i = int(np.argmax(~((a == b) | (np.isnan(a) & np.isnan(b))).ravel()))
+        return f" first at flat index {i}: {a.ravel()[i]!r} vs {b.ravel()[i]!r}"
+
+    return _by_case(set(A.files), set(B.files), difference)
+
+
+def compare_record(record: dict[str, str], this: dict[str, str]) -> list[tuple[str, int, int, str]]:
+    """Per case, as ``compare``, between a record's digests and this version's."""
+    return _by_case(set(record), set(this), lambda k: "" if record[k] == this[k] else " (digest differs)")
+
+
+def _settings(args) -> dict:
+    return {"revolutions": args.revolutions, "seeds": args.seeds}
+
+
+def record_baseline(file: str, baseline: str, args) -> None:
+    """Add (or replace) the record of the baseline's digests made in this environment to ``file``."""
+    from pathlib import Path
+
+    from wearbench.model.digest import package_source_digest
+
+    model = package_source_digest(Path(baseline) / "wearbench" / "model")
+    held = json.loads(Path(file).read_text()) if os.path.exists(file) else {
+        "schema": RECORD_SCHEMA, "model": model, "records": []}
+    if held.get("schema") != RECORD_SCHEMA or held.get("model") != model:
+        raise SystemExit(f"{file}: holds records of model {str(held.get('model'))[:12]} "
+                         f"({held.get('schema')}); the baseline's model is {model[:12]}: use another file")
+    with tempfile.TemporaryDirectory() as tmp:
+        info = _in_process(baseline, os.path.join(tmp, "base.npz"), args.revolutions, args.seeds)
+        arrays = digests(os.path.join(tmp, "base.npz"))
+    key = {"environment": info["environment"], **_settings(args)}
+    held["records"] = [r for r in held["records"] if {k: r[k] for k in key} != key] + [{**key, "arrays": arrays}]
+    Path(file).write_text(json.dumps(held, indent=1, sort_keys=True) + "\n")
+    print(f"{file}: model {model[:12]}, {len(arrays)} arrays recorded for {info['environment']}")
+
+
+def _recorded(file: str, args) -> tuple[dict, list[tuple[str, int, int, str]]] | None:
+    """This version against ``file``'s record made in this environment: (this run's info, rows), or
+    None when there is no such record."""
+    with open(file) as f:
+        held = json.load(f)
+    key = {"environment": environment(), **_settings(args)}
+    mine = [r for r in held["records"] if {k: r[k] for k in key} == key]
+    if not mine:
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        info = _in_process(None, os.path.join(tmp, "this.npz"), args.revolutions, args.seeds)
+        rows = compare_record(mine[0]["arrays"], digests(os.path.join(tmp, "this.npz")))
+    return info, rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--baseline", help="directory holding the earlier version's wearbench package")
+    ap.add_argument("--record", metavar="FILE", help="with --baseline: run the baseline only and add the digests "
+                    "of its outputs, for this environment, to FILE")
+    ap.add_argument("--recorded", metavar="FILE", help="run this version only, against FILE's record made in this "
+                    f"environment (exit status {NOT_RECORDED} if there is none)")
     ap.add_argument("--revolutions", type=float, default=3.0, help="revolutions of the nominal cases")
     ap.add_argument("--seeds", type=int, default=2, help="drawn realisations per surface state (1 revolution "
                     "after 1 settling)")
@@ -203,13 +302,24 @@ def main() -> None:
     if args.dump:
         _dump(args.dump, args.revolutions, args.seeds)
         return
-    if not args.baseline:
-        ap.error("--baseline DIR is needed (a scratch copy of the earlier version, see the docstring)")
-    with tempfile.TemporaryDirectory() as tmp:
-        base, this = os.path.join(tmp, "base.npz"), os.path.join(tmp, "this.npz")
-        info_b = _in_process(args.baseline, base, args.revolutions, args.seeds)
-        info_t = _in_process(None, this, args.revolutions, args.seeds)
-        rows = compare(base, this)
+    if args.recorded:
+        found = _recorded(args.recorded, args)
+        if found is None:
+            print(f"{args.recorded}: no record made in this environment ({environment()}) with {_settings(args)}")
+            sys.exit(NOT_RECORDED)
+        info_t, rows = found
+        info_b = {"source": f"{args.recorded} (recorded)", "cpu": {}}
+    elif not args.baseline:
+        ap.error("--baseline DIR or --recorded FILE is needed (see the docstring)")
+    elif args.record:
+        record_baseline(args.record, args.baseline, args)
+        return
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            base, this = os.path.join(tmp, "base.npz"), os.path.join(tmp, "this.npz")
+            info_b = _in_process(args.baseline, base, args.revolutions, args.seeds)
+            info_t = _in_process(None, this, args.revolutions, args.seeds)
+            rows = compare(base, this)
     print(f"baseline {info_b['source']}\nthis     {info_t['source']}")
     print(f"{'case':<28} {'arrays':>6} {'differ':>6} {'base s':>7} {'this s':>7}  first difference")
     for name, count, bad, first in rows:
