@@ -4,11 +4,12 @@
   ``benchmarks/compute/suite_durations.py --schedule``): with ``-n``, xdist hands whole files to the
   workers in this order (``--dist loadfile --no-loadscope-reorder``), so the long files start at
   once and the short ones fill in at the end. A file not listed yet runs after the listed ones.
-- With ``-n`` on a fresh checkout, the model's kernels are compiled once, in a process of its own,
-  while the workers collect and run the tests that compile kernels of their own (``own_kernels``:
-  an empty numba cache, another commit's model); every other test waits for it. Otherwise every
-  worker, and the commands the tests start, would compile them at once: about a minute and a half
-  of CPU each.
+- With ``-n`` on a fresh checkout, the model's kernels are compiled once, in processes of their own
+  (the clearance integrator's in one, the fully driven bench's kinematics in another), while the
+  workers collect and run the tests that compile kernels of their own (``own_kernels``: an empty
+  numba cache, another commit's model) and the tests that use none (``no_kernels``); every other
+  test waits for them. Otherwise every worker, and the commands the tests start, would compile them
+  at once: about a minute and a half of CPU each.
 - Every test gets its own result cache (unless a module fixture chose one) and no user compute config.
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
   (``wearbench.testing.mcap_readers``): @mcap/core's indexed reader under node and the Python mcap
@@ -38,24 +39,37 @@ from wearbench.testing import mcap_readers
 NODE_FOLDER = mcap_readers.cache_dir()
 DURATIONS = Path(__file__).with_name("durations.json")
 KERNELS_READY = "WEARBENCH_TEST_KERNELS_READY"  # a file that exists once the run's shared compile is done
+WARM_UPS = (  # the shared compile, two processes at once: what a local cluster's workers load, and the
+    # kinematics of a fully driven ideal bench (its own loop, projection and accelerations)
+    "from wearbench.compute.cluster import warm_up\nwarm_up()\n",
+    ("from wearbench.bench.load import load_bench, shipped_bench\nfrom wearbench.model import build_scene, simulate\n"
+     "b = load_bench(shipped_bench('slider-crank'))\n"
+     "simulate(build_scene(b.with_clearances({j.name: None for j in b.clearance_joints})), revolutions=0.05)\n"),
+)
+
+
+def _waits(item: pytest.Item) -> bool:
+    """Whether a test waits for the shared compile: not if it compiles its own kernels or uses none."""
+    return not (item.get_closest_marker("own_kernels") or item.get_closest_marker("no_kernels"))
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Whole files: those with a test that compiles its own kernels first, then the heaviest by
-    their recorded seconds; within a file, its ``own_kernels`` tests first, then the tests' own order."""
+    """Whole files: first those none of whose tests waits for the shared compile (they run while it
+    compiles), then the rest; each group heaviest first by their recorded seconds; within a file, its
+    ``own_kernels`` tests first, then the tests' own order."""
     seconds = json.loads(DURATIONS.read_text(encoding="utf-8")) if DURATIONS.exists() else {}
-    first, own_files, own_items = {}, set(), set()
+    first, waiting_files = {}, set()
     for i, item in enumerate(items):
         file = item.nodeid.split("::")[0]
         first.setdefault(file, i)
-        if item.get_closest_marker("own_kernels"):
-            own_files.add(file)
-            own_items.add(id(item))
+        if _waits(item):
+            waiting_files.add(file)
     rank = {id(item): i for i, item in enumerate(items)}
 
     def key(item: pytest.Item) -> tuple[bool, float, int, bool, int]:
         file = item.nodeid.split("::")[0]
-        return file not in own_files, -seconds.get(file, 0.0), first[file], id(item) not in own_items, rank[id(item)]
+        return (file in waiting_files, -seconds.get(file, 0.0), first[file],
+                not item.get_closest_marker("own_kernels"), rank[id(item)])
 
     items.sort(key=key)
 
@@ -70,8 +84,8 @@ def pytest_configure(config: pytest.Config) -> None:
     if kernels_compiled():
         return
     done = Path(tempfile.mkdtemp(prefix="wearbench-kernels-")) / "done"
-    warming = subprocess.Popen([sys.executable, "-c", "from wearbench.compute.cluster import warm_up\nwarm_up()\n"])
-    threading.Thread(target=lambda: (warming.wait(), done.touch()), daemon=True).start()
+    warming = [subprocess.Popen([sys.executable, "-c", code]) for code in WARM_UPS]
+    threading.Thread(target=lambda: ([w.wait() for w in warming], done.touch()), daemon=True).start()
     os.environ[KERNELS_READY] = str(done)  # the workers start after this hook, with this environment
 
 
@@ -82,25 +96,14 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         shutil.rmtree(Path(done).parent, ignore_errors=True)
 
 
-def _wait_for_shared_kernels() -> None:
-    done = os.environ.get(KERNELS_READY)
-    while done and not os.path.exists(done):
-        time.sleep(0.2)
-
-
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem):
-    """A test waits for the shared compile unless it compiles kernels of its own (``own_kernels``);
-    before its setup, so the wait is no test's duration."""
-    if not item.get_closest_marker("own_kernels"):
-        _wait_for_shared_kernels()
+    """A test waits for the shared compile unless it compiles kernels of its own (``own_kernels``) or
+    uses none (``no_kernels``); before its setup, so the wait is no test's duration."""
+    done = os.environ.get(KERNELS_READY)
+    while done and _waits(item) and not os.path.exists(done):
+        time.sleep(0.2)
     return (yield)
-
-
-@pytest.fixture
-def shared_kernels() -> None:
-    """For an ``own_kernels`` test that turns out to need only the shared kernels: waits for their compile."""
-    _wait_for_shared_kernels()
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -10,6 +10,8 @@ import pytest
 
 import wearbench
 
+pytestmark = pytest.mark.no_kernels
+
 CONTRACT = ["ArtefactError", "Assessment", "Bench", "BenchError", "Calibration", "Compute", "EnsembleSettings",
             "Estimate", "Estimator", "EstimatorDesign", "Identification", "Interval", "MeasuredSession", "Results",
             "SessionComparison", "SessionResult", "SessionSet", "SimulationError", "SimulationResult", "SpreadDesign", "Track",

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.no_kernels
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("bench", "model", "compute", "studies", "hardware", "acquisition", "validation", "reports", "synthetic",
             "testing", "cli", "wearbench")

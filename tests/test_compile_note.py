@@ -27,6 +27,7 @@ def _function(module: str, name: str):
     return space[name]
 
 
+@pytest.mark.no_kernels  # toy functions only
 def test_the_note_comes_once_when_a_wearbench_kernel_compiles_never_for_others(capsys):
     with event.install_listener("numba:compile", compile_note()):
         assert numba.njit(_function("labcode.analysis", "other"))(1.0) == 3.0

@@ -9,6 +9,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from wearbench.bench.units import UNITS, QuantityError, format_quantity, parse_quantity
 
+pytestmark = pytest.mark.no_kernels
+
 
 @pytest.mark.parametrize(
     ("text", "dimension", "si"),

@@ -29,6 +29,7 @@ Run:  git archive main | tar -x -C /tmp/wb_main/wearbench   (mkdir -p it first)
       .venv/bin/python -m benchmarks.model.trajectory_identity --baseline /tmp/wb_main [--revolutions 3] [--seeds 2]
       ... --baseline /tmp/wb_main --record FILE     (the baseline's digests, added to FILE)
       ... --recorded FILE                           (this version against FILE's record)
+      ... --has-record FILE                         (is there one for this environment?)
 """
 
 from __future__ import annotations
@@ -272,18 +273,19 @@ def record_baseline(file: str, baseline: str, args) -> None:
     print(f"{file}: model {model[:12]}, {len(arrays)} arrays recorded for {info['environment']}")
 
 
-def _recorded(file: str, args) -> tuple[dict, list[tuple[str, int, int, str]]] | None:
-    """This version against ``file``'s record made in this environment: (this run's info, rows), or
-    None when there is no such record."""
+def _record_here(file: str, args) -> dict | None:
+    """``file``'s record made in this environment with these settings, if any."""
     with open(file) as f:
         held = json.load(f)
     key = {"environment": environment(), **_settings(args)}
-    mine = [r for r in held["records"] if {k: r[k] for k in key} == key]
-    if not mine:
-        return None
+    return next((r for r in held["records"] if {k: r[k] for k in key} == key), None)
+
+
+def _recorded(record: dict, args) -> tuple[dict, list[tuple[str, int, int, str]]]:
+    """This version against a record: (this run's info, rows)."""
     with tempfile.TemporaryDirectory() as tmp:
         info = _in_process(None, os.path.join(tmp, "this.npz"), args.revolutions, args.seeds)
-        rows = compare_record(mine[0]["arrays"], digests(os.path.join(tmp, "this.npz")))
+        rows = compare_record(record["arrays"], digests(os.path.join(tmp, "this.npz")))
     return info, rows
 
 
@@ -294,6 +296,8 @@ def main() -> None:
                     "of its outputs, for this environment, to FILE")
     ap.add_argument("--recorded", metavar="FILE", help="run this version only, against FILE's record made in this "
                     f"environment (exit status {NOT_RECORDED} if there is none)")
+    ap.add_argument("--has-record", metavar="FILE", help="run nothing: exit status 0 if FILE holds a record made in "
+                    f"this environment, else {NOT_RECORDED}")
     ap.add_argument("--revolutions", type=float, default=3.0, help="revolutions of the nominal cases")
     ap.add_argument("--seeds", type=int, default=2, help="drawn realisations per surface state (1 revolution "
                     "after 1 settling)")
@@ -302,13 +306,16 @@ def main() -> None:
     if args.dump:
         _dump(args.dump, args.revolutions, args.seeds)
         return
-    if args.recorded:
-        found = _recorded(args.recorded, args)
-        if found is None:
-            print(f"{args.recorded}: no record made in this environment ({environment()}) with {_settings(args)}")
+    if args.recorded or args.has_record:
+        file = args.recorded or args.has_record
+        record = _record_here(file, args)
+        if record is None:
+            print(f"{file}: no record made in this environment ({environment()}) with {_settings(args)}")
             sys.exit(NOT_RECORDED)
-        info_t, rows = found
-        info_b = {"source": f"{args.recorded} (recorded)", "cpu": {}}
+        if args.has_record:
+            return
+        info_t, rows = _recorded(record, args)
+        info_b = {"source": f"{file} (recorded)", "cpu": {}}
     elif not args.baseline:
         ap.error("--baseline DIR or --recorded FILE is needed (see the docstring)")
     elif args.record:

@@ -9,6 +9,8 @@ import pytest
 from mcap.writer import Writer
 from wearbench.cli import main
 
+pytestmark = pytest.mark.no_kernels
+
 
 @pytest.mark.parametrize("content", [b"", os.urandom(4096)], ids=["empty", "random"])
 def test_inspect_a_file_that_is_not_mcap(tmp_path, capsys, content):

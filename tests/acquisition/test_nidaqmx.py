@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 from wearbench.acquisition.drivers import ACCELERATION, Block, DeviceTimeout, DriverError
 
+pytestmark = pytest.mark.no_kernels
+
 
 @pytest.mark.skipif(importlib.util.find_spec("nidaqmx") is not None, reason="nidaqmx is installed")
 def test_missing_package_says_how_to_install(bench):

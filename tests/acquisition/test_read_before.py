@@ -20,6 +20,8 @@ from wearbench.testing import recorded_blocks
 from wearbench.validation.measurement.features import FeatureSpec, cycle_features
 from wearbench.validation.measurement.session import load_session
 
+pytestmark = pytest.mark.no_kernels
+
 DATA = Path(__file__).with_name("data")
 FILES = {"layout1": DATA / "session_layout1.mcap", "layout2": DATA / "session_layout2_before.mcap"}
 BEFORE = json.loads((DATA / "read_before.json").read_text())

@@ -4,7 +4,10 @@ parse of the note), and the one gap rule: a step longer than 1.5 sample periods.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from wearbench.acquisition.sequence import GAP_PERIODS, SequenceBreak, SequenceCheck, gaps
+
+pytestmark = pytest.mark.no_kernels
 
 
 def test_the_check_returns_the_kind_of_a_break_with_its_note():

@@ -28,6 +28,8 @@ from .conftest import (
     sent_from_serial_log,
 )
 
+pytestmark = pytest.mark.no_kernels
+
 
 def _check_session(path, bench, cycles: float = 20) -> None:
     s = read_session(path)

@@ -12,7 +12,7 @@ from wearbench.acquisition.session_file import read_session
 from wearbench.acquisition.taps import recorded_taps
 from wearbench.validation.measurement.tap_test import tap_test
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.no_kernels]
 DELAY = 0.4e-3
 
 

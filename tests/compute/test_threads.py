@@ -15,6 +15,8 @@ from wearbench.validation.workflows.session_set import SessionSet
 import wearbench
 from wearbench import cli
 
+pytestmark = pytest.mark.no_kernels
+
 
 def blas_threads() -> dict[str, int]:
     return {pool["filepath"]: pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}

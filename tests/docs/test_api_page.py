@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 import wearbench
+
+pytestmark = pytest.mark.no_kernels
 
 
 def documented(html: str) -> set[str]:

@@ -16,7 +16,7 @@ from html.parser import HTMLParser
 
 import pytest
 
-pytestmark = pytest.mark.slow  # builds the documentation first (CI runs it)
+pytestmark = [pytest.mark.slow, pytest.mark.no_kernels]  # builds the documentation first (CI runs it)
 
 HELP = {"-h", "--help"}
 OPTION = re.compile(r"(?<![\w-])(--?[A-Za-z0-9][\w-]*)")

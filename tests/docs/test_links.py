@@ -8,6 +8,9 @@ import shutil
 from pathlib import Path
 
 import check_links
+import pytest
+
+pytestmark = pytest.mark.no_kernels
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -8,6 +8,10 @@ import re
 import subprocess
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.no_kernels
+
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
 HISTORY = ("earlier version", "version before", "this version", "versions ago")

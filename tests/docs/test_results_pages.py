@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.slow  # builds the documentation first (CI runs it)
+pytestmark = [pytest.mark.slow, pytest.mark.no_kernels]  # builds the documentation first (CI runs it)
 
 ROOT = Path(__file__).resolve().parents[2]
 RESULTS = ROOT / "docs" / "results"

@@ -12,7 +12,7 @@ from wearbench.hardware.emulators.can_server import CAN_ERR_BUSOFF, CanEmulator
 from wearbench.hardware.protocol import can_frames as cf
 from wearbench.hardware.protocol.blocks import AccelBlock, EncoderBlock
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.no_kernels]
 _channels = itertools.count()
 
 

@@ -19,6 +19,8 @@ from wearbench.hardware.emulators.device import (
 from wearbench.hardware.emulators.signal import harmonic_table
 from wearbench.hardware.protocol.messages import ErrorCode, FaultCode
 
+pytestmark = pytest.mark.no_kernels
+
 W = 2 * math.pi  # rad/s: the test bed's crank speed
 
 

@@ -7,6 +7,8 @@ import pytest
 from wearbench.bench.schema import BenchError
 from wearbench.hardware.emulators.config import EmulatorConfig, emulator_config
 
+pytestmark = pytest.mark.no_kernels
+
 
 @pytest.mark.parametrize("table, key, expected", [
     ({"truth": {"seed": 3, "twin": True}}, "emulator.truth.twin", "twin = false or no twin key"),

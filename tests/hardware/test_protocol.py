@@ -21,6 +21,8 @@ from wearbench.hardware.protocol.frames import (
     encode_frame,
 )
 
+pytestmark = pytest.mark.no_kernels
+
 ALL_MESSAGES = [
     m.GetInfo(), m.Enable(), m.Disable(), m.SetSpeed(6.25, 100.0), m.SetProfile((0.0, 1.5), (2.0, -3.0), 50.0),
     m.Stop(), m.ConfigureAccel(490.0, 20000.0), m.StartStream(3), m.StopStream(), m.GetStatus(), m.ClearFault(),

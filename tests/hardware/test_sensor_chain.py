@@ -13,6 +13,8 @@ from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, ManualC
 from wearbench.hardware.emulators.sensor import SensorChain, oversampling
 from wearbench.hardware.protocol.messages import FaultCode
 
+pytestmark = pytest.mark.no_kernels
+
 FS = 10000.0
 
 

@@ -13,6 +13,8 @@ from wearbench.hardware.protocol import messages as m
 from wearbench.hardware.protocol.frames import FrameParser
 from wearbench.hardware.protocol.taps import LATCH_RESOLUTION, parse_tap_message, tap_message
 
+pytestmark = pytest.mark.no_kernels
+
 CHAIN = {"noise": "0 m/s^2", "bias": "0 m/s^2", "adc_bits": 0, "resonance": "2 kHz", "damping": 0.05,
          "aa_filter": "butterworth", "aa_order": 8, "aa_cutoff": 0.3}
 

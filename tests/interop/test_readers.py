@@ -23,6 +23,8 @@ from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.testing import mcap_readers
 
+pytestmark = pytest.mark.no_kernels
+
 LAYOUT1 = Path(__file__).parents[1] / "acquisition" / "data" / "session_layout1.mcap"
 PLOTTED = {"/acceleration": {"acceleration": "array", "clipped": "number", "device_time": "number"},
            "/encoder": {"counts": "array", "crank_angle": "array", "cycle": "array"},

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.no_kernels
+
 ROOT = Path(__file__).resolve().parents[2]
 SKIP = {".venv", ".git", "build", "dist", "__pycache__"}
 

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from wearbench.studies import equivalence
 
+pytestmark = pytest.mark.no_kernels
+
 
 def test_holm_against_hand_values():
     # sorted 0.01, 0.03, 0.04, 0.5 times 4, 3, 2, 1: 0.04, 0.09, 0.08 -> 0.09 (monotone), 0.5

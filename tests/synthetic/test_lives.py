@@ -10,6 +10,8 @@ import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.synthetic.lives import life_features, truth_features
 
+pytestmark = pytest.mark.no_kernels
+
 for _module in ("wearbench.model.realisation", "wearbench.model.wear_stages"):
     importlib.import_module(_module)  # imported here, so the timing below holds the calls only
 

@@ -5,6 +5,8 @@ import pytest
 from wearbench.validation.comparison.alignment import estimate_lag, lag_correlations, shift_signal
 from wearbench.validation.measurement.filters import FilterSpec, apply_filter
 
+pytestmark = pytest.mark.no_kernels
+
 FS = 10_000.0
 
 

@@ -23,6 +23,8 @@ from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.inference.identify import IdentifyOptions, fit_states, identify_features
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
+pytestmark = pytest.mark.no_kernels
+
 SPEC = FeatureSpec()
 P = SPEC.size
 SB, SW = 0.02, 0.2

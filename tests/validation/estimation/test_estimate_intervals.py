@@ -17,6 +17,8 @@ from wearbench.validation.measurement.features import CycleFeatures
 
 from .test_estimate import SPEC, model, session  # noqa: F401 (model: the module's fixture)
 
+pytestmark = pytest.mark.no_kernels
+
 X = np.linspace(0.0, 6.0, 3001)
 
 

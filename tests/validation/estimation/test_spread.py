@@ -28,6 +28,8 @@ from wearbench.validation.measurement.features import CycleFeatures
 
 from tests.validation.estimation.test_estimate import DESIGN, OPTIONS, SB, SPEC, SW, P, true_mean
 
+pytestmark = pytest.mark.no_kernels
+
 RUN_SD = 0.2  # sd per feature of a wear realisation's offset after the design's last cycles run
 NC, NN, M, C = len(DESIGN.clearances), len(DESIGN.cycles), 16, 8
 

@@ -12,6 +12,8 @@ from wearbench.validation.measurement.features import CycleFeatures
 from . import test_estimate
 from .test_estimate import SB, SPEC, SW, P, true_mean
 
+pytestmark = pytest.mark.no_kernels
+
 model = test_estimate.model  # the synthetic estimator (a fixture)
 
 RUNS = [0.0, 1e5, 2e5, 3e5]

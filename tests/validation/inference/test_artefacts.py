@@ -13,6 +13,8 @@ from wearbench.validation.estimation.estimate import load_estimator, save_estima
 from wearbench.validation.inference import artefacts
 from wearbench.validation.inference.ensemble import load_ensembles
 
+pytestmark = pytest.mark.no_kernels
+
 BENCH = load_bench(shipped_bench("ninebar-testbed"))
 SHIPPED_ENSEMBLES = artefacts.shipped_path("ensembles", BENCH.name)
 SHIPPED_ESTIMATOR = artefacts.shipped_path("estimator", BENCH.name)

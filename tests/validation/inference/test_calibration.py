@@ -15,6 +15,8 @@ from wearbench.validation.inference.ensemble import Ensemble, EnsembleSettings
 from wearbench.validation.inference.identify import IdentifyOptions, fit_states
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
+pytestmark = pytest.mark.no_kernels
+
 SPEC = FeatureSpec()
 P = SPEC.size
 META = {"calibration": {"accelerometer.name": "slider_acc", "accelerometer.sensitivity": "0.00102",

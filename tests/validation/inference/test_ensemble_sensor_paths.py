@@ -4,11 +4,14 @@ and its content key (issue 31: drawn sensor paths could be switched off only fro
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.cli import main
 from wearbench.validation.inference import ensemble as ensemble_module
 from wearbench.validation.inference.ensemble import Ensemble, ensembles_key, load_ensembles
 from wearbench.validation.inference.sensor_path import PathSpread
+
+pytestmark = pytest.mark.no_kernels
 
 
 def test_the_switch_sets_the_drawn_paths_of_the_saved_ensembles(tmp_path, monkeypatch, capsys):

@@ -27,6 +27,8 @@ from wearbench.validation.inference.identify import (
 )
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
+pytestmark = pytest.mark.no_kernels
+
 SPEC = FeatureSpec()
 P = SPEC.size
 SB, SW = 0.04, 0.25

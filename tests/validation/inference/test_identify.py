@@ -21,6 +21,8 @@ from wearbench.validation.inference.identify import (
 from wearbench.validation.inference.statistics import StateStatistics
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
+pytestmark = pytest.mark.no_kernels
+
 SPEC = FeatureSpec()
 P = SPEC.size
 SB, SW = 0.04, 0.25  # between-bench and cycle variances of every feature (log10 units squared)

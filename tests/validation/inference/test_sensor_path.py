@@ -16,6 +16,8 @@ from wearbench.validation.inference.sensor_path import SensorPath, calibrate_pat
 from wearbench.validation.inference.statistics import StateStatistics
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
+pytestmark = pytest.mark.no_kernels
+
 SPEC = FeatureSpec()
 P = SPEC.size
 SB, SW = 0.04, 0.25

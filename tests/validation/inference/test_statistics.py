@@ -6,6 +6,8 @@ from scipy import stats
 from wearbench.validation.inference.statistics import StateStatistics, shrunk_covariance
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec, cycle_features
 
+pytestmark = pytest.mark.no_kernels
+
 FS = 10_000.0
 
 

@@ -8,6 +8,8 @@ from types import SimpleNamespace
 import pytest
 from wearbench.validation.inference import verdicts as stability
 
+pytestmark = pytest.mark.no_kernels
+
 NAMES = ("a", "b", "c")
 
 

@@ -11,7 +11,7 @@ from wearbench.validation.inference.relative_states import WeightedStatistics, t
 from wearbench.validation.inference.statistics import shrunk_covariance
 from wearbench.validation.measurement.features import CycleFeatures, FeatureSpec
 
-pytestmark = pytest.mark.slow  # simulates its ensembles first (CI runs it)
+pytestmark = [pytest.mark.slow, pytest.mark.no_kernels]  # simulates its ensembles first (CI runs it)
 
 SPEC = FeatureSpec()
 P = SPEC.size

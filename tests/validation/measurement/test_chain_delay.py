@@ -17,6 +17,8 @@ from wearbench.hardware.emulators.device import AccelBlock, BenchDevice, ManualC
 from wearbench.hardware.emulators.signal import harmonic_table
 from wearbench.validation.measurement.chain_delay import analog_group_delay, stated_delay
 
+pytestmark = pytest.mark.no_kernels
+
 W = 2 * math.pi
 
 

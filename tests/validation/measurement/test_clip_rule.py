@@ -28,6 +28,8 @@ from wearbench.validation.measurement.cycles import crank_turns
 from wearbench.validation.measurement.scaling import resolve_analysis
 from wearbench.validation.measurement.session import MeasuredSession, load_session
 
+pytestmark = pytest.mark.no_kernels
+
 G = 9.80665
 RANGE = 20 * G  # m/s^2: what the device runs at in the sessions below, while the bench file says 500 g
 

@@ -13,6 +13,8 @@ from wearbench.validation.measurement.filters import (
     parse_filter,
 )
 
+pytestmark = pytest.mark.no_kernels
+
 FS = 10_000.0
 
 

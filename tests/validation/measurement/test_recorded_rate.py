@@ -15,6 +15,8 @@ from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.validation.measurement.features import FeatureSpec, cycle_features, sample_rate
 from wearbench.validation.measurement.session import load_session
 
+pytestmark = pytest.mark.no_kernels
+
 RATE, ENCODER_RATE, CPR, TURNS_PER_S = 10000.0, 1000.0, 4000, 10.0
 
 

@@ -23,6 +23,8 @@ from wearbench.hardware.emulators.sensor import SensorChain
 from wearbench.validation.measurement import tap_test as tt
 from wearbench.validation.measurement.chain_delay import stated_delay, stated_response
 
+pytestmark = pytest.mark.no_kernels
+
 TOLERANCE = 2e-5  # s: the 0.02 ms
 
 

@@ -2,9 +2,12 @@
 
 from types import SimpleNamespace
 
+import pytest
 from wearbench.bench.load import load_bench, shipped_bench
 from wearbench.validation.estimation.estimate import Interval
 from wearbench.validation.workflows.measure import named_outside
+
+pytestmark = pytest.mark.no_kernels
 
 
 def _case(verdict: str, lo: float, hi: float, explains: bool = True):
