@@ -4,12 +4,11 @@
   ``benchmarks/compute/suite_durations.py --schedule``): with ``-n``, xdist hands whole files to the
   workers in this order (``--dist loadfile --no-loadscope-reorder``), so the long files start at
   once and the short ones fill in at the end. A file not listed yet runs after the listed ones.
-- With ``-n`` on a fresh checkout, the model's kernels are compiled once, in processes of their own
-  (the clearance integrator's in one, the fully driven bench's kinematics in another), while the
-  workers collect and run the tests that compile kernels of their own (``own_kernels``: an empty
-  numba cache, another commit's model) and the tests that use none (``no_kernels``); every other
-  test waits for them. Otherwise every worker, and the commands the tests start, would compile them
-  at once: about a minute and a half of CPU each.
+- With ``-n`` on a fresh checkout, the model's kernels are compiled once, in a process of its own,
+  while the workers collect and run the tests that compile kernels of their own (``own_kernels``: an
+  empty numba cache, another commit's model) and the tests that use none (``no_kernels``); every
+  other test waits for it. Otherwise every worker, and the commands the tests start, would compile
+  them at once: about a minute and a half of CPU each.
 - Every test gets its own result cache (unless a module fixture chose one) and no user compute config.
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
   (``wearbench.testing.mcap_readers``): @mcap/core's indexed reader under node and the Python mcap
@@ -39,13 +38,7 @@ from wearbench.testing import mcap_readers
 NODE_FOLDER = mcap_readers.cache_dir()
 DURATIONS = Path(__file__).with_name("durations.json")
 KERNELS_READY = "WEARBENCH_TEST_KERNELS_READY"  # a file that exists once the run's shared compile is done
-WARM_UPS = (  # the shared compile, two processes at once: what a local cluster's workers load, and the
-    # kinematics of a fully driven ideal bench (its own loop, projection and accelerations)
-    "from wearbench.compute.cluster import warm_up\nwarm_up()\n",
-    ("from wearbench.bench.load import load_bench, shipped_bench\nfrom wearbench.model import build_scene, simulate\n"
-     "b = load_bench(shipped_bench('slider-crank'))\n"
-     "simulate(build_scene(b.with_clearances({j.name: None for j in b.clearance_joints})), revolutions=0.05)\n"),
-)
+
 
 
 def _waits(item: pytest.Item) -> bool:
@@ -84,8 +77,8 @@ def pytest_configure(config: pytest.Config) -> None:
     if kernels_compiled():
         return
     done = Path(tempfile.mkdtemp(prefix="wearbench-kernels-")) / "done"
-    warming = [subprocess.Popen([sys.executable, "-c", code]) for code in WARM_UPS]
-    threading.Thread(target=lambda: ([w.wait() for w in warming], done.touch()), daemon=True).start()
+    warming = subprocess.Popen([sys.executable, "-c", "from wearbench.compute.cluster import warm_up\nwarm_up()\n"])
+    threading.Thread(target=lambda: (warming.wait(), done.touch()), daemon=True).start()
     os.environ[KERNELS_READY] = str(done)  # the workers start after this hook, with this environment
 
 

@@ -43,6 +43,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -254,12 +255,10 @@ def _settings(args) -> dict:
 
 def record_baseline(file: str, baseline: str, args) -> None:
     """Add (or replace) the record of the baseline's digests made in this environment to ``file``."""
-    from pathlib import Path
-
     from wearbench.model.digest import package_source_digest
 
     model = package_source_digest(Path(baseline) / "wearbench" / "model")
-    held = json.loads(Path(file).read_text()) if os.path.exists(file) else {
+    held = json.loads(Path(file).read_text()) if Path(file).exists() else {
         "schema": RECORD_SCHEMA, "model": model, "records": []}
     if held.get("schema") != RECORD_SCHEMA or held.get("model") != model:
         raise SystemExit(f"{file}: holds records of model {str(held.get('model'))[:12]} "
@@ -275,8 +274,10 @@ def record_baseline(file: str, baseline: str, args) -> None:
 
 def _record_here(file: str, args) -> dict | None:
     """``file``'s record made in this environment with these settings, if any."""
-    with open(file) as f:
-        held = json.load(f)
+    held = json.loads(Path(file).read_text()) if Path(file).exists() else {}
+    if held.get("schema") != RECORD_SCHEMA:
+        raise SystemExit(f"{file}: not a record of trajectory_identity.py's outputs (expected schema {RECORD_SCHEMA}, "
+                         f"found {held.get('schema', 'no file' if not held else None)!r})")
     key = {"environment": environment(), **_settings(args)}
     return next((r for r in held["records"] if {k: r[k] for k in key} == key), None)
 
