@@ -425,7 +425,7 @@ class Recorder:
         # pulses records one revolution more. The drive's count runs from its first state, which a
         # slow bus reports up to half a revolution late: where the stream has pulses, the count
         # waits up to one more revolution for the last one (a CANopen session on a busy machine
-        # stopped at 1.05 revolutions with 19 of 20 cycles recorded).
+        # stopped at 21.05 counted revolutions with 19 of 20 cycles recorded).
         pulses_needed = math.ceil(p.cycles) + 1 if p.cycles is not None else 0
         last_pulse: float | None = None  # revolutions at the last needed pulse
         while not self._stop.is_set():
