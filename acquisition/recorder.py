@@ -422,10 +422,7 @@ class Recorder:
         # Cycles run from index pulse to index pulse (validation.cycles), so `cycles` complete ones
         # need ceil(cycles) + 1 pulses in the recorded encoder blocks (counted by the reader: the
         # drive's own index count may lag the stream), and a little more; a stream without index
-        # pulses records one revolution more. The drive's count runs from its first state, which a
-        # slow bus reports up to half a revolution late: where the stream has pulses, the count
-        # waits up to one more revolution for the last one (a CANopen session on a busy machine
-        # stopped at 21.05 counted revolutions with 19 of 20 cycles recorded).
+        # pulses records one revolution more.
         pulses_needed = math.ceil(p.cycles) + 1 if p.cycles is not None else 0
         last_pulse: float | None = None  # revolutions at the last needed pulse
         while not self._stop.is_set():
@@ -437,7 +434,7 @@ class Recorder:
             if p.cycles is not None and last_pulse is None and self._pulses >= pulses_needed:
                 last_pulse = prog.cycles
             if (p.cycles is not None and prog.cycles >= p.cycles and (
-                    prog.cycles >= p.cycles + (2 if self._pulses else 1) + _PULSE_MARGIN
+                    prog.cycles >= p.cycles + 1 + _PULSE_MARGIN
                     or (last_pulse is not None and prog.cycles >= last_pulse + _PULSE_MARGIN))) or (
                     p.duration is not None and prog.elapsed >= p.duration):
                 self.stop("completed", "phase")

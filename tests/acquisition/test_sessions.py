@@ -28,7 +28,8 @@ from .conftest import (
     sent_from_serial_log,
 )
 
-pytestmark = pytest.mark.no_kernels
+# realtime sessions over CAN and serial: not run while the kernels compile (no_kernels), on the busiest
+# machine of the run, where a late first drive state shows the known short recording below
 
 
 def _check_session(path, bench, cycles: float = 20) -> None:
@@ -226,6 +227,8 @@ class _LateDrive:
         return getattr(self.drive, name)
 
 
+@pytest.mark.xfail(strict=True, reason="known bug, not fixed yet: the recorder's fallback count (N + 1.05 revolutions "
+                   "from the drive's first state of the recording) ends the session before the last index pulse")
 def test_a_late_first_drive_state_still_records_the_planned_cycles(bench, tmp_path):
     """The drive's revolutions count from its first state of the recording; half a revolution late, the
     count ran ahead of the stream and its fallback (meant for a stream without index pulses) ended the
