@@ -253,33 +253,42 @@ def _settings(args) -> dict:
     return {"revolutions": args.revolutions, "seeds": args.seeds}
 
 
+def _held(file: str) -> dict:
+    """A record file's content; exits naming the file if it is missing or not a record."""
+    if not Path(file).exists():
+        raise SystemExit(f"{file}: no such record file")
+    held = json.loads(Path(file).read_text())
+    if held.get("schema") != RECORD_SCHEMA:
+        raise SystemExit(f"{file}: not a record of trajectory_identity.py's outputs (schema {held.get('schema')!r}, "
+                         f"expected {RECORD_SCHEMA})")
+    return held
+
+
 def record_baseline(file: str, baseline: str, args) -> None:
-    """Add (or replace) the record of the baseline's digests made in this environment to ``file``."""
+    """Add (or replace) the record of the baseline's digests made in this environment to ``file``
+    (rewritten through the output-file policy: a failed write leaves it as it was)."""
+    from wearbench.bench.output_file import output_file
     from wearbench.model.digest import package_source_digest
 
     model = package_source_digest(Path(baseline) / "wearbench" / "model")
-    held = json.loads(Path(file).read_text()) if Path(file).exists() else {
-        "schema": RECORD_SCHEMA, "model": model, "records": []}
-    if held.get("schema") != RECORD_SCHEMA or held.get("model") != model:
-        raise SystemExit(f"{file}: holds records of model {str(held.get('model'))[:12]} "
-                         f"({held.get('schema')}); the baseline's model is {model[:12]}: use another file")
+    held = _held(file) if Path(file).exists() else {"schema": RECORD_SCHEMA, "model": model, "records": []}
+    if held["model"] != model:
+        raise SystemExit(f"{file}: holds records of model {held['model'][:12]}; the baseline's model is "
+                         f"{model[:12]}: use another file")
     with tempfile.TemporaryDirectory() as tmp:
         info = _in_process(baseline, os.path.join(tmp, "base.npz"), args.revolutions, args.seeds)
         arrays = digests(os.path.join(tmp, "base.npz"))
     key = {"environment": info["environment"], **_settings(args)}
     held["records"] = [r for r in held["records"] if {k: r[k] for k in key} != key] + [{**key, "arrays": arrays}]
-    Path(file).write_text(json.dumps(held, indent=1, sort_keys=True) + "\n")
+    with output_file(file, force=True, option="--record") as tmp:
+        tmp.write_text(json.dumps(held, indent=1, sort_keys=True) + "\n")
     print(f"{file}: model {model[:12]}, {len(arrays)} arrays recorded for {info['environment']}")
 
 
 def _record_here(file: str, args) -> dict | None:
     """``file``'s record made in this environment with these settings, if any."""
-    held = json.loads(Path(file).read_text()) if Path(file).exists() else {}
-    if held.get("schema") != RECORD_SCHEMA:
-        raise SystemExit(f"{file}: not a record of trajectory_identity.py's outputs (expected schema {RECORD_SCHEMA}, "
-                         f"found {held.get('schema', 'no file' if not held else None)!r})")
     key = {"environment": environment(), **_settings(args)}
-    return next((r for r in held["records"] if {k: r[k] for k in key} == key), None)
+    return next((r for r in _held(file)["records"] if {k: r[k] for k in key} == key), None)
 
 
 def _recorded(record: dict, args) -> tuple[dict, list[tuple[str, int, int, str]]]:
