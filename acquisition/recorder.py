@@ -56,6 +56,7 @@ from wearbench.hardware.protocol.taps import TAP_EVENT
 __all__ = ["Recorder", "record_session"]
 
 _PULSE_MARGIN = 0.05  # revolutions recorded past the index pulse that closes the last cycle
+_PULSE_WAIT = 2.0  # revolutions past the planned ones the drive may turn while the closing pulse is awaited
 _FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
 _DRAIN_LIMIT = 2.0  # s a tap session waits past its last interval for the accelerometer stream to catch up
 
@@ -109,6 +110,9 @@ class Recorder:
         self._write_failures = 0
         self._pulses = 0  # index pulses (rising edges) in the recorded encoder blocks
         self._index_high = False
+        self._pulses_needed = 0  # the pulse that closes the last planned cycle (0: none planned)
+        self._margin_time = 0.0  # s the crank takes to turn _PULSE_MARGIN
+        self._cut = math.inf  # device time: that pulse's own time plus the margin; no block from it is recorded
 
     # ---- stopping ---------------------------------------------------------------------------
 
@@ -159,12 +163,10 @@ class Recorder:
                     if isinstance(item, Block):
                         if item.host_time == 0.0:
                             item.host_time = time.time()
-                        if not recording and not item.device_time < until:  # queued before the stop: kept
-                            continue
+                        if not (recording or item.device_time < until) or not item.device_time < self._cut:
+                            continue  # kept: what was queued before the stop and reaches no further than the cut
                         if item.stream == ENCODER and item.index is not None and len(item.index):
-                            high = np.asarray(item.index, dtype=bool)
-                            self._pulses += int(np.count_nonzero(high & ~np.concatenate([[self._index_high], high[:-1]])))
-                            self._index_high = bool(high[-1])
+                            self._count_pulses(item)
                     elif isinstance(item, Event) and item.device_time is None:
                         item.device_time = self._device_now
                     elif isinstance(item, Event) and item.kind == TAP_EVENT:
@@ -187,6 +189,18 @@ class Recorder:
             self.stop(_failure_reason(exc, f"{source.name} reader"), "error")
         finally:
             self._cpu[f"reader:{source.name}"] = time.thread_time()
+
+    def _count_pulses(self, block: Block) -> None:
+        """Count the index pulses (rising edges) of a recorded encoder block; at the pulse that closes the
+        last planned cycle, set the cut on the stream's own clock (its edge's time plus the margin), so a
+        stream that lags the drive records no more, and a drive state that lags it ends nothing early."""
+        high = np.asarray(block.index, dtype=bool)
+        edges = np.flatnonzero(high & ~np.concatenate([[self._index_high], high[:-1]]))
+        self._index_high = bool(high[-1])
+        closing = self._pulses_needed - self._pulses - 1
+        if 0 <= closing < len(edges):
+            self._cut = block.device_time + edges[closing] / block.sample_rate + self._margin_time
+        self._pulses += len(edges)
 
     def _clip_check(self, block: Block) -> Event | None:
         """Count the block's clipped samples; the warning event when clipping starts."""
@@ -416,26 +430,24 @@ class Recorder:
         if self._wait(p.settle, prog) is None:
             return
         prog.phase = "record"
+        # Cycles run from index pulse to index pulse (validation.cycles), so `cycles` complete ones
+        # need ceil(cycles) + 1 pulses in the recorded encoder blocks, counted by the reader, which
+        # ends the recording a margin past the last one's own time (the drive's state may lag the
+        # stream or run ahead of it). A stream without index pulses records one revolution more by
+        # the drive's count; one whose pulses stop waits a bounded number of revolutions for them.
+        self._pulses_needed = math.ceil(p.cycles) + 1 if p.cycles is not None else 0
+        self._margin_time = _PULSE_MARGIN * 2 * math.pi / abs(crank)
         self._recording.set()
         start = self._poll()
         self._post(Event("phase", f"record: steady at {start.speed:.4g} rad/s", device_time=start.device_time))
-        # Cycles run from index pulse to index pulse (validation.cycles), so `cycles` complete ones
-        # need ceil(cycles) + 1 pulses in the recorded encoder blocks (counted by the reader: the
-        # drive's own index count may lag the stream), and a little more; a stream without index
-        # pulses records one revolution more.
-        pulses_needed = math.ceil(p.cycles) + 1 if p.cycles is not None else 0
-        last_pulse: float | None = None  # revolutions at the last needed pulse
         while not self._stop.is_set():
             s = self._wait(0.0, prog)
             if s is None:
                 return
             prog.cycles = abs(s.angle - start.angle) / (2 * math.pi)  # revolutions of the encoder crank
             prog.elapsed = s.device_time - start.device_time
-            if p.cycles is not None and last_pulse is None and self._pulses >= pulses_needed:
-                last_pulse = prog.cycles
-            if (p.cycles is not None and prog.cycles >= p.cycles and (
-                    prog.cycles >= p.cycles + 1 + _PULSE_MARGIN
-                    or (last_pulse is not None and prog.cycles >= last_pulse + _PULSE_MARGIN))) or (
+            beyond = prog.cycles - (p.cycles or 0.0) - 1 - _PULSE_MARGIN  # revolutions past a pulseless stream's end
+            if (p.cycles is not None and (self._cut < math.inf or beyond >= (_PULSE_WAIT if self._pulses else 0.0))) or (
                     p.duration is not None and prog.elapsed >= p.duration):
                 self.stop("completed", "phase")
                 return
@@ -446,7 +458,8 @@ class Recorder:
             # a fault or an interruption also what comes until the stream stops (the data around a
             # fault is what a lab looks at first; the drive may report it before the blocks arrive)
             completed = self._reason == "completed" and self._device_now is not None
-            self._recorded_until = self._device_now if completed else math.inf
+            # at the cut when the closing pulse came, which the drive's state may lag
+            self._recorded_until = (self._cut if self._cut < math.inf else self._device_now) if completed else math.inf
         self._recording.clear()
         prog.phase = "ramp-down"
         drive, clock = self.rig.drive, self.rig.clock
