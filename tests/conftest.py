@@ -10,6 +10,7 @@
   other test waits for it. Otherwise every worker, and the commands the tests start, would compile
   them at once: about a minute and a half of CPU each.
 - Every test gets its own result cache (unless a module fixture chose one) and no user compute config.
+- Each test's CPU goes into the JUnit XML as the property ``cpu`` (``--junitxml``), beside its time.
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
   (``wearbench.testing.mcap_readers``): @mcap/core's indexed reader under node and the Python mcap
   readers with CRC validation, which also hold it to ``mcap doctor --strict-message-order`` (log
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import shutil
 import signal
 import subprocess
@@ -38,6 +40,7 @@ from wearbench.testing import mcap_readers
 NODE_FOLDER = mcap_readers.cache_dir()
 DURATIONS = Path(__file__).with_name("durations.json")
 KERNELS_READY = "WEARBENCH_TEST_KERNELS_READY"  # a file that exists once the run's shared compile is done
+_CPU_AT_SETUP = pytest.StashKey[float]()
 
 
 
@@ -87,6 +90,28 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     done = os.environ.get(KERNELS_READY)
     if done and not hasattr(config, "workerinput"):
         shutil.rmtree(Path(done).parent, ignore_errors=True)
+
+
+def _cpu_seconds() -> float:
+    """User and system CPU of this process and of every process it started and waited for."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    item.stash[_CPU_AT_SETUP] = _cpu_seconds()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    """Each test's CPU from its setup to its teardown, as the JUnit XML property ``cpu`` (s), for
+    ``benchmarks/compute/suite_durations.py``: a worker's own and that of the commands and clusters the
+    test started and waited for (not a process it killed before reaping it, nor a Dask worker's)."""
+    report = yield
+    if call.when == "teardown" and _CPU_AT_SETUP in item.stash:
+        report.user_properties.append(("cpu", round(_cpu_seconds() - item.stash[_CPU_AT_SETUP], 3)))
+    return report
 
 
 @pytest.hookimpl(wrapper=True)

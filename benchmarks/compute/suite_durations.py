@@ -1,6 +1,7 @@
 """Where does the test suite's time go? Runs pytest on the suite (as CI does) and tabulates its wall
 time, the time by test folder and the slowest tests, from pytest's JUnit XML (``--junitxml``: per
-test, its setup, call and teardown together). ``--schedule`` also writes each test file's time to
+test, its setup, call and teardown together, and the CPU ``tests/conftest.py`` records as the
+property ``cpu``: what a test computes, where its time minus its CPU is waiting). ``--schedule`` also writes each test file's time to
 ``tests/durations.json``, the order in which ``tests/conftest.py`` hands files to the workers
 (heaviest first).
 
@@ -33,8 +34,8 @@ SCHEDULE = ROOT / "tests" / "durations.json"
 QUESTION = "Where does the test suite's time go?"
 
 
-def read_junit(path: Path) -> list[tuple[str, str, float]]:
-    """Each test case of a JUnit XML file: (file, test id, seconds), skipped cases included."""
+def read_junit(path: Path) -> list[tuple[str, str, float, float]]:
+    """Each test case of a JUnit XML file: (file, test id, seconds, CPU seconds), skipped cases included."""
     out = []
     for case in ET.parse(path).getroot().iter("testcase"):
         module = case.get("classname", "")
@@ -42,7 +43,8 @@ def read_junit(path: Path) -> list[tuple[str, str, float]]:
         # the classname is the module path (and a class); its file is the longest prefix under tests/
         file = next((p for k in range(len(parts), 0, -1)
                      if (ROOT / (p := "/".join(parts[:k]) + ".py")).is_file()), module)
-        out.append((file, f"{file}::{case.get('name', '')}", float(case.get("time", 0.0))))
+        cpu = next((float(p.get("value")) for p in case.iter("property") if p.get("name") == "cpu"), 0.0)
+        out.append((file, f"{file}::{case.get('name', '')}", float(case.get("time", 0.0)), cpu))
     return out
 
 
@@ -68,33 +70,38 @@ def main() -> None:
         if not junit.exists():
             raise SystemExit(f"pytest wrote no JUnit XML (exit {done.returncode})")
         cases = read_junit(junit)
-    by_folder: dict[str, list[float]] = collections.defaultdict(list)
+    by_folder: dict[str, list[tuple[float, float]]] = collections.defaultdict(list)
     by_file: dict[str, float] = collections.defaultdict(float)
-    for file, _, s in cases:
-        by_folder[str(Path(file).parent)].append(s)
+    for file, _, s, c in cases:
+        by_folder[str(Path(file).parent)].append((s, c))
         by_file[file] += s
-    folders = sorted(by_folder.items(), key=lambda kv: -sum(kv[1]))
+    folders = sorted(by_folder.items(), key=lambda kv: -sum(s for s, _ in kv[1]))
     slowest = sorted(cases, key=lambda c: -c[2])[:args.top]
-    total = sum(s for *_, s in cases)
-    top_share = sum(s for *_, s in slowest) / total if total else 0.0
+    total, total_cpu = sum(c[2] for c in cases), sum(c[3] for c in cases)
+    top_share = sum(c[2] for c in slowest) / total if total else 0.0
     cores = os.cpu_count() or 1
     floor = (f"the run used {cpu / 60:.1f} min of CPU (user and system, every process it waited for): on "
              f"{cores} cores no order of these tests takes less than {cpu / cores / 60:.1f} min of wall time")
-    print(f"pytest exit {done.returncode}: {len(cases)} tests, wall {wall:.0f} s, summed test time {total:.0f} s; "
-          f"the {len(slowest)} slowest hold {top_share:.0%}; {floor}")
-    for _, name, s in slowest:
-        print(f"{s:8.1f} s  {name}")
+    tests_cpu = (f"the tests computed for {total_cpu / 60:.1f} min of their summed {total / 60:.1f} min (the rest "
+                 "is waiting: on devices, clocks, and processes a test killed or a cluster's workers)")
+    print(f"pytest exit {done.returncode}: {len(cases)} tests, wall {wall:.0f} s; the {len(slowest)} slowest hold "
+          f"{top_share:.0%} of the summed test time; {tests_cpu}; {floor}")
+    for _, name, s, c in slowest:
+        print(f"{s:8.1f} s  {c:8.1f} s CPU  {name}")
     if args.json:
         label = args.pytest_args or "the whole suite"
         write_result(args.json, question=args.question, script=__file__, run=run, seeds={},
                      findings=[(f"pytest {label}: {len(cases)} tests in {wall / 60:.1f} min of wall time "
                                f"(exit {done.returncode}); the {len(slowest)} slowest tests hold {top_share:.0%} "
-                               "of the summed test time."), floor[0].upper() + floor[1:] + "."],
-                     tables=[table("by test folder", [column("folder"), column("tests"),
-                                                      column("time", "s", ".0f"), column("share", None, ".0%")],
-                                   [[f, len(v), sum(v), sum(v) / total] for f, v in folders]),
+                               "of the summed test time."), tests_cpu[0].upper() + tests_cpu[1:] + ".",
+                               floor[0].upper() + floor[1:] + "."],
+                     tables=[table("by test folder", [column("folder"), column("tests"), column("time", "s", ".0f"),
+                                                      column("CPU", "s", ".0f"), column("share", None, ".0%")],
+                                   [[f, len(v), sum(s for s, _ in v), sum(c for _, c in v),
+                                     sum(s for s, _ in v) / total] for f, v in folders]),
                              table(f"the {len(slowest)} slowest tests (setup, call and teardown)",
-                                   [column("test"), column("time", "s", ".1f")], [[n, s] for _, n, s in slowest])],
+                                   [column("test"), column("time", "s", ".1f"), column("CPU", "s", ".1f")],
+                                   [[n, s, c] for _, n, s, c in slowest])],
                      notes=["One run on the machine named below; wall times on a busy machine are longer."])
         print(f"results: {args.json}")
     if args.schedule:  # after the result, which records whether the checkout was clean
