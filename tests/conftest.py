@@ -41,6 +41,7 @@ NODE_FOLDER = mcap_readers.cache_dir()
 DURATIONS = Path(__file__).with_name("durations.json")
 KERNELS_READY = "WEARBENCH_TEST_KERNELS_READY"  # a file that exists once the run's shared compile is done
 _CPU_AT_SETUP = pytest.StashKey[float]()
+_COMPILE_FOLDER = pytest.StashKey[Path]()  # the shared compile's folder, on the controller that made it
 
 
 
@@ -80,16 +81,17 @@ def pytest_configure(config: pytest.Config) -> None:
     if kernels_compiled():
         return
     done = Path(tempfile.mkdtemp(prefix="wearbench-kernels-")) / "done"
+    config.stash[_COMPILE_FOLDER] = done.parent
     warming = subprocess.Popen([sys.executable, "-c", "from wearbench.compute.cluster import warm_up\nwarm_up()\n"])
     threading.Thread(target=lambda: (warming.wait(), done.touch()), daemon=True).start()
     os.environ[KERNELS_READY] = str(done)  # the workers start after this hook, with this environment
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    """The controller removes the compile's folder (a worker leaves it alone)."""
-    done = os.environ.get(KERNELS_READY)
-    if done and not hasattr(config, "workerinput"):
-        shutil.rmtree(Path(done).parent, ignore_errors=True)
+    """The controller that made the compile's folder removes it (not a worker, nor a pytest a test runs,
+    which inherit its name: removed under the workers, the compile could never say it is done)."""
+    if _COMPILE_FOLDER in config.stash:
+        shutil.rmtree(config.stash[_COMPILE_FOLDER], ignore_errors=True)
 
 
 def _cpu_seconds() -> float:

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from .conftest import KERNELS_READY
+
 pytestmark = pytest.mark.no_kernels
 
 SPIN = "import time\nend = time.process_time() + 0.3\nwhile time.process_time() < end:\n    pass\n"
@@ -25,7 +27,8 @@ def test_a_tests_cpu_is_recorded_beside_its_time(tmp_path):
         + "    time.sleep(0.5)\n")
     junit = tmp_path / "junit.xml"
     tests = str(Path(__file__).parent)  # tests/conftest.py as the plugin "conftest"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")])}
+    env = {k: v for k, v in os.environ.items() if k != KERNELS_READY}  # not the run's shared compile
+    env["PYTHONPATH"] = os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")])
     run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "conftest",
                           f"--junitxml={junit}", "test_spin.py"], check=False, cwd=tmp_path, capture_output=True,
                          text=True, env=env)
