@@ -1,9 +1,9 @@
 """Where does the test suite's time go? Runs pytest on the suite (as CI does) and tabulates its wall
 time, the time by test folder and the slowest tests, from pytest's JUnit XML (``--junitxml``: per
 test, its setup, call and teardown together, and the CPU ``tests/conftest.py`` records as the
-property ``cpu``: what a test computes, where its time minus its CPU is waiting). ``--schedule`` also writes each test file's time to
-``tests/durations.json``, the order in which ``tests/conftest.py`` hands files to the workers
-(heaviest first).
+property ``cpu``: what a test computes, where its time minus its CPU is waiting). ``--schedule``
+also writes each test file's time to ``tests/durations.json``, the order in which
+``tests/conftest.py`` hands files to the workers (heaviest first).
 
 The run's wall time depends on the machine and what else runs on it: the result names both (its
 ``environment``). ``--pytest-args`` passes options through, e.g. ``-m "not slow"`` for the developer

@@ -4,6 +4,7 @@ recorded raw frames replay into the decoder as the same blocks."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import time
@@ -28,11 +29,12 @@ from .conftest import (
     sent_from_serial_log,
 )
 
-# realtime sessions over CAN and serial: not run while the kernels compile (no_kernels), on the busiest
-# machine of the run
+# realtime sessions over CAN and serial: not marked no_kernels, so they do not run while the kernels
+# compile, when the machine is at its busiest
 
 
-def _check_session(path, bench, cycles: float = 20) -> None:
+def _check_session(path, bench, cycles: float = 20):
+    """The session at ``path``, checked: finished, the planned cycles and not much more, steady, whole."""
     s = read_session(path)
     assert s.finished and s.problem is None
     assert s.metadata["result"]["reason"] == "completed"
@@ -57,6 +59,7 @@ def _check_session(path, bench, cycles: float = 20) -> None:
     # at crank angle 0 (1 kHz encoder at FAST: the pulse is located to half a sample, 0.031 rad)
     ref = reference_angle(s.encoder)
     assert min(ref, 2 * math.pi - ref) < 0.04, f"index pulse at crank angle {math.degrees(ref):.2f} deg"
+    return s
 
 
 def test_sim_session_equals_emulator(bench, tmp_path):
@@ -108,7 +111,7 @@ def test_can_session_equals_emulator(bench, tmp_path, backend):
             rig.close()
     assert result.completed, result.reason
     assert_same_blocks(out, sent_from_can(emulator))
-    _check_session(out, bench)
+    s = _check_session(out, bench)
     # /can/frames holds the bus in both directions, in log-time order (mcap doctor --strict-message-order)
     logged = frames(scan_mcap(out))
     sent_ids = {f.arbitration_id for f in logged if f.transmitted}
@@ -125,9 +128,8 @@ def test_can_session_equals_emulator(bench, tmp_path, backend):
     # the session's raw frames, replayed into a fresh decoder, give the recorded blocks again
     from wearbench.acquisition.backends.can import replay
 
-    s = read_session(out)
     replayed = {ACCELERATION: {}, ENCODER: {}}
-    for item in replay(frames(scan_mcap(out)), bench, s.metadata["calibration"]):
+    for item in replay(logged, bench, s.metadata["calibration"]):
         if isinstance(item, Block):
             replayed[item.stream].setdefault(item.sequence, item)
     for stream, blocks in recorded_blocks(out).items():
@@ -220,8 +222,7 @@ class _LateDrive:
         s = self.drive.state()
         if s.device_time > self.until:
             return s
-        return MotorState(**{**s.__dict__, "device_time": s.device_time - self.late,
-                             "angle": s.angle - s.speed * self.late})
+        return dataclasses.replace(s, device_time=s.device_time - self.late, angle=s.angle - s.speed * self.late)
 
     def __getattr__(self, name: str):
         return getattr(self.drive, name)
@@ -279,13 +280,13 @@ def test_a_lagging_stream_records_no_further_than_the_closing_pulse(bench, tmp_p
         assert Recorder(rig, bench, SessionPlan(speed=FAST, cycles=20), out).run().completed
     finally:
         rig.close()
-    _check_session(out, bench)
-    s = read_session(out)
+    s = _check_session(out, bench)
     flag = s.encoder["index"].to_numpy(bool)
     last_pulse = s.encoder.time.to_numpy()[1:][flag[1:] & ~flag[:-1]][-1]
     cut = last_pulse + 0.05 * revolution  # session time; a block starting before it is kept whole
+    blocks = recorded_blocks(out)
     for stream, frame in ((ENCODER, s.encoder), (ACCELERATION, s.acceleration)):
-        longest = max(len(b.samples) / b.sample_rate for b in recorded_blocks(out)[stream].values())
+        longest = max(len(b.samples) / b.sample_rate for b in blocks[stream].values())
         assert cut <= frame.time.iloc[-1] < cut + longest, stream
     turned = (s.encoder.angle.iloc[-1] - s.encoder.angle.iloc[0]) / (2 * math.pi)
     assert len(cut_cycles(s.encoder)) == 20 and turned < 21.1
