@@ -110,16 +110,18 @@ def _sensor_name(bench: Bench) -> str:
 
 def table_key(bench: Bench, truth: Truth, speed: float, *, kind: str, revolutions: int, settle: float,
               rate: float) -> str:
-    """SHA-256 over everything a model table depends on: the bench as drawn for the truth's seed
-    (every body, joint, contact law, material, point, driver, sensor axis; a bench changed in memory
-    is keyed on what it holds), the drawn speed error, ripple and start spread, the true clearances
-    and the content of the worn-surface files, the seed, speed, revolutions, settling, rate, the
-    columns the table holds and the model's results digest."""
+    """SHA-256 over everything a model table depends on: the bench as drawn for the truth's seed with
+    the true clearances in place, as the run simulates it (every body, joint, contact law, material,
+    point, driver, sensor axis; a bench changed in memory is keyed on what it holds, and a rig's
+    clearance labels that the truth replaces key no other table), the drawn speed error, ripple and
+    start spread, the true clearances and the content of the worn-surface files, the seed, speed,
+    revolutions, settling, rate, the columns the table holds and the model's results digest."""
     from wearbench.model.digest import model_results_digest
     from wearbench.model.realisation import draw_realisation
 
     real = draw_realisation(bench, truth.seed)
-    key = {"v": _MODEL_TABLE_VERSION, "kind": kind, "model": model_results_digest(), "bench": canonical(real.bench),
+    simulated = real.bench.with_clearances(truth.clearances)  # what state_scene builds from it
+    key = {"v": _MODEL_TABLE_VERSION, "kind": kind, "model": model_results_digest(), "bench": canonical(simulated),
            "draw": canonical(real.describe()), "clearances": canonical(dict(truth.clearances)),
            "wear": canonical({j: Path(p) for j, p in truth.wear.items()}), "seed": truth.seed,
            "speed": canonical(float(speed)), "revolutions": revolutions, "settle": canonical(float(settle)),

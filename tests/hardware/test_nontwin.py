@@ -59,6 +59,23 @@ def test_seeds_differ_and_a_seed_reproduces_bit_for_bit(testbed, tables):
     np.testing.assert_array_equal(again.acc, tables[1].acc)
 
 
+def test_a_rig_labelled_with_other_clearances_plays_the_same_run_under_the_same_key(testbed, tables):
+    """The truth's clearances replace the bench's in the run, so a rig whose bench carries other
+    clearance labels (``record --clearance``, the demo's sessions) finds the table prepared on the
+    file's bench, and it is the run it would have simulated (before, the demo simulated two of its
+    five truths twice); a joint the truth leaves out plays the rig's clearance, and keys another table."""
+    from wearbench.hardware.emulators.signal import table_key
+
+    truth = emulator_config(testbed, STATE, 1, revolutions=REVS).truth
+    labelled = testbed.with_clearances({j.name: 0.6e-3 for j in testbed.clearance_joints})
+    kw = {"kind": "seed1", "revolutions": REVS, "settle": 2.0, "rate": 2e4}
+    assert table_key(labelled, truth, testbed.speed, **kw) == table_key(testbed, truth, testbed.speed, **kw)
+    relabelled = run_table(labelled, truth, testbed.speed, revolutions=REVS, cache=False)
+    np.testing.assert_array_equal(relabelled.acc, tables[1].acc)
+    partial = dataclasses.replace(truth, clearances={"A": truth.clearances["A"]})
+    assert table_key(labelled, partial, testbed.speed, **kw) != table_key(testbed, partial, testbed.speed, **kw)
+
+
 def test_consecutive_cycles_differ_but_keep_their_low_passed_mean(tables):
     """Not a loop: every cycle differs from the next by more than 10 % of the signal's rms (chaotic
     impacts; measured 0.9-1.2 x rms over the 4 states x 4 seeds x 12 cycles), while each cycle's
