@@ -17,10 +17,14 @@ from wearbench.acquisition.recorder import Recorder
 from wearbench.acquisition.session import SessionPlan, SessionResult
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.schema import Bench, WearState
-from wearbench.hardware.emulators.config import DEFAULT_REVOLUTIONS, emulator_config
+from wearbench.hardware.emulators.config import emulator_config
 from wearbench.hardware.emulators.device import BenchDevice
 
 __all__ = ["prepare_truth", "record_state", "slug", "truth_revolutions"]
+
+# revolutions a session plays beyond its cycles: < 1 to the first index pulse, 1.05 to the stop, 2
+# more while the recorder waits for a late closing pulse (3.6 measured when the index is lost), and one to spare
+_START_AND_END = 5
 
 
 def slug(name: str) -> str:
@@ -30,8 +34,11 @@ def slug(name: str) -> str:
 
 def truth_revolutions(cycles: int) -> int:
     """Revolutions of the truth's run for a session of ``cycles``: the device plays its run, then wraps
-    (replays it), so the run covers the session and its start-up (twice the cycles, at least the default)."""
-    return max(DEFAULT_REVOLUTIONS, 2 * cycles)
+    (replays it), so the run covers the session without a wrap: the turn before its first index pulse,
+    the cycles, the margin past the closing pulse and the recorder's wait for a late one (a 20-cycle
+    session of the test bed plays 21.1 revolutions on the sim and the serial backend). What a session
+    records is the start of the run, the same whatever the run's length."""
+    return cycles + _START_AND_END
 
 
 def prepare_truth(bench: Bench, state: WearState, seed: int | None, **emulator) -> str:
