@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     with compute_client(compute.scheduler, compute.workers):
         ensembles = build_ensembles(bench, candidates, settings=EnsembleSettings(), label="theory ensembles")
         estimator = demo_estimator(bench)
-        revolutions = truth_revolutions(args.cycles)
+        revolutions = truth_revolutions(bench, args.cycles)
         tasks = [Task(prepare_truth, {"bench": bench, "state": s, "seed": seeds[s.name], "revolutions": revolutions},
                       task_key("demo-truth", bench.sha256, s.name, seeds[s.name], time.time_ns()), f"truth {s.name}")
                  for s in states]
@@ -134,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
                 bar.update(task, completed=min(p.cycles, args.cycles), info=f"{p.phase}{dropped}")
 
             record_state(bench, state, seeds[state.name], path, backend=backend, cycles=args.cycles,
-                         on_progress=show, recorders=recorders, revolutions=truth_revolutions(args.cycles))
+                         on_progress=show, recorders=recorders, revolutions=truth_revolutions(bench, args.cycles))
 
         recorders: list = []
         jobs = [pool.submit(record, s, p) for s, p in zip(states, paths, strict=True)]

@@ -22,9 +22,12 @@ from wearbench.hardware.emulators.device import BenchDevice
 
 __all__ = ["prepare_truth", "record_state", "slug", "truth_revolutions"]
 
-# revolutions a session plays beyond its cycles: < 1 to the first index pulse, 1.05 to the stop, 2
-# more while the recorder waits for a late closing pulse (3.6 measured when the index is lost), and one to spare
-_START_AND_END = 5
+# crank revolutions a session records beyond its cycles, at most: up to one to its first index pulse
+# and 0.05 past the closing one (1.05 by the drive's count when the stream has no pulses), 2 more while
+# the recorder waits for a late closing pulse (3.1 measured on the test bed with its index lost), and
+# one to spare
+_END = 4.05
+_POLLS = 0.1  # s past the ramp before the recorder sees the motor at speed (0.05 measured at 5000 rpm)
 
 
 def slug(name: str) -> str:
@@ -32,13 +35,18 @@ def slug(name: str) -> str:
     return name.replace(" ", "_").replace(".", "p")
 
 
-def truth_revolutions(cycles: int) -> int:
-    """Revolutions of the truth's run for a session of ``cycles``: the device plays its run, then wraps
-    (replays it), so the run covers the session without a wrap: the turn before its first index pulse,
-    the cycles, the margin past the closing pulse and the recorder's wait for a late one (a 20-cycle
-    session of the test bed plays 21.1 revolutions on the sim and the serial backend). What a session
-    records is the start of the run, the same whatever the run's length."""
-    return cycles + _START_AND_END
+def truth_revolutions(bench: Bench, cycles: int) -> int:
+    """Motor revolutions of the truth's run for a session of ``cycles`` of ``bench`` (:func:`record_state`):
+    the device plays its run, then wraps (replays it, crossfaded), so the run covers the session: the
+    ramp to speed, the recorder's polls until it sees the speed and the hold at speed before recording
+    (the plan's ``settle``), then the cycles and
+    the end (the turn to the first index pulse, the stop past the closing one, the recorder's wait for
+    a late one). What a session records is the start of the run, the same whatever the run's length;
+    a motor slower to reach its speed than its ramp plays into the wrap."""
+    plan = SessionPlan(speed=bench.speed, cycles=cycles)
+    w = abs(plan.speed)
+    start = w * (w / (2 * bench.motor.max_acceleration) + _POLLS + plan.settle) / (2 * math.pi)
+    return math.ceil(start + (cycles + _END) / abs(bench.encoder_driver.ratio))
 
 
 def prepare_truth(bench: Bench, state: WearState, seed: int | None, **emulator) -> str:

@@ -95,7 +95,7 @@ def main() -> None:
     # drawn: SensorSpread's mounts without cross-axis (the sessions its README table was measured on;
     # benchmarks/validation/identify.py --cross-axis off, whose "_drawn" file names these share)
     kinds = {"drawn": {"accelerometer": {"spread": {"cross_axis": [0.0, 0.0]}}}, "default": {}}
-    revolutions = truth_revolutions(args.cycles + 1)
+    revolutions = truth_revolutions(bench, args.cycles + 1)
     # (kind, truth state, its seed, file): benchmarks/validation/identify.py's file names
     sessions = [(kind, s, seed, folder / f"{slug(s.name)}_{seed}{'_drawn' if kind == 'drawn' else ''}_{args.cycles}.mcap")
                 for kind in kinds for s, seed in truths]

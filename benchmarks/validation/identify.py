@@ -138,7 +138,7 @@ def main() -> None:
         ensembles = build_ensembles(bench, states, settings=settings, cache=True, label="ensembles")
         t_ens = time.perf_counter() - t0
         t0 = time.perf_counter()
-        revolutions = truth_revolutions(args.cycles + 1)
+        revolutions = truth_revolutions(bench, args.cycles + 1)
         run_tasks([Task(prepare_truth, {"bench": bench, "state": s, "seed": seed, "revolutions": revolutions},
                         task_key("bench-truth", s.name, seed), f"truth {s.name} {seed}")
                    for s, seed in {(s.name, seed): (s, seed) for s, seed in truths + calibrations}.values()],

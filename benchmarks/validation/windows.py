@@ -118,7 +118,7 @@ def record_truths(bench, states, args, folder: Path) -> list[tuple[str, Path, fl
 
     folder.mkdir(parents=True, exist_ok=True)
     truths = truth_specs(bench, states, args, folder)
-    revolutions = truth_revolutions(args.cycles + 1)
+    revolutions = truth_revolutions(bench, args.cycles + 1)
     todo = [t for t in truths if not t[4].exists()]
     if todo:
         with compute_client(workers=args.workers):
