@@ -36,13 +36,14 @@ def slug(name: str) -> str:
 
 
 def truth_revolutions(bench: Bench, cycles: int) -> int:
-    """Motor revolutions of the truth's run for a session of ``cycles`` of ``bench`` (:func:`record_state`):
-    the device plays its run, then wraps (replays it, crossfaded), so the run covers the session: the
-    ramp to speed, the recorder's polls until it sees the speed and the hold at speed before recording
-    (the plan's ``settle``), then the cycles and
-    the end (the turn to the first index pulse, the stop past the closing one, the recorder's wait for
-    a late one). What a session records is the start of the run, the same whatever the run's length;
-    a motor slower to reach its speed than its ramp plays into the wrap."""
+    """Motor revolutions of the truth's run for a session of ``cycles`` of ``bench`` (:func:`record_state`).
+
+    The device plays its run, then wraps (replays it, crossfaded), so the run covers the session: the
+    ramp to speed, the recorder's polls until it sees the speed, the hold at speed before recording
+    (the plan's ``settle``), then the cycles and the end (the turn to the first index pulse, the stop
+    past the closing one, the recorder's wait for a late one). What a session records is the start of
+    the run, the same whatever the run's length; a motor slower to reach its speed plays into the wrap.
+    """
     plan = SessionPlan(speed=bench.speed, cycles=cycles)
     w = abs(plan.speed)
     start = w * (w / (2 * bench.motor.max_acceleration) + _POLLS + plan.settle) / (2 * math.pi)
