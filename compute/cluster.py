@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import logging
 import os
 import threading
 import tomllib
@@ -178,11 +179,26 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
             _ACTIVE.reset(token)
     finally:
         life.shut_down(client, within)
+        life.release_logs()
 
 
 _WORKER = "Dask Worker process"  # the name distributed's nannies give their worker processes
 CLOSE_WITHIN = 60.0  # s: a cluster's close after its work; then its workers are killed
 CLOSE_INTERRUPTED = 2.0  # s: the same after a Ctrl-C or an error
+
+
+class _UnlessStopping(logging.Filter):
+    """Passes a log record only while the end is not forced. A LocalCluster's ``silence_logs`` holds its
+    handlers at CRITICAL only until its close, and a scheduler whose workers were killed can report
+    their closed connections after it (a Ctrl-C as the workers warmed up printed a CommClosedError's
+    traceback at INFO): what it says then is not the user's."""
+
+    def __init__(self, stopping: threading.Event):
+        super().__init__()
+        self.stopping = stopping
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not self.stopping.is_set()
 
 
 class _Life:
@@ -195,6 +211,7 @@ class _Life:
         self.stopping = threading.Event()  # set when the end is forced: what the cluster's loop reports
         # then (a killed worker's closed connections) is not the user's
         self.cluster: Any = None  # the LocalCluster, once it runs
+        self.quiet = _UnlessStopping(self.stopping)
 
     def start(self) -> Client:
         """Start shielded (:func:`start_shielded`): a Ctrl-C meanwhile is heard at once, the workers
@@ -206,10 +223,11 @@ class _Life:
     def _local(self) -> Client:
         """A LocalCluster of ``workers`` single-threaded processes and its client, the model loaded on
         every worker."""
-        import logging
-
         import dask
         from distributed import Client, LocalCluster
+
+        for handler in logging.getLogger("distributed").handlers:
+            handler.addFilter(self.quiet)
 
         with dask.config.set(LEAN_LOCAL):  # nannies pass the config on
             cluster = LocalCluster(n_workers=self.workers or usable_cores(), threads_per_worker=1, processes=True,
@@ -255,6 +273,13 @@ class _Life:
             with contextlib.suppress(Exception):
                 nanny.close_gracefully(reason="wearbench: interrupted")
         end_processes(self.before, name=_WORKER, wait=wait)
+
+    def release_logs(self) -> None:
+        """distributed's log handlers without this block's filter, unless the end was forced: then its
+        loop may report the killed workers' connections until the process ends."""
+        if not self.stopping.is_set():
+            for handler in logging.getLogger("distributed").handlers:
+                handler.removeFilter(self.quiet)
 
     def shut_down(self, client: Client, within: float) -> None:
         """Close ``client`` and the LocalCluster it owns (if any) within ``within`` s, in a helper
