@@ -53,12 +53,25 @@ from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.schema import Bench
 from wearbench.hardware.protocol.taps import TAP_EVENT
 
-__all__ = ["Recorder", "record_session"]
+__all__ = ["Recorder", "record_session", "revolutions_played"]
 
 _PULSE_MARGIN = 0.05  # revolutions recorded past the index pulse that closes the last cycle
 _PULSE_WAIT = 2.0  # revolutions past the planned ones the drive may turn while the closing pulse is awaited
+_SPEED_POLLS = 0.1  # s past the ramp before the recorder sees the motor at speed (0.05 measured at 5000 rpm)
 _FINISH_TRIES = 5  # attempts at finishing a file whose disk is full, 0.2 s, 0.4 s, ... apart
 _DRAIN_LIMIT = 2.0  # s a tap session waits past its last interval for the accelerometer stream to catch up
+
+
+def revolutions_played(bench: Bench, plan: SessionPlan) -> float:
+    """The most motor revolutions a session of ``plan``'s ``cycles`` turns from the motor's start to its
+    last recorded sample: the ramp to speed, the polls until the recorder sees the speed, the hold at
+    speed (``settle``), then up to one crank turn to the first index pulse, the cycles, the margin
+    past the closing pulse and the wait for a late one (a stream without pulses ends sooner)."""
+    if plan.cycles is None:
+        raise ValueError("revolutions_played: the plan records a duration, not cycles")
+    w = abs(plan.speed)
+    start = w * (w / (2 * (plan.acceleration or bench.motor.max_acceleration)) + _SPEED_POLLS + plan.settle)
+    return start / (2 * math.pi) + (plan.cycles + 1 + _PULSE_MARGIN + _PULSE_WAIT) / abs(bench.encoder_driver.ratio)
 
 
 def _failure_reason(exc: Exception, what: str) -> str:

@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 
 from wearbench.acquisition.backends import open_rig
-from wearbench.acquisition.recorder import Recorder
+from wearbench.acquisition.recorder import Recorder, revolutions_played
 from wearbench.acquisition.session import SessionPlan, SessionResult
 from wearbench.acquisition.session_writer import SessionWriter
 from wearbench.bench.schema import Bench, WearState
@@ -21,13 +21,6 @@ from wearbench.hardware.emulators.config import emulator_config
 from wearbench.hardware.emulators.device import BenchDevice
 
 __all__ = ["prepare_truth", "record_state", "slug", "truth_revolutions"]
-
-# crank revolutions a session records beyond its cycles, at most: up to one to its first index pulse
-# and 0.05 past the closing one (1.05 by the drive's count when the stream has no pulses), 2 more while
-# the recorder waits for a late closing pulse (3.1 measured on the test bed with its index lost), and
-# one to spare
-_END = 4.05
-_POLLS = 0.1  # s past the ramp before the recorder sees the motor at speed (0.05 measured at 5000 rpm)
 
 
 def slug(name: str) -> str:
@@ -38,16 +31,13 @@ def slug(name: str) -> str:
 def truth_revolutions(bench: Bench, cycles: int) -> int:
     """Motor revolutions of the truth's run for a session of ``cycles`` of ``bench`` (:func:`record_state`).
 
-    The device plays its run, then wraps (replays it, crossfaded), so the run covers the session: the
-    ramp to speed, the recorder's polls until it sees the speed, the hold at speed before recording
-    (the plan's ``settle``), then the cycles and the end (the turn to the first index pulse, the stop
-    past the closing one, the recorder's wait for a late one). What a session records is the start of
-    the run, the same whatever the run's length; a motor slower to reach its speed plays into the wrap.
+    The device plays its run, then wraps (replays it, crossfaded), so the run covers what the recorder
+    plays of a session (:func:`~wearbench.acquisition.recorder.revolutions_played`: the start-up, the
+    cycles and the end) and one crank turn to spare. What a session records is the start of the run,
+    the same whatever the run's length; a motor slower to reach its speed plays into the wrap.
     """
-    plan = SessionPlan(speed=bench.speed, cycles=cycles)
-    w = abs(plan.speed)
-    start = w * (w / (2 * bench.motor.max_acceleration) + _POLLS + plan.settle) / (2 * math.pi)
-    return math.ceil(start + (cycles + _END) / abs(bench.encoder_driver.ratio))
+    played = revolutions_played(bench, SessionPlan(speed=bench.speed, cycles=cycles))
+    return math.ceil(played + 1 / abs(bench.encoder_driver.ratio))
 
 
 def prepare_truth(bench: Bench, state: WearState, seed: int | None, **emulator) -> str:

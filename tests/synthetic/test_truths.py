@@ -19,7 +19,7 @@ CYCLES = 6
 @pytest.mark.parametrize(("name", "faults"), [
     ("ninebar-testbed", {}),
     ("ninebar-testbed", {"index_lost_at": "3 s"}),  # the recorder turns 2 revolutions more, waiting for it
-    ("slider-crank", {}),  # 5000 rpm: 42 revolutions of ramp and settling before it records
+    ("slider-crank", {}),  # 5000 rpm: 46 revolutions of ramp and hold before it records
 ], ids=["test-bed", "test-bed-index-lost", "slider-crank"])
 def test_a_session_ends_before_its_truths_run_wraps(tmp_path, name, faults):
     """The encoder counts the crank's turns from the device's start, as the table plays them (both
