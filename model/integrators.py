@@ -41,6 +41,11 @@ STATS = np.dtype([(name, np.float64) for name in ("steps", "rejected", "drift_p"
 PEAK_SEARCH_FRACTION = 0.8
 GOLDEN_ITERATIONS = 24  # golden-section iterations per step searched: the bracket shrinks by 0.618**24
 NREC = 8  # t, dt, fn, vt, omega_rel, phi_bearing, phi_journal, pen
+# Newton iterations of the projection after a step and of the kinematics' position analysis: numpy
+# integers, not literals, so these callers share the one compiled kernel.project (a literal argument
+# compiles a copy of its own)
+_STEP_PROJECTION_ITERATIONS = np.int64(4)
+_KINEMATICS_ITERATIONS = np.int64(30)
 
 # step control of run_loop: adaptive step, projection (and its tolerance), drift limit, blow-up penetration per
 # clearance joint (m), atol (per coordinate), rtol, smallest and largest step, accepted steps per call
@@ -89,9 +94,15 @@ def new_track(sensor: np.ndarray, joints: int, scheme: Scheme, size: int) -> Tra
 @njit(cache=True)
 def deriv(t, y, mdl, dy, lam, cout):
     """f(t, y) = (v, a) of the mechanism ``mdl`` (``kernel.Model``) into dy, the multipliers into lam, the
-    contact outputs into cout; returns the kernel's status (:func:`_deriv` on the record's parts, which
-    :func:`erk_try` takes apart once per step)."""
-    return _deriv(t, y, mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i, dy, lam, cout)
+    contact outputs into cout; returns the kernel's status. For the samples, peak searches and
+    re-evaluations: a call of :func:`kernel.accel`, which the kinematics share (compiled once, cached),
+    while the steps' stages (:func:`erk_try`) have the right-hand side compiled in (:func:`_deriv`)."""
+    n = y.shape[0] // 2
+    v = y[n:]
+    st = K.accel(t, y[:n], v, mdl, dy[n:], lam, cout)
+    for i in range(n):
+        dy[i] = v[i]
+    return st
 
 
 @njit(cache=True, inline="always")
@@ -357,7 +368,7 @@ def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
         dp, dv = K.drift(t_new, ynew[:n], ynew[n:], mdl.speed, P, W)
     if control.project and (dp > 10.0 * control.proj_tol or dv > 1e3 * control.proj_tol):
         # project only when the drift is measurable: the FSAL derivative stays valid otherwise
-        ps = K.project(t_new, ynew[:n], ynew[n:], mdl.speed, P, W, control.proj_tol, 4)
+        ps = K.project(t_new, ynew[:n], ynew[n:], mdl.speed, P, W, control.proj_tol, _STEP_PROJECTION_ITERATIONS)
         if ps != 0:
             return _fail(st, NO_PROJECTION if ps == K.NO_CONVERGENCE else SINGULAR, t_new, -1, math.nan)
         status = deriv(t_new, ynew, mdl, k[scheme.end], lam, cnew)
@@ -702,7 +713,7 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
         for j in range(n):
             q[j] += v[j] * dt + 0.5 * a[j] * dt * dt
             v[j] += a[j] * dt
-        st = K.project(t, q, v, speed, P, W, tol, 30)
+        st = K.project(t, q, v, speed, P, W, tol, _KINEMATICS_ITERATIONS)
         if st != 0:
             record.t = t
             return st

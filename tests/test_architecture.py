@@ -15,7 +15,9 @@ The rules are the docs' architecture page (docs/reference/architecture.md); this
 from __future__ import annotations
 
 import ast
+import functools
 import itertools
+from collections.abc import Set as AbstractSet
 from pathlib import Path
 
 import pytest
@@ -110,7 +112,7 @@ def _imported_by_name(node: ast.AST) -> str | None:
     return None
 
 
-def imports(source: str, module: str, known: set[str], *, eager_only: bool = False) -> set[str]:
+def imports(source: str, module: str, known: AbstractSet[str], *, eager_only: bool = False) -> set[str]:
     """The wearbench modules ``source`` (module ``module``) imports, anywhere in the file (with
     ``eager_only``, only those imported when the module itself is)."""
     found = set()
@@ -139,18 +141,29 @@ def graph(sources: dict[str, str] | None = None) -> dict[str, set[str]]:
     in place of the files, for the checker's own tests). A package's ``__init__`` keeps its edges to
     its own submodules only where it imports them eagerly: a lazy face is no circle, an eager one
     that a submodule imports back is one (it fails on import)."""
+    _, _, texts = _tree()
+    return {module: set(_edges(module, text)) for module, text in {**texts, **(sources or {})}.items()}
+
+
+@functools.cache
+def _tree() -> tuple[dict[str, Path], frozenset[str], dict[str, str]]:
+    """The library's modules, their names with packages' ``__init__``, and the texts of those and the
+    benchmarks: read once per test session (the files do not change while it runs)."""
     modules = library_modules()
-    known = set(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
+    known = frozenset(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
     texts = {m: p.read_text(encoding="utf-8") for m, p in {**modules, **benchmark_scripts()}.items()}
-    texts.update(sources or {})
-    edges = {}
-    for module, text in texts.items():
-        targets = {_resolve(n, modules) for n in imports(text, module, known)}
-        if module + ".__init__" in known:
-            eager = {_resolve(n, modules) for n in imports(text, module, known, eager_only=True)}
-            targets = {t for t in targets if t.rpartition(".")[0] != module or t in eager}
-        edges[module] = targets
-    return edges
+    return modules, known, texts
+
+
+@functools.cache
+def _edges(module: str, text: str) -> frozenset[str]:
+    """The modules that ``text``, as module ``module``, has import edges to (see :func:`graph`)."""
+    modules, known, _ = _tree()
+    targets = {_resolve(n, modules) for n in imports(text, module, known)}
+    if module + ".__init__" in known:
+        eager = {_resolve(n, modules) for n in imports(text, module, known, eager_only=True)}
+        targets = {t for t in targets if t.rpartition(".")[0] != module or t in eager}
+    return frozenset(targets)
 
 
 def benchmark_scripts() -> dict[str, Path]:
@@ -362,7 +375,7 @@ _PROCESS_CALLS = {
 }
 
 
-def _wearbench_aliases(tree: ast.Module, module: str, known: set[str]) -> dict[str, str]:
+def _wearbench_aliases(tree: ast.Module, module: str, known: AbstractSet[str]) -> dict[str, str]:
     """Local names bound to wearbench modules by ``import`` / ``from ... import module``."""
     package = module if module + ".__init__" in known else module.rpartition(".")[0]
     aliases = {}
@@ -382,7 +395,7 @@ def _wearbench_aliases(tree: ast.Module, module: str, known: set[str]) -> dict[s
     return aliases
 
 
-def private_crossings(source: str, module: str, known: set[str]) -> list[str]:
+def private_crossings(source: str, module: str, known: AbstractSet[str]) -> list[str]:
     """Names with one leading underscore that ``source`` (module ``module``) imports from, or reads
     off, another wearbench module: ``module -> other._name``."""
     tree = ast.parse(source)
@@ -432,9 +445,10 @@ def starts_processes(source: str) -> bool:
     return False
 
 
-def _sources() -> tuple[dict[str, str], set[str]]:
+@functools.cache
+def _sources() -> tuple[dict[str, str], frozenset[str]]:
     modules = {**library_modules(), **benchmark_scripts()}
-    known = set(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
+    known = frozenset(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
     texts = {m: p.read_text(encoding="utf-8") for m, p in modules.items()}
     return texts, known
 
