@@ -8,7 +8,8 @@
   while the workers collect and run the tests that compile kernels of their own (``own_kernels``: an
   empty numba cache, another commit's model) and the tests that use none (``no_kernels``); every
   other test waits for it. Otherwise every worker, and the commands the tests start, would compile
-  them at once: about a minute and a half of CPU each.
+  them at once: about a minute and a half of CPU each. Workers that start during that compile run at
+  a lower priority, so it has a core to itself.
 - Every test gets its own result cache (unless a module fixture chose one) and no user compute config.
 - Each test's CPU goes into the JUnit XML as the property ``cpu`` (``--junitxml``), beside its time.
 - Every session file a test writes is opened, at the end of the run, by the readers other tools use
@@ -73,8 +74,15 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 def pytest_configure(config: pytest.Config) -> None:
     """On the controller of a run with workers, when the kernels are not in their on-disk cache:
-    compile them in a process of its own, and tell the workers where it will say it is done."""
-    if hasattr(config, "workerinput") or not config.getoption("numprocesses", None):
+    compile them in a process of its own, and tell the workers where it will say it is done. A worker
+    that starts while that compile runs lowers its own priority (nice 5, it and what it starts, for the
+    run), so the compile has a core of its own: the tests that wait for it start sooner."""
+    if hasattr(config, "workerinput"):
+        done = os.environ.get(KERNELS_READY)
+        if done and not os.path.exists(done):
+            os.nice(5)
+        return
+    if not config.getoption("numprocesses", None):
         return
     from wearbench.compute.cluster import kernels_compiled
 
