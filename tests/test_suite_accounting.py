@@ -29,6 +29,9 @@ def test_a_tests_cpu_is_recorded_beside_its_time(tmp_path):
     tests = str(Path(__file__).parent)  # tests/conftest.py as the plugin "conftest"
     env = {k: v for k, v in os.environ.items() if k != KERNELS_READY}  # not the run's shared compile
     env["PYTHONPATH"] = os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")])
+    # no BLAS thread team started at import: on idle cores its threads spin beside the test's own CPU
+    # (about 0.1 s, in the setup's import of numpy and threadpoolctl), which no wall time holds
+    env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "conftest",
                           f"--junitxml={junit}", "test_spin.py"], check=False, cwd=tmp_path, capture_output=True,
                          text=True, env=env)
