@@ -148,11 +148,10 @@ def graph(sources: dict[str, str] | None = None) -> dict[str, set[str]]:
 @functools.cache
 def _tree() -> tuple[dict[str, Path], frozenset[str], dict[str, str]]:
     """The library's modules, their names with packages' ``__init__``, and the texts of those and the
-    benchmarks: read once per test session (the files do not change while it runs)."""
+    benchmarks (:func:`_sources`'s, read once per test session)."""
     modules = library_modules()
     known = frozenset(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
-    texts = {m: p.read_text(encoding="utf-8") for m, p in {**modules, **benchmark_scripts()}.items()}
-    return modules, known, texts
+    return modules, known, _sources()[0]
 
 
 @functools.cache
@@ -280,8 +279,8 @@ def launches_program(source: str) -> bool:
 
 def test_no_library_module_starts_the_command_line_program():
     """Emulators and recorders start through functions; only ``wearbench.cli`` is the program."""
-    offenders = [m for m, p in {**library_modules(), **benchmark_scripts()}.items()
-                 if not m.startswith("wearbench.cli") and launches_program(p.read_text(encoding="utf-8"))]
+    texts, _ = _sources()
+    offenders = [m for m, t in texts.items() if not m.startswith("wearbench.cli") and launches_program(t)]
     assert offenders == []
 
 
@@ -447,6 +446,8 @@ def starts_processes(source: str) -> bool:
 
 @functools.cache
 def _sources() -> tuple[dict[str, str], frozenset[str]]:
+    """The texts of the library's modules and the benchmarks, and their names with packages'
+    ``__init__``: read once per test session (the files do not change while it runs)."""
     modules = {**library_modules(), **benchmark_scripts()}
     known = frozenset(modules) | {m + ".__init__" for m, p in modules.items() if p.name == "__init__.py"}
     texts = {m: p.read_text(encoding="utf-8") for m, p in modules.items()}
