@@ -4,6 +4,7 @@
   ``benchmarks/compute/suite_durations.py --schedule``): with ``-n``, xdist hands whole files to the
   workers in this order (``--dist loadfile --no-loadscope-reorder``), so the long files start at
   once and the short ones fill in at the end. A file not listed yet runs after the listed ones.
+- ``-n auto`` starts one worker more than there are usable cores: the waiting tests leave no core idle.
 - With ``-n`` on a fresh checkout, the model's kernels are compiled once, in a process of its own,
   while the workers collect and run the tests that compile kernels of their own (``own_kernels``: an
   empty numba cache, another commit's model) and the tests that use none (``no_kernels``); every
@@ -70,6 +71,15 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
                 not item.get_closest_marker("own_kernels"), rank[id(item)])
 
     items.sort(key=key)
+
+
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+    """``-n auto``: one worker more than the usable cores. About a fifth of the suite's test time is
+    waiting (devices at real time, clocks, processes a test ends), and a core stays idle while its
+    only worker waits; the extra worker computes meanwhile."""
+    from wearbench.compute.cluster import usable_cores
+
+    return usable_cores() + 1
 
 
 def pytest_configure(config: pytest.Config) -> None:
