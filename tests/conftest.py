@@ -4,8 +4,6 @@
   ``benchmarks/compute/suite_durations.py --schedule``): with ``-n``, xdist hands whole files to the
   workers in this order (``--dist loadfile --no-loadscope-reorder``), so the long files start at
   once and the short ones fill in at the end. A file not listed yet runs after the listed ones.
-- ``-n auto`` starts one worker per usable core, and one more when the slow tests run: their waiting
-  leaves no core idle.
 - With ``-n`` on a fresh checkout, the model's kernels are compiled once, in a process of its own,
   while the workers collect and run the tests that compile kernels of their own (``own_kernels``: an
   empty numba cache, another commit's model) and the tests that use none (``no_kernels``); every
@@ -72,17 +70,6 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
                 not item.get_closest_marker("own_kernels"), rank[id(item)])
 
     items.sort(key=key)
-
-
-def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
-    """``-n auto``: one worker per usable core, and one more for a run with the slow tests. An
-    eighth to a fifth of their time is waiting (devices at real time, clocks, processes a test
-    ends), and a core whose only worker waits stays idle; the extra worker computes meanwhile. The
-    fast loop (``-m "not slow"``) measured no faster with it, and slower on a fresh clone, where it
-    slows the shared compile."""
-    from wearbench.compute.cluster import usable_cores
-
-    return usable_cores() + ("not slow" not in (config.option.markexpr or ""))
 
 
 def pytest_configure(config: pytest.Config) -> None:
