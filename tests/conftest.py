@@ -45,6 +45,11 @@ _CPU_AT_SETUP = pytest.StashKey[float]()
 _COMPILE_FOLDER = pytest.StashKey[Path]()  # the shared compile's folder, on the controller that made it
 
 
+def _compiling() -> bool:
+    """Whether this run's shared compile is still running (its done-file named but not there yet)."""
+    done = os.environ.get(KERNELS_READY)
+    return bool(done) and not os.path.exists(done)
+
 
 def _waits(item: pytest.Item) -> bool:
     """Whether a test waits for the shared compile: not if it compiles its own kernels or uses none."""
@@ -78,8 +83,7 @@ def pytest_configure(config: pytest.Config) -> None:
     that starts while that compile runs lowers its own priority (nice 5, it and what it starts, for the
     run), so the compile has a core of its own: the tests that wait for it start sooner."""
     if hasattr(config, "workerinput"):
-        done = os.environ.get(KERNELS_READY)
-        if done and not os.path.exists(done):
+        if _compiling():
             os.nice(5)
         return
     if not config.getoption("numprocesses", None):
@@ -128,8 +132,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
 def pytest_runtest_protocol(item: pytest.Item, nextitem):
     """A test waits for the shared compile unless it compiles kernels of its own (``own_kernels``) or
     uses none (``no_kernels``); before its setup, so the wait is no test's duration."""
-    done = os.environ.get(KERNELS_READY)
-    while done and _waits(item) and not os.path.exists(done):
+    while _waits(item) and _compiling():
         time.sleep(0.2)
     return (yield)
 
