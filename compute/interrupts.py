@@ -15,6 +15,10 @@ meanwhile, and a start-up that takes the KeyboardInterrupt half-way loses what i
 - :func:`running_processes` and :func:`end_processes`: the processes this program started through
   multiprocessing that still run, and SIGKILL for them (what a shutdown does when its time is up, and
   the command line before its ``os._exit(130)``, which skips multiprocessing's own exit clean-up).
+- :func:`end_children`: SIGKILL for every child process that still runs, listed by the kernel
+  (Linux), multiprocessing's resource tracker excepted: also a child whose start another thread had
+  not finished (spawned, its start-up data not yet sent: multiprocessing does not list it yet, and
+  left alone it reads the end of the pipe and prints an ``EOFError`` traceback to the terminal).
 - :func:`track_resources` and :func:`release_resources`: what this process has told multiprocessing's
   resource tracker it holds (the named semaphores of a local cluster's queues), so that an
   ``os._exit`` while another thread closes a queue (its semaphore unlinked, the tracker not yet told)
@@ -33,7 +37,8 @@ import time
 from collections.abc import Callable, Collection
 from typing import Any, TypeVar
 
-__all__ = ["POLL", "end_processes", "release_resources", "running_processes", "start_shielded", "track_resources"]
+__all__ = ["POLL", "end_children", "end_processes", "release_resources", "running_processes", "start_shielded",
+           "track_resources"]
 
 T = TypeVar("T")
 
@@ -136,6 +141,44 @@ def end_processes(keep: Collection[int] = (), *, name: str = "", wait: float = 0
             ready = wait_for(sentinels, max(0.0, deadline - time.monotonic()))
             sentinels = [s for s in sentinels if s not in ready]
     return list(ended)
+
+
+def _children() -> set[int]:
+    """The pids of this process's children that the kernel lists (``/proc``; none where it has none)."""
+    me, found = os.getpid(), set()
+    try:
+        entries = os.listdir("/proc")
+    except OSError:
+        return found
+    for entry in entries:
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", "rb") as fh:
+                stat = fh.read()
+        except OSError:  # ended meanwhile, or not ours to read
+            continue
+        fields = stat[stat.rfind(b")") + 2:].split()  # after "pid (name) ": state, ppid, ...
+        if len(fields) > 2 and int(fields[1]) == me and fields[0] != b"Z":
+            found.add(int(entry))
+    return found
+
+
+def end_children() -> list[int]:
+    """SIGKILL every child process of this one that the kernel lists, except multiprocessing's resource
+    tracker (it unlinks what the program leaves once the program is gone); looks again until no new
+    one has appeared (another thread may be starting one). Returns the pids signalled."""
+    tracker = getattr(getattr(sys.modules.get("multiprocessing.resource_tracker"), "_resource_tracker", None),
+                      "_pid", None)
+    ended: set[int] = set()
+    while new := _children() - ended - {tracker}:
+        for pid in new:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:  # gone already
+                pass
+        ended |= new
+    return sorted(ended)
 
 
 _SENDS = threading.Lock()  # held around each message to the resource tracker, and for good by release_resources
