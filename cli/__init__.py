@@ -166,17 +166,19 @@ def main(argv: list[str] | None = None) -> int:
 
 def _release_process_resources() -> None:
     """Before ``os._exit``, which skips multiprocessing's exit clean-up and every ``finally``: kill the
-    processes the command started that still run (a local cluster's workers, an emulator, a worker
-    still being spawned; ``wearbench.compute.interrupts``, loaded by whatever started them), remove the outputs it was still
-    writing (their temporary names; the old outputs stay), then run multiprocessing's exit finalizers (priority >= 0: they
-    unlink the named semaphores of a local cluster's process handles) and release what another thread
-    was still closing (``interrupts.release_resources``), so its resource tracker has nothing left to
-    warn about ("leaked semaphore objects")."""
+    processes the command started that still run (a local cluster's workers, an emulator, a child
+    still being spawned; ``wearbench.compute.interrupts``, loaded by whatever started them), remove
+    the outputs it was still writing (their temporary names; the old outputs stay), then run
+    multiprocessing's exit finalizers (priority >= 0: they unlink the named semaphores of a local
+    cluster's process handles) and release what another thread was still closing
+    (``interrupts.release_resources``), so its resource tracker has nothing left to warn about
+    ("leaked semaphore objects")."""
     interrupts = sys.modules.get("wearbench.compute.interrupts")  # never imported here: main may hold
     if interrupts is not None:  # the import lock when the watchdog runs
         with contextlib.suppress(Exception):  # best effort on the way out
             interrupts.end_processes()
-            interrupts.end_children()  # also one whose start another thread had not finished
+        with contextlib.suppress(Exception):  # also a child whose start another thread had not finished
+            interrupts.end_children()
     outputs = sys.modules.get("wearbench.bench.output_file")  # outputs being written: nothing half-done stays
     if outputs is not None:
         with contextlib.suppress(Exception):
