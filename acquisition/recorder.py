@@ -122,7 +122,7 @@ class Recorder:
         self._clipped = 0
         self._write_failures = 0
         self._pulses = 0  # index pulses (rising edges) in the recorded encoder blocks
-        self._index_high = False
+        self._index_high: bool | None = None  # the last recorded encoder sample's index flag (None: none yet)
         self._pulses_needed = 0  # the pulse that closes the last planned cycle (0: none planned)
         self._margin_time = 0.0  # s the crank takes to turn _PULSE_MARGIN
         self._cut = math.inf  # device time: that pulse's own time plus the margin; no block from it is recorded
@@ -206,9 +206,13 @@ class Recorder:
     def _count_pulses(self, block: Block) -> None:
         """Count the index pulses (rising edges) of a recorded encoder block; at the pulse that closes the
         last planned cycle, set the cut on the stream's own clock (its edge's time plus the margin), so a
-        stream that lags the drive records no more, and a drive state that lags it ends nothing early."""
+        stream that lags the drive records no more, and a drive state that lags it ends nothing early.
+        The first recorded sample is no edge, flagged or not: its pulse fired before it, where nothing was
+        recorded, so no cycle of the session starts there (``validation.measurement.cycles`` places a pulse
+        between its sample and the one before)."""
         high = np.asarray(block.index, dtype=bool)
-        edges = np.flatnonzero(high & ~np.concatenate([[self._index_high], high[:-1]]))
+        before = high[0] if self._index_high is None else self._index_high
+        edges = np.flatnonzero(high & ~np.concatenate([[before], high[:-1]]))
         self._index_high = bool(high[-1])
         closing = self._pulses_needed - self._pulses - 1
         if 0 <= closing < len(edges):
