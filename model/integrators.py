@@ -74,9 +74,11 @@ _Ends = namedtuple("_Ends", "t0 y0 f0 t1 y1 f1")
 _Scratch = namedtuple("_Scratch", "yo fo lam csamp enew vals dbs")
 # what one call of run_loop works with: the tableau, step control, the mechanism as given and without
 # stabilisation (plain: the samples' and peaks' right-hand side), output, peak tracker, statistics, work
-# arrays, the continuous extension the peak search uses (no rows: cubic Hermite) and whether the output
-# samples come from it
-_Loop = namedtuple("_Loop", "scheme control mdl plain out track stats s D stages_out")
+# arrays, the continuous extension the peak search uses (no rows: cubic Hermite), whether the output
+# samples come from it and whether the steps run under Baumgarte stabilisation. The step's helpers are
+# compiled into the loop (inline): a record of arrays passed to a compiled call counts a reference to
+# each of its arrays, in and out, at every call
+_Loop = namedtuple("_Loop", "scheme control mdl plain out track stats s D stages_out stabilised")
 
 
 def new_stats() -> np.ndarray:
@@ -181,7 +183,7 @@ def _hermite(e, t, out):
         out[i] = h00 * y0[i] + h * h10 * f0[i] + h01 * y1[i] + h * h11 * f1[i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sensor_acc(y, f, sensor):
     """|acceleration| of the sensor point along its axis from the state y and f = (v, a); 0 without
     a sensor. sensor = (body index or -1, x, y in the body, axis angle in the body)."""
@@ -237,7 +239,7 @@ def _golden_max(j, e, plain, sensor, s):
     return max(fc, fd)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def extension(D, y, h, k, th, yo, fo, dbs):
     """The continuous extension (coefficients D) of a step of length h from y with stages k at theta:
     the state y + h sum_i b_i(theta) k_i into yo, its time derivative sum_i b_i'(theta) k_i into fo (the
@@ -352,7 +354,7 @@ def _fail(st, status, t, detail, value):
     return status
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _accept(scheme, control, mdl, t, hh, t_new, ynew, k, lam, cnew, st):
     """Checks and projection of a step accepted by the error test: finite state, drift (projected when
     measurable, then f at the end evaluated again), drift limit and blow-up. Returns a status."""
@@ -397,19 +399,21 @@ def _search_step(j, D, plain, e, k, sensor, s, st):
     return _golden_max(j, e, plain, sensor, s)
 
 
-@njit(cache=True)
-def _track_peaks(mdl, plain, track, e, cnew, st, s, D, k):
+@njit(cache=True, inline="always")
+def _track_peaks(stabilised, plain, track, e, cnew, st, s, D, k):
     """Running peaks over the step ``e`` just accepted: the tracked values at its end (evaluated again
     under Baumgarte stabilisation), and where the previous end was a local maximum near the running peak,
     the golden-section search (:func:`_search_step`) of the dense output of this step and (modes
-    unchanged) the previous one. ``track.prev`` keeps the previous step's ends, f there and stages."""
+    unchanged) the previous one. ``track.prev`` keeps the previous step's ends, f there and stages.
+    ``stabilised``: the steps run under Baumgarte stabilisation (a flag, not the mechanism's record: a record
+    of arrays passed to a function counts a reference to each of its arrays, in and out)."""
     sensor, peaks, prev, pe = track.sensor, track.peaks, track.prev, track.values
     ps = track.state[0]
     nc = cnew.shape[0]
     nq = nc + 1
     enew = s.enew
     # values at the step's end with its modes, without stabilisation (as the output samples)
-    if mdl.alpha == 0.0 and mdl.beta == 0.0:
+    if not stabilised:
         for c in range(nc):
             enew[c] = cnew[c, K.CO_FN]
         enew[nc] = sensor_acc(e.y1, e.f1, sensor)
@@ -453,21 +457,22 @@ def _copy_rows(dst, src):
 
 
 @njit(cache=True, inline="always")
-def _store_sample(out, iout, s, track):
-    """Output sample iout from the work arrays: state, accelerations, contact outputs; the running peaks
-    raised by its values."""
-    yo, fo, csamp, peaks = s.yo, s.fo, s.csamp, track.peaks
+def _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor):
+    """Output sample iout (rows of the output's y, a and c, indexed in place: a row view counts a reference
+    in and out) from the work arrays: state, accelerations, contact outputs; the running peaks raised by
+    its values. The caller takes the arrays from their records once for all its samples."""
     n = yo.shape[0] // 2
     nc = csamp.shape[0]
-    oy, oa = out.y[iout], out.a[iout]
     for i in range(2 * n):
-        oy[i] = yo[i]
+        out_y[iout, i] = yo[i]
     for i in range(n):
-        oa[i] = fo[n + i]
-    _copy_rows(out.c[iout], csamp)
+        out_a[iout, i] = fo[n + i]
+    for c in range(nc):
+        for x in range(csamp.shape[1]):
+            out_c[iout, c, x] = csamp[c, x]
     for c in range(nc):
         peaks[c] = max(peaks[c], csamp[c, K.CO_FN])
-    peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, track.sensor))
+    peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
 
 
 @njit(cache=True)
@@ -476,8 +481,8 @@ def _dense_output(plain, out, track, iout, e, s):
     step, f and the contact outputs evaluated there (their peaks tracked too); returns the next sample's
     index."""
     N = e.y0.shape[0]
-    yo = s.yo
-    out_t = out.t
+    yo, fo, csamp, peaks, sensor = s.yo, s.fo, s.csamp, track.peaks, track.sensor
+    out_t, out_y, out_a, out_c, out_lam = out.t, out.y, out.a, out.c, out.lam
     while iout < out_t.shape[0] and out_t[iout] <= e.t1:
         ts = out_t[iout]
         if ts <= e.t0:
@@ -488,13 +493,13 @@ def _dense_output(plain, out, track, iout, e, s):
                 yo[i] = e.y1[i]
         else:
             _hermite(e, ts, yo)
-        deriv(ts, yo, plain, s.fo, out.lam[iout], s.csamp)
-        _store_sample(out, iout, s, track)
+        deriv(ts, yo, plain, fo, out_lam[iout], csamp)
+        _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor)
         iout += 1
     return iout
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
     """Output samples on the step ``e`` (t0, t1] of length h from the tableau's continuous extension
     (``scheme.d``): the state y + h sum_i b_i(theta) k_i, the accelerations and multipliers as its time
@@ -502,18 +507,20 @@ def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
     outputs from the force law at the state with the step's modes (their peaks tracked too); the step's
     end itself takes its evaluated values. Returns the next sample's index."""
     t, y, t_new, ynew = e.t0, e.y0, e.t1, e.y1
-    yo, fo, dbs = s.yo, s.fo, s.dbs
-    P, W, inc, v0i = plain.P, plain.W, plain.inc, plain.v0i  # once for the step's samples
+    # the arrays taken from their records, and the views made, once for the step's samples (each counts a
+    # reference in and out)
+    yo, fo, dbs, csamp, peaks, sensor = s.yo, s.fo, s.dbs, s.csamp, track.peaks, track.sensor
+    P, W, inc, v0i = plain.P, plain.W, plain.inc, plain.v0i
+    out_t, out_y, out_a, out_c, out_lam = out.t, out.y, out.a, out.c, out.lam
     N = y.shape[0]
     n = N // 2
+    qo, vo = yo[:n], yo[n:]
     m = lamk.shape[1]
     D = scheme.d
     ns = D.shape[0]
-    out_t = out.t
     end = scheme.end
     while iout < out_t.shape[0] and out_t[iout] <= t_new:
         ts = out_t[iout]
-        lo = out.lam[iout]
         if ts >= t_new or ts <= t:
             src = end if ts >= t_new else 0
             ysrc = ynew if ts >= t_new else y
@@ -521,19 +528,19 @@ def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
                 yo[i] = ysrc[i]
                 fo[i] = k[src, i]
             for r in range(m):
-                lo[r] = lamk[src, r]
+                out_lam[iout, r] = lamk[src, r]
         else:
             th = (ts - t) / h
             extension(D, y, h, k, th, yo, fo, dbs)
             for r in range(m):
-                lo[r] = 0.0
+                out_lam[iout, r] = 0.0
             for s_ in range(ns):
                 db = dbs[s_]
                 if db != 0.0:
                     for r in range(m):
-                        lo[r] += db * lamk[s_, r]
-        K.clearance_arrays(yo[:n], yo[n:], P, W, inc, v0i, s.csamp, False)
-        _store_sample(out, iout, s, track)
+                        out_lam[iout, r] += db * lamk[s_, r]
+        K.clearance_arrays(qo, vo, P, W, inc, v0i, csamp, False)
+        _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor)
         iout += 1
     return iout
 
@@ -589,7 +596,7 @@ def _after_accept(L, iout, irec, e, hh, k, lamk, cout_old, cnew):
     changes (f and the multipliers at its end evaluated again with the new modes) and contact records.
     Returns the next output sample's and contact record's indices."""
     st, end = L.stats[0], L.scheme.end
-    _track_peaks(L.mdl, L.plain, L.track, e, cnew, st, L.s, L.D, k)
+    _track_peaks(L.stabilised, L.plain, L.track, e, cnew, st, L.s, L.D, k)
     if L.stages_out:
         iout = _dense_output_stages(L.scheme, L.plain, L.out, L.track, iout, e, hh, k, lamk, L.s)
     else:
@@ -646,10 +653,11 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
     s = _Scratch(yo=np.empty(N), fo=np.empty(N), lam=np.empty(out.lam.shape[1]), csamp=np.empty_like(cout_old),
                  enew=np.empty(nq), vals=np.empty(nq), dbs=np.empty(scheme.d.shape[0]))
     lamk = np.empty((end + 1, out.lam.shape[1]))
-    stages_out = scheme.d.shape[0] > 0 and mdl.alpha == 0.0 and mdl.beta == 0.0 and not out.evaluate
+    stabilised = mdl.alpha != 0.0 or mdl.beta != 0.0
+    stages_out = scheme.d.shape[0] > 0 and not stabilised and not out.evaluate
     D = scheme.d if stages_out else np.zeros((0, scheme.d.shape[1]))
     L = _Loop(scheme=scheme, control=control, mdl=mdl, plain=_unstabilised(mdl), out=out, track=track, stats=stats,
-              s=s, D=D, stages_out=stages_out)
+              s=s, D=D, stages_out=stages_out, stabilised=stabilised)
     cnew = np.empty_like(cout_old)
     iout = int(st.out)
     irec = int(st.rec)

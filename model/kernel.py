@@ -316,23 +316,23 @@ def _pos_t(q, b, c, s, sx, sy):
 
 
 @njit(cache=True, inline="always")
-def _cos_sin(q, b, W, trig):
-    """cos and sin of body b's angle: from the workspace when ``trig`` (W.cs, W.sn hold them for q), else
+def _cos_sin(q, b, cs, sn, trig):
+    """cos and sin of body b's angle: from the workspace's cs, sn when ``trig`` (they hold them for q), else
     computed (1, 0 for the frame, b < 0, which needs none)."""
     if b < 0:
         return 1.0, 0.0
     if trig:
-        return W.cs[b], W.sn[b]
+        return cs[b], sn[b]
     return math.cos(q[3 * b + 2]), math.sin(q[3 * b + 2])
 
 
 @njit(cache=True, inline="always")
-def eccentricity(q, bi, bj, p, W, trig):
+def eccentricity(q, bi, bj, p, cs, sn, trig):
     """Bearing centre (pix, piy), journal centre (pjx, pjy) and e = r_journal - r_bearing of a clearance
     joint with parameter row p (the one place r1 - r2 of the paper's eq. 1 is formed); ``trig`` as in
     :func:`_cos_sin`."""
-    ci, si = _cos_sin(q, bi, W, trig)
-    cj, sj = _cos_sin(q, bj, W, trig)
+    ci, si = _cos_sin(q, bi, cs, sn, trig)
+    cj, sj = _cos_sin(q, bj, cs, sn, trig)
     pix, piy = _pos_t(q, bi, ci, si, p[CLR_SIX], p[CLR_SIY])
     pjx, pjy = _pos_t(q, bj, cj, sj, p[CLR_SJX], p[CLR_SJY])
     return pix, piy, pjx, pjy, pjx - pix, pjy - piy
@@ -389,11 +389,11 @@ def clearance_arrays(q, v, P, W, inc, v0i, cout, trig):
     ``inc[k]`` (contact flag) and ``v0i[k]`` (impact speed) are the mode state of joint k: while the flag
     is off the current normal speed stands in for the impact speed (contact onset).
     """
-    clr_b, clr_p, surf_n, surf_t, g, buf = P.clr_b, P.clr_p, P.surf_n, P.surf_t, W.g, W.buf
+    clr_b, clr_p, surf_n, surf_t, g, buf, cs, sn = P.clr_b, P.clr_p, P.surf_n, P.surf_t, W.g, W.buf, W.cs, W.sn
     for k in range(clr_b.shape[0]):
         bi, bj = clr_b[k, 0], clr_b[k, 1]
         p = clr_p[k]
-        pix, piy, pjx, pjy, ex, ey = eccentricity(q, bi, bj, p, W, trig)
+        pix, piy, pjx, pjy, ex, ey = eccentricity(q, bi, bj, p, cs, sn, trig)
         emag = math.sqrt(ex * ex + ey * ey)
         thi = 0.0 if bi < 0 else q[3 * bi + 2]
         thj = 0.0 if bj < 0 else q[3 * bj + 2]
@@ -412,17 +412,16 @@ def clearance_arrays(q, v, P, W, inc, v0i, cout, trig):
             psi, pen = alpha, emag - clear
             even = Zone(psi=psi, overlap=emag, hb=0.0, hj=0.0, slope_b=0.0, slope_j=0.0)  # no depths, no slopes
             fn, ft, vn, vt = _zone_force(q, v, pair, p, ux, uy, pen, even, 1.0, g)
-        c = cout[k]
-        c[CO_EX] = ex
-        c[CO_EY] = ey
-        c[CO_PEN] = pen
-        c[CO_FN] = fn
-        c[CO_FT] = ft
-        c[CO_VN] = vn
-        c[CO_VT] = vt
-        c[CO_OMEGA] = pair.wj - pair.wi
-        c[CO_PHIB] = (psi - thi) % (2.0 * math.pi)
-        c[CO_PHIJ] = (psi - thj) % (2.0 * math.pi)
+        cout[k, CO_EX] = ex  # indexed in two dimensions: a row view would count a reference in and out
+        cout[k, CO_EY] = ey
+        cout[k, CO_PEN] = pen
+        cout[k, CO_FN] = fn
+        cout[k, CO_FT] = ft
+        cout[k, CO_VN] = vn
+        cout[k, CO_VT] = vt
+        cout[k, CO_OMEGA] = pair.wj - pair.wi
+        cout[k, CO_PHIB] = (psi - thi) % (2.0 * math.pi)
+        cout[k, CO_PHIJ] = (psi - thj) % (2.0 * math.pi)
 
 
 @njit(cache=True, inline="always")
@@ -532,9 +531,8 @@ def _jt_times(P, Jv, lam, out):
 
 
 @njit(cache=True, inline="always")
-def _j_times(P, Jv, x, k):
-    """(Phi_q x)_k."""
-    jb = P.jb
+def _j_times(jb, Jv, x, k):
+    """(Phi_q x)_k (``jb``: P.jb, taken from the record once by the caller, not once per row)."""
     s_ = 0.0
     for s in range(2):
         b = jb[k, s]
@@ -559,7 +557,7 @@ def accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, a, lam, cout):
     stab = (alpha, beta), contact modes inc, v0i), compiled into its caller: the integrators take the
     parts from the record once per step, not once per right-hand side (see :func:`clearance_arrays`)."""
     alpha, beta = stab
-    minv = P.minv
+    minv, jb = P.minv, P.jb
     phi, Jv, gam, nu, g, S, rhs, tmp = W.phi, W.Jv, W.gam, W.nu, W.g, W.S, W.rhs, W.tmp
     constraints(t, q, v, speed, P, W)
     element_forces(q, v, P, g)
@@ -571,8 +569,8 @@ def accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, a, lam, cout):
     for k in range(m):
         r = gam[k]
         if alpha != 0.0 or beta != 0.0:
-            r -= 2.0 * alpha * (_j_times(P, Jv, v, k) - nu[k]) + beta * beta * phi[k]
-        rhs[k] = _j_times(P, Jv, tmp, k) - r
+            r -= 2.0 * alpha * (_j_times(jb, Jv, v, k) - nu[k]) + beta * beta * phi[k]
+        rhs[k] = _j_times(jb, Jv, tmp, k) - r
     if m > 0:
         schur(P, Jv, S)
         if cholesky_solve(S, rhs, lam, P.s_first) != OK:
@@ -587,12 +585,12 @@ def accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, a, lam, cout):
 def drift_of(P, v, W):
     """Largest position (m or rad) and velocity constraint violation (|Phi|_inf, |Phi_q v - nu|_inf)
     from the constraints already in the workspace W (evaluated at the state whose velocities are v)."""
-    phi, Jv, nu = W.phi, W.Jv, W.nu
+    phi, Jv, nu, jb = W.phi, W.Jv, W.nu, P.jb
     dp = 0.0
     dv = 0.0
     for k in range(phi.shape[0]):
         dp = max(dp, abs(phi[k]))
-        dv = max(dv, abs(_j_times(P, Jv, v, k) - nu[k]))
+        dv = max(dv, abs(_j_times(jb, Jv, v, k) - nu[k]))
     return dp, dv
 
 
@@ -611,7 +609,7 @@ def project(t, q, v, speed, P, W, tol, maxit):
     For a fully driven mechanism (dof 0) this is the position and velocity analysis itself.
     Returns OK, SINGULAR or NO_CONVERGENCE.
     """
-    minv = P.minv
+    minv, jb = P.minv, P.jb
     phi, Jv, nu, S, rhs, lam, tmp = W.phi, W.Jv, W.nu, W.S, W.rhs, W.lam, W.tmp
     m = phi.shape[0]
     if m == 0:
@@ -635,7 +633,7 @@ def project(t, q, v, speed, P, W, tol, maxit):
             q[i] -= minv[i] * tmp[i]
     schur(P, Jv, S)
     for k in range(m):
-        rhs[k] = _j_times(P, Jv, v, k) - nu[k]
+        rhs[k] = _j_times(jb, Jv, v, k) - nu[k]
     if cholesky_solve(S, rhs, lam, P.s_first) != OK:
         return SINGULAR
     _jt_times(P, Jv, lam, tmp)
