@@ -229,6 +229,21 @@ class _LateDrive:
         return getattr(self.drive, name)
 
 
+def _record_on_sim(bench, out, plan: SessionPlan | None = None, *, sources=None, drive=None):
+    """Record ``plan`` (default 20 cycles at FAST) on the emulated bench at full speed, the harmonic signal,
+    to ``out``, its sources and drive first wrapped by ``sources(source, rig)`` and ``drive(drive)`` if
+    given; the recorder's result."""
+    rig = open_rig(bench, "sim", {"speedup": math.inf, "config": HARMONIC})
+    if sources is not None:
+        rig.sources = [sources(s, rig) for s in rig.sources]
+    if drive is not None:
+        rig.drive = drive(rig.drive)
+    try:
+        return Recorder(rig, bench, plan or SessionPlan(speed=FAST, cycles=20), out).run()
+    finally:
+        rig.close()
+
+
 def test_a_late_first_drive_state_still_records_the_planned_cycles(bench, tmp_path):
     """The drive's revolutions count from its first state of the recording; half a revolution late, the
     count ran ahead of the stream and its fallback (meant for a stream without index pulses) ended the
@@ -236,12 +251,7 @@ def test_a_late_first_drive_state_still_records_the_planned_cycles(bench, tmp_pa
     plan = SessionPlan(speed=FAST, cycles=20, settle=0.51)  # the first index pulse 0.76 revolutions in
 
     def record(out, late: float = 0.0, until: float = -math.inf):
-        rig = open_rig(bench, "sim", {"speedup": math.inf, "config": HARMONIC})
-        rig.drive = _LateDrive(rig.drive, late, until)
-        try:
-            assert Recorder(rig, bench, plan, out).run().completed
-        finally:
-            rig.close()
+        assert _record_on_sim(bench, out, plan, drive=lambda d: _LateDrive(d, late, until)).completed
         return read_session(out)
 
     on_time = record(tmp_path / "on-time.mcap")
@@ -274,13 +284,8 @@ def test_a_lagging_stream_records_no_further_than_the_closing_pulse(bench, tmp_p
     (0.05 revolutions) past the index pulse that closes the last cycle, on the stream's own clock, not
     where the drive was when that pulse arrived (22.09 revolutions seen on CANopen on a busy machine)."""
     revolution = 2 * math.pi / FAST
-    rig = open_rig(bench, "sim", {"speedup": math.inf, "config": HARMONIC})
-    rig.sources = [_LaggingStream(s, rig.clock, revolution) for s in rig.sources]
     out = tmp_path / "lagging.mcap"
-    try:
-        assert Recorder(rig, bench, SessionPlan(speed=FAST, cycles=20), out).run().completed
-    finally:
-        rig.close()
+    assert _record_on_sim(bench, out, sources=lambda s, rig: _LaggingStream(s, rig.clock, revolution)).completed
     s = _check_session(out, bench)
     flag = s.encoder["index"].to_numpy(bool)
     last_pulse = s.encoder.time.to_numpy()[1:][flag[1:] & ~flag[:-1]][-1]
@@ -324,13 +329,8 @@ class _BatchesFromAPulse:
 def test_a_session_whose_first_encoder_sample_shows_a_pulse_still_holds_the_planned_cycles(bench, tmp_path):
     """That pulse fired before the recording began, so no cycle starts in the session there; counting it
     ended the session one cycle short: 19 of 20 complete cycles (seen once in CI, over CAN)."""
-    rig = open_rig(bench, "sim", {"speedup": math.inf, "config": HARMONIC})
-    rig.sources = [_BatchesFromAPulse(s) for s in rig.sources]
     out = tmp_path / "pulse-first.mcap"
-    try:
-        assert Recorder(rig, bench, SessionPlan(speed=FAST, cycles=20), out).run().completed
-    finally:
-        rig.close()
+    assert _record_on_sim(bench, out, sources=lambda s, rig: _BatchesFromAPulse(s)).completed
     s = _check_session(out, bench)
     assert s.encoder["index"].iloc[0]  # the case this test is about
 
@@ -356,13 +356,8 @@ class _PulsesEnd:
 def test_a_stream_without_pulses_ends_on_the_drives_count(bench, tmp_path, after):
     """Without index pulses from the start, the drive's count ends the session one revolution (and the
     margin) past the planned cycles; when the pulses stop midway, two revolutions later than that."""
-    rig = open_rig(bench, "sim", {"speedup": math.inf, "config": HARMONIC})
-    rig.sources = [_PulsesEnd(s, after) for s in rig.sources]
     plan = SessionPlan(speed=FAST, cycles=5)
-    try:
-        result = Recorder(rig, bench, plan, tmp_path / "s.mcap").run()
-    finally:
-        rig.close()
+    result = _record_on_sim(bench, tmp_path / "s.mcap", plan, sources=lambda s, rig: _PulsesEnd(s, after))
     assert result.completed, result.reason
     end, poll = 5 + 1.05 + (2.0 if after else 0.0), FAST * plan.state_interval / (2 * math.pi)  # revolutions
     assert end <= result.cycles < end + poll
