@@ -145,7 +145,10 @@ def main(argv: list[str] | None = None) -> int:
         with compile_note_on(), one_blas_thread():
             return int(args.func(args) or 0)
     except BaseException as exc:
-        if _interrupted(exc):  # Ctrl-C: one line, exit 130 (a recording has finished its file by now)
+        # Ctrl-C: one line, exit 130 (a recording has finished its file by now). Also whatever error ends
+        # the command after the program heard one: a library can turn the KeyboardInterrupt into an error
+        # of its own and drop it (pybind11's argument conversion in matplotlib's savefig raised TypeError)
+        if _interrupted(exc) or (as_program and _Interrupt.timer is not None):
             if as_program:  # end here, as the watchdog does: nothing in the interpreter's shutdown can
                 # change the exit code (seen once in CI: the line printed, then death by SIGINT, -2)
                 _Interrupt.force_exit()
