@@ -27,6 +27,9 @@ shared machine inflates them less than wall time would; ratios are still best me
 With ``--baseline DIR [DIR ...]`` (scratch copies of earlier versions whose ``wearbench`` package lies in
 ``DIR/wearbench``, e.g. main and f183162 exported by ``git archive``) it also times each of them in a
 subprocess, interleaved with this one (best of ``--repeat``), and prints the ratio per state.
+This version is timed in this process, after its profile, and there ran up to 1.24x faster or slower
+than the same code in a fresh process (issue 47's runs): to compare two versions, export both and
+give both as baselines (``--baseline NEW OLD``), so each is timed in fresh processes.
 
 Run:  .venv/bin/python -m benchmarks.model.profile_revolution [--revolutions 3] [--repeat 3]
           [--baseline /tmp/wb_main /tmp/wb_base_f183162]
