@@ -168,8 +168,8 @@ def compute_client(scheduler: str | None = None, workers: int | None = None) -> 
     if address is None and not kernels_compiled():
         warm_up()  # compiled once, here (a program's compile note says so), not in every worker at once
     life = _Life(address, workers)
-    client = life.start()
     within = CLOSE_INTERRUPTED
+    client = life.start()
     try:
         token = _ACTIVE.set(ActiveClient(client))
         try:
@@ -298,8 +298,9 @@ class _Life:
                 finally:
                     closed.set()
 
-        threading.Thread(target=close, name="wearbench cluster shutdown", daemon=True).start()
-        try:
+        closing = threading.Thread(target=close, name="wearbench cluster shutdown", daemon=True)
+        try:  # started inside: its close may take a Ctrl-C to this thread before start() returns here
+            closing.start()
             closed.wait(within)
         finally:
             if not closed.is_set():
