@@ -130,8 +130,8 @@ def _interrupt_group(args: list[str], moment: str, cwd) -> tuple[int, str]:
 def test_ctrl_c_on_a_local_cluster_leaves_no_worker_traceback_or_leaked_semaphores(args, moments, tmp_path):
     """Issue 25, item 11: Ctrl-C during identify, ensemble or sweep printed Dask worker tracebacks
     (3 of 17 tries) and a leaked-semaphore warning (16 of 17). Each try's Ctrl-C comes at a moment of
-    the batch named by its progress (the sweep used to finish before a Ctrl-C sent after a fixed 8 s on
-    an idle machine, and such a try was skipped)."""
+    the batch named by its progress (the 40-run sweep took 7 s on the 2-core machine, less than the
+    fixed 8 s the first Ctrl-C used to wait, and a try that finished was skipped)."""
     for moment in moments:
         out = moment + (".npz" if args[0] == "ensemble" else "")
         code, err = _interrupt_group([*args, out], moment, tmp_path)
