@@ -10,6 +10,13 @@ failure, so a step costs no interpreter time. What crosses into the loop are nam
 keyword on the Python side: the mechanism (``kernel.Model``), :class:`Control`, :class:`Output` and
 the peak tracker :func:`new_track` builds. Imports numpy, numba and the model's kernel only.
 
+Everything the steps run is compiled without numba's reference counting (``_nrt=False``): only
+:func:`run_loop` and :func:`kinematics_loop` allocate; the functions they call allocate nothing and
+return no array, so the counts numba would take and give back on every array a record holds or a
+view makes (a locked instruction each; a third of a run's time) protect nothing. The same holds for
+the right-hand side (``kernel``) and the worn-contact search (``worn_contact``). A function compiled so
+that allocated would not compile; one that returned an array would hand its caller an uncounted one.
+
 State y = (q, v); f(t, y) = (v, a) with a from :func:`wearbench.model.kernel.accel`.
 """
 
@@ -62,11 +69,13 @@ PREV_Y0, PREV_F0, PREV_Y1, PREV_F1, PREV_STAGES = range(5)
 # (0: none, not even the start's values; 1: the start's values; 2: a whole step) and whether the contact
 # modes changed at its end (its dense output then does not continue into the next step's)
 PEAK_STATE = np.dtype([("t0", np.float64), ("t1", np.float64), ("known", np.int64), ("changed", np.int64)])
-# what run_loop fills: output times and, per time, state, accelerations, contact outputs and multipliers;
-# contact records (one row per accepted step and clearance joint) when ``record``; ``evaluate``: each
-# sample's accelerations and multipliers from a right-hand side at the interpolated state (else from the
-# tableau's continuous extension, when it has one and the method no Baumgarte stabilisation)
-Output = namedtuple("Output", "t y a c lam rec record evaluate")
+# what run_loop fills: output times and, per time, the state's and accelerations' recorded entries (indices
+# ``ycols`` of y, ``acols`` of the accelerations: what the table reads, not the whole state), contact
+# outputs and multipliers; contact records (one row per accepted step and clearance joint) when
+# ``record``; ``evaluate``: each sample's accelerations and multipliers from a right-hand side at the
+# interpolated state (else from the tableau's continuous extension, when it has one and the method no
+# Baumgarte stabilisation)
+Output = namedtuple("Output", "t y a c lam rec record evaluate ycols acols")
 # one step: start time, state and f there, end time, state and f there
 _Ends = namedtuple("_Ends", "t0 y0 f0 t1 y1 f1")
 # the loop's work arrays: a sample's state (yo) and f there (fo), multipliers (lam), contact outputs (csamp),
@@ -76,8 +85,7 @@ _Scratch = namedtuple("_Scratch", "yo fo lam csamp enew vals dbs")
 # stabilisation (plain: the samples' and peaks' right-hand side), output, peak tracker, statistics, work
 # arrays, the continuous extension the peak search uses (no rows: cubic Hermite), whether the output
 # samples come from it and whether the steps run under Baumgarte stabilisation. The step's helpers are
-# compiled into the loop (inline): a record of arrays passed to a compiled call counts a reference to
-# each of its arrays, in and out, at every call
+# compiled into the loop (inline)
 _Loop = namedtuple("_Loop", "scheme control mdl plain out track stats s D stages_out stabilised")
 
 
@@ -93,7 +101,7 @@ def new_track(sensor: np.ndarray, joints: int, scheme: Scheme, size: int) -> Tra
                  values=np.zeros((2, joints + 1)), state=np.zeros(1, PEAK_STATE))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def deriv(t, y, mdl, dy, lam, cout):
     """f(t, y) = (v, a) of the mechanism ``mdl`` (``kernel.Model``) into dy, the multipliers into lam, the
     contact outputs into cout; returns the kernel's status. For the samples, peak searches and
@@ -124,7 +132,7 @@ def _unstabilised(mdl):
     return K.Model(P=mdl.P, speed=mdl.speed, alpha=0.0, beta=0.0, inc=mdl.inc, v0i=mdl.v0i, W=mdl.W)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def erk_try(scheme, control, mdl, t, y, h, k, ynew, ytmp, lamk, cout):
     """One step of an explicit Runge-Kutta tableau for the mechanism ``mdl`` (``kernel.Model``): ynew and
     k[scheme.end] = f(t + h, ynew), the multipliers of stage s in lamk[s]; returns (status, error norm)
@@ -132,7 +140,7 @@ def erk_try(scheme, control, mdl, t, y, h, k, ynew, ytmp, lamk, cout):
     N = y.shape[0]
     A, B, C, last = scheme.a, scheme.b, scheme.c, scheme.end
     atol, rtol = control.atol, control.rtol
-    # the record's parts once per step (taking a record of arrays apart counts a reference to each array)
+    # the record's parts once per step
     speed, P, W, stab, inc, v0i = mdl.speed, mdl.P, mdl.W, (mdl.alpha, mdl.beta), mdl.inc, mdl.v0i
     # the stages, then (without FSAL) f at the new state as stage ``last``: one evaluation site, compiled in
     for s in range(1, last + 1):
@@ -169,7 +177,7 @@ def erk_try(scheme, control, mdl, t, y, h, k, ynew, ytmp, lamk, cout):
     return 0, math.sqrt(err / N)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _hermite(e, t, out):
     """Cubic Hermite interpolation of the step ``e`` (:data:`_Ends`) at t into out."""
     t0, y0, f0, t1, y1, f1 = e
@@ -197,7 +205,7 @@ def sensor_acc(y, f, sensor):
     return abs(acc)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _peak_values(t, y, plain, sensor, s, vals):
     """The tracked quantities at (t, y) into vals, without stabilisation (``plain``), as the output table
     has them: normal contact force per clearance joint, then |sensor acceleration| (f, multipliers and
@@ -209,7 +217,7 @@ def _peak_values(t, y, plain, sensor, s, vals):
     vals[nc] = sensor_acc(y, s.fo, sensor)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _golden_max(j, e, plain, sensor, s):
     """Largest value of tracked quantity j on the step's dense output (cubic Hermite on the step ``e``)
     by golden-section search (one evaluation per iteration)."""
@@ -272,7 +280,7 @@ def extension(D, y, h, k, th, yo, fo, dbs):
         fo[i] = yo[n + i]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _extension_values(D, plain, t0, y0, h, k, ts, sensor, s):
     """The tracked quantities (as :func:`_peak_values`, into s.vals) at ts on a step's continuous extension:
     normal contact forces from the force law at the interpolated state, |sensor acceleration| from its
@@ -286,7 +294,7 @@ def _extension_values(D, plain, t0, y0, h, k, ts, sensor, s):
     s.vals[nc] = sensor_acc(s.yo, s.fo, sensor)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _golden_max_ext(j, D, plain, t0, y0, h, k, sensor, s):
     """Largest value of tracked quantity j on a step's continuous extension (as :func:`_golden_max`)."""
     g = 0.6180339887498949
@@ -311,7 +319,7 @@ def _golden_max_ext(j, D, plain, t0, y0, h, k, sensor, s):
     return max(fc, fd)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def update_modes(cout_old, cout_new, inc, v0i):
     """Contact onset/loss per clearance joint after an accepted step; True if a mode changed.
 
@@ -405,8 +413,7 @@ def _track_peaks(stabilised, plain, track, e, cnew, st, s, D, k):
     under Baumgarte stabilisation), and where the previous end was a local maximum near the running peak,
     the golden-section search (:func:`_search_step`) of the dense output of this step and (modes
     unchanged) the previous one. ``track.prev`` keeps the previous step's ends, f there and stages.
-    ``stabilised``: the steps run under Baumgarte stabilisation (a flag, not the mechanism's record: a record
-    of arrays passed to a function counts a reference to each of its arrays, in and out)."""
+    ``stabilised``: the steps run under Baumgarte stabilisation."""
     sensor, peaks, prev, pe = track.sensor, track.peaks, track.prev, track.values
     ps = track.state[0]
     nc = cnew.shape[0]
@@ -457,16 +464,16 @@ def _copy_rows(dst, src):
 
 
 @njit(cache=True, inline="always")
-def _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor):
-    """Output sample iout (rows of the output's y, a and c, indexed in place: a row view counts a reference
-    in and out) from the work arrays: state, accelerations, contact outputs; the running peaks raised by
-    its values. The caller takes the arrays from their records once for all its samples."""
+def _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor, ycols, acols):
+    """Output sample iout (rows of the output's y, a and c, indexed in place) from the work arrays: the recorded entries (``ycols``, ``acols``) of the state and the
+    accelerations, the contact outputs; the running peaks raised by its values. The caller takes the
+    arrays from their records once for all its samples."""
     n = yo.shape[0] // 2
     nc = csamp.shape[0]
-    for i in range(2 * n):
-        out_y[iout, i] = yo[i]
-    for i in range(n):
-        out_a[iout, i] = fo[n + i]
+    for j in range(ycols.shape[0]):
+        out_y[iout, j] = yo[ycols[j]]
+    for j in range(acols.shape[0]):
+        out_a[iout, j] = fo[n + acols[j]]
     for c in range(nc):
         for x in range(csamp.shape[1]):
             out_c[iout, c, x] = csamp[c, x]
@@ -475,14 +482,14 @@ def _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor):
     peaks[nc] = max(peaks[nc], sensor_acc(yo, fo, sensor))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _dense_output(plain, out, track, iout, e, s):
     """Output samples on the step ``e`` (t0, t1] by cubic Hermite interpolation of y with the modes of the
     step, f and the contact outputs evaluated there (their peaks tracked too); returns the next sample's
     index."""
     N = e.y0.shape[0]
     yo, fo, csamp, peaks, sensor = s.yo, s.fo, s.csamp, track.peaks, track.sensor
-    out_t, out_y, out_a, out_c, out_lam = out.t, out.y, out.a, out.c, out.lam
+    out_t, out_y, out_a, out_c, out_lam, ycols, acols = out.t, out.y, out.a, out.c, out.lam, out.ycols, out.acols
     while iout < out_t.shape[0] and out_t[iout] <= e.t1:
         ts = out_t[iout]
         if ts <= e.t0:
@@ -494,7 +501,7 @@ def _dense_output(plain, out, track, iout, e, s):
         else:
             _hermite(e, ts, yo)
         deriv(ts, yo, plain, fo, out_lam[iout], csamp)
-        _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor)
+        _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor, ycols, acols)
         iout += 1
     return iout
 
@@ -507,11 +514,10 @@ def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
     outputs from the force law at the state with the step's modes (their peaks tracked too); the step's
     end itself takes its evaluated values. Returns the next sample's index."""
     t, y, t_new, ynew = e.t0, e.y0, e.t1, e.y1
-    # the arrays taken from their records, and the views made, once for the step's samples (each counts a
-    # reference in and out)
+    # the arrays taken from their records, and the views made, once for the step's samples
     yo, fo, dbs, csamp, peaks, sensor = s.yo, s.fo, s.dbs, s.csamp, track.peaks, track.sensor
     P, W, inc, v0i = plain.P, plain.W, plain.inc, plain.v0i
-    out_t, out_y, out_a, out_c, out_lam = out.t, out.y, out.a, out.c, out.lam
+    out_t, out_y, out_a, out_c, out_lam, ycols, acols = out.t, out.y, out.a, out.c, out.lam, out.ycols, out.acols
     N = y.shape[0]
     n = N // 2
     qo, vo = yo[:n], yo[n:]
@@ -540,12 +546,12 @@ def _dense_output_stages(scheme, plain, out, track, iout, e, h, k, lamk, s):
                     for r in range(m):
                         out_lam[iout, r] += db * lamk[s_, r]
         K.clearance_arrays(qo, vo, P, W, inc, v0i, csamp, False)
-        _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor)
+        _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor, ycols, acols)
         iout += 1
     return iout
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _record(rec, irec, t, t_new, cnew):
     """One contact record per clearance joint for the step (t, t_new]."""
     for c in range(cnew.shape[0]):
@@ -644,21 +650,27 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
     on: the steps taken do not depend on the pauses). Returns a status code; stats' detail holds the
     joint or coordinate involved, its value the offending value.
     """
-    st = stats[0]
     N = y.shape[0]
-    end = scheme.end
-    ynew = np.empty(N)
-    ytmp = np.empty(N)
     nq = mdl.inc.shape[0] + 1
     s = _Scratch(yo=np.empty(N), fo=np.empty(N), lam=np.empty(out.lam.shape[1]), csamp=np.empty_like(cout_old),
                  enew=np.empty(nq), vals=np.empty(nq), dbs=np.empty(scheme.d.shape[0]))
-    lamk = np.empty((end + 1, out.lam.shape[1]))
+    lamk = np.empty((scheme.end + 1, out.lam.shape[1]))
     stabilised = mdl.alpha != 0.0 or mdl.beta != 0.0
     stages_out = scheme.d.shape[0] > 0 and not stabilised and not out.evaluate
     D = scheme.d if stages_out else np.zeros((0, scheme.d.shape[1]))
     L = _Loop(scheme=scheme, control=control, mdl=mdl, plain=_unstabilised(mdl), out=out, track=track, stats=stats,
               s=s, D=D, stages_out=stages_out, stabilised=stabilised)
-    cnew = np.empty_like(cout_old)
+    return _steps(L, t, y, h, t_end, k, cout_old, np.empty(N), np.empty(N), lamk, np.empty_like(cout_old))
+
+
+@njit(cache=True, _nrt=False)
+def _steps(L, t, y, h, t_end, k, cout_old, ynew, ytmp, lamk, cnew):
+    """:func:`run_loop`'s steps, on the work arrays it made (the step's new state and stage input, the
+    stages' multipliers, the new contact outputs). Compiled without numba's reference counting (NRT), as
+    is every compiled function it calls: they allocate nothing and return no array, and a count taken and
+    given back around each use of a record's array cost about a third of a run."""
+    scheme, control, mdl, out, st = L.scheme, L.control, L.mdl, L.out, L.stats[0]
+    end = scheme.end
     iout = int(st.out)
     irec = int(st.rec)
     nsteps = 0
@@ -703,14 +715,16 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
 
 
 @njit(cache=True)
-def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c, stats):
-    """Position, velocity and acceleration analysis plus inverse dynamics at each of ``times``.
+def kinematics_loop(out, q, v, speed, P, W, tol, stats):
+    """Position, velocity and acceleration analysis plus inverse dynamics at each of the output's times
+    (:data:`Output`: its recorded entries of the state and accelerations, multipliers, contact outputs).
 
     For a fully driven mechanism with ideal joints: Newton on Phi(q, t) = 0 from a second-order
     predictor, velocities from Phi_q v = nu, then accelerations and multipliers (joint reactions)
     from eq. 30 without stabilisation. Returns 0 or a kernel status; stats' t the failing time.
     """
     record = stats[0]
+    times, out_y, out_a, out_lam, out_c, ycols, acols = out.t, out.y, out.a, out.lam, out.c, out.ycols, out.acols
     n = q.shape[0]
     mdl = K.Model(P=P, speed=speed, alpha=0.0, beta=0.0, inc=np.zeros(0, np.int64), v0i=np.zeros(0), W=W)
     a = np.zeros(n)
@@ -729,9 +743,11 @@ def kinematics_loop(times, q, v, speed, P, W, tol, out_y, out_a, out_lam, out_c,
         if st != 0:
             record.t = t
             return st
-        out_y[i, :n] = q
-        out_y[i, n:] = v
-        out_a[i] = a
+        for j in range(ycols.shape[0]):
+            c = ycols[j]
+            out_y[i, j] = q[c] if c < n else v[c - n]
+        for j in range(acols.shape[0]):
+            out_a[i, j] = a[acols[j]]
         record.steps += 1
         t_prev = t
     return 0

@@ -61,8 +61,7 @@ Workspace = namedtuple("Workspace", "phi Jv gam nu g S rhs lam tmp cs sn buf")
 # (alpha, beta), contact modes per clearance joint (inc: in contact, v0i: impact speed), the workspace W
 Model = namedtuple("Model", "P speed alpha beta inc v0i W")
 # one clearance joint at the state: bearing and journal bodies, bearing and journal centres, angular velocities,
-# contact mode (in contact, impact speed); scalars only (its parameter row travels as an argument: a record
-# holding an array costs reference counting in the contact force)
+# contact mode (in contact, impact speed); scalars only (its parameter row travels as an argument)
 Pair = namedtuple("Pair", "bi bj pix piy pjx pjy wi wj inc v0")
 
 # clearance parameter columns (CLR_WORN: 1 for worn surfaces; CLR_CURV: their largest |h_b''| + |h_j''|)
@@ -145,7 +144,7 @@ def point_along(x, y, th, vx, vy, w, ax, ay, al, sx, sy, axis):
     return pos, vel, acc
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def motor_angle(t, speed, profile):
     """Motor angle (rad, 0 at t = 0), speed (rad/s) and acceleration (rad/s^2) at time t (s).
 
@@ -273,7 +272,7 @@ def _vel(q, v, b, px, py):
     return v[3 * b] - w * (py - q[3 * b + 1]), v[3 * b + 1] + w * (px - q[3 * b])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _zone_force(q, v, pair, p, nx, ny, pen, zone, scale, g):
     """Apply the normal and friction force of one contact zone of the joint ``pair`` (:class:`Pair`, its
     parameter row ``p``) to g;
@@ -368,8 +367,7 @@ def clearance_forces(q, v, mdl, cout, trig):
 @njit(cache=True, inline="always")
 def clearance_arrays(q, v, P, W, inc, v0i, cout, trig):
     """:func:`clearance_forces` on the parts of the mechanism record (parameters P, workspace W, contact
-    modes inc, v0i): for a caller that takes them from the record once for many evaluations (a record of
-    arrays taken apart counts a reference to each array, in and out, every time).
+    modes inc, v0i): for a caller that takes them from the record once for many evaluations.
 
     Geometry (paper eq. 1-6): e = journal centre - bearing centre, alpha = direction of e; new
     surfaces: penetration d = |e| - (R1 - R2) along alpha. Worn surfaces (JointSurfaces contract):
@@ -412,7 +410,7 @@ def clearance_arrays(q, v, P, W, inc, v0i, cout, trig):
             psi, pen = alpha, emag - clear
             even = Zone(psi=psi, overlap=emag, hb=0.0, hj=0.0, slope_b=0.0, slope_j=0.0)  # no depths, no slopes
             fn, ft, vn, vt = _zone_force(q, v, pair, p, ux, uy, pen, even, 1.0, g)
-        cout[k, CO_EX] = ex  # indexed in two dimensions: a row view would count a reference in and out
+        cout[k, CO_EX] = ex
         cout[k, CO_EY] = ey
         cout[k, CO_PEN] = pen
         cout[k, CO_FN] = fn
@@ -472,7 +470,7 @@ def schur(P, Jv, S):
                 S[max(k, l), min(k, l)] += val
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def cholesky_solve(S, rhs, x, first):
     """Solve S x = rhs in place (S's lower triangle overwritten by its Cholesky factor; the upper one is not
     read). Returns OK or SINGULAR.
@@ -541,7 +539,7 @@ def _j_times(jb, Jv, x, k):
     return s_
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def accel(t, q, v, mdl, a, lam, cout):
     """Accelerations a (n) and multipliers lam (m) of eq. 30 for the mechanism ``mdl`` (:class:`Model`:
     parameters, motor speed, Baumgarte coefficients alpha, beta (0, 0 for none), contact modes and
@@ -581,7 +579,7 @@ def accel_arrays(t, q, v, speed, P, W, stab, inc, v0i, a, lam, cout):
     return OK
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def drift_of(P, v, W):
     """Largest position (m or rad) and velocity constraint violation (|Phi|_inf, |Phi_q v - nu|_inf)
     from the constraints already in the workspace W (evaluated at the state whose velocities are v)."""
@@ -594,14 +592,14 @@ def drift_of(P, v, W):
     return dp, dv
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def drift(t, q, v, speed, P, W):
     """Largest position (m or rad) and velocity constraint violation: (|Phi|_inf, |Phi_q v - nu|_inf)."""
     constraints(t, q, v, speed, P, W)
     return drift_of(P, v, W)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def project(t, q, v, speed, P, W, tol, maxit):
     """Project (q, v) onto Phi = 0 and Phi_q v = nu with the M-weighted minimum correction.
 

@@ -91,27 +91,42 @@ def _output_times(t_end: float, rate: float) -> np.ndarray:
     return times
 
 
-def _table(scene: Scene, times, ys, accs, couts, lams) -> pd.DataFrame:
+def _recorded_columns(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """The entries of the state y = (q, v) and of the accelerations the table reads (``Output.ycols``,
+    ``Output.acols``): the drivers' angles and the sensor body's position, velocity and acceleration."""
     n = scene.n
-    q, v = ys[:, :n], ys[:, n:]
-    cols: dict[str, np.ndarray] = {"t": times}
+    ycols = {3 * b + 2 for _, b in scene.drivers}
+    acols: set[int] = set()
+    if scene.sensor is not None:
+        body = 3 * scene.sensor[0]
+        acols = {body, body + 1, body + 2}
+        ycols |= acols | {n + c for c in acols}
+    return np.array(sorted(ycols), dtype=np.int64), np.array(sorted(acols), dtype=np.int64)
+
+
+def _table(scene: Scene, out: I.Output) -> pd.DataFrame:
+    n = scene.n
+    y = {c: out.y[:, j] for j, c in enumerate(out.ycols)}  # the recorded entries of the state, by index
+    a = {c: out.a[:, j] for j, c in enumerate(out.acols)}
+    cols: dict[str, np.ndarray] = {"t": out.t}
     for joint, b in scene.drivers:
-        cols[f"theta_{joint}"] = q[:, 3 * b + 2]
+        cols[f"theta_{joint}"] = y[3 * b + 2]
     if scene.sensor is not None:
         b, (sx, sy), axis = scene.sensor
-        body = [np.ascontiguousarray(x[:, 3 * b + i]) for x in (q, v, accs) for i in range(3)]
+        body = [np.ascontiguousarray(x) for x in [y[3 * b + i] for i in range(3)] + [y[n + 3 * b + i] for i in range(3)]
+                + [a[3 * b + i] for i in range(3)]]
         cols["slider_pos"], cols["slider_vel"], cols["slider_acc"] = K.point_along(*body, float(sx), float(sy),
                                                                                    float(axis))
     else:
         for name in ("slider_pos", "slider_vel", "slider_acc"):
-            cols[name] = np.full(times.size, np.nan)
+            cols[name] = np.full(out.t.size, np.nan)
     for k, joint in enumerate(scene.clearance_joints):
         for name, idx in (("ex", K.CO_EX), ("ey", K.CO_EY), ("pen", K.CO_PEN), ("fn", K.CO_FN),
                           ("ft", K.CO_FT), ("vn", K.CO_VN), ("vt", K.CO_VT)):
-            cols[f"{joint}_{name}"] = couts[:, k, idx]
+            cols[f"{joint}_{name}"] = out.c[:, k, idx]
     for prefix, row in scene.reaction_rows:  # force on the pin's second body from the first (N)
-        cols[f"{prefix}_fx"] = lams[:, row]
-        cols[f"{prefix}_fy"] = lams[:, row + 1]
+        cols[f"{prefix}_fx"] = out.lam[:, row]
+        cols[f"{prefix}_fy"] = out.lam[:, row + 1]
     return pd.DataFrame(cols)
 
 
@@ -246,12 +261,14 @@ def _duration(scene: Scene, speed, t_end: float | None, revolutions: float):
 
 
 def _output(scene: Scene, times: np.ndarray, record_contacts: bool, evaluate_samples: bool) -> I.Output:
-    """The arrays the loop fills (zeros), one row per output time; a contact record buffer when recording."""
-    n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
-    return I.Output(t=times, y=np.zeros((times.size, 2 * n)), a=np.zeros((times.size, n)),
+    """The arrays the loop fills (zeros), one row per output time (of the state and the accelerations only
+    the entries the table reads); a contact record buffer when recording."""
+    m, nc = scene.m, len(scene.clearance_joints)
+    ycols, acols = _recorded_columns(scene)
+    return I.Output(t=times, y=np.zeros((times.size, ycols.size)), a=np.zeros((times.size, acols.size)),
                     c=np.zeros((times.size, nc, K.NCO)), lam=np.zeros((times.size, m)),
                     rec=np.zeros((4096 if record_contacts else 1, nc, I.NREC)), record=record_contacts,
-                    evaluate=evaluate_samples)
+                    evaluate=evaluate_samples, ycols=ycols, acols=acols)
 
 
 def _kinematics(scene: Scene, P, speed: float, q: np.ndarray, v: np.ndarray, out: I.Output, wall0: float
@@ -261,14 +278,13 @@ def _kinematics(scene: Scene, P, speed: float, q: np.ndarray, v: np.ndarray, out
         raise ValueError(f"method 'kinematics' needs a fully driven scene with ideal joints; this one "
                          f"has {scene.dof} DOF ({scene.description})")
     stats = I.new_stats()
-    status = I.kinematics_loop(out.t, q, v, speed, P, scene.work(), _PROJECTION_TOL, out.y, out.a, out.lam, out.c,
-                               stats)
+    status = I.kinematics_loop(out, q, v, speed, P, scene.work(), _PROJECTION_TOL, stats)
     if status != 0:
         code = I.SINGULAR if status == K.SINGULAR else I.NO_PROJECTION
         raise _fail(scene, code, stats, np.concatenate([q, v]), np.zeros((0, K.NCO)), speed, "kinematics",
                     DRIFT_TOLERANCE)
     contacts = {} if out.record else None
-    table = _table(scene, out.t, out.y, out.a, out.c, out.lam)
+    table = _table(scene, out)
     return SimulationResult(table, _summary(scene, "kinematics", stats, table, wall0, speed), contacts, scene)
 
 
@@ -404,7 +420,7 @@ def _result(scene: Scene, meth: Method, speed: float, out: I.Output, stats: np.n
         used = out.rec[: int(stats[0]["rec"])]
         contacts = {j: pd.DataFrame(used[:, c, :], columns=list(CONTACT_COLUMNS))
                     for c, j in enumerate(scene.clearance_joints)}
-    table = _table(scene, out.t, out.y, out.a, out.c, out.lam)
+    table = _table(scene, out)
     summary = _summary(scene, meth.name, stats, table, wall0, speed)
     peaks = track.peaks
     summary["peak_fn"] = {j: float(peaks[c]) for c, j in enumerate(scene.clearance_joints)}

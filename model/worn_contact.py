@@ -41,7 +41,7 @@ __all__ = ["SECOND_ZONE_RATIO", "Gap", "Zone", "contact_zones", "overlap_at", "s
 Zone = namedtuple("Zone", "psi overlap hb hj slope_b slope_j")
 # a worn joint at the state as the searches read it beside the surfaces' tables: the region counts of bearing
 # and journal, |e| (m) and its direction alpha, the bodies' angles, the clearance (m). Scalars only (the
-# tables travel as arguments): a record holding arrays costs reference counting in the contact search
+# tables travel as arguments)
 Gap = namedtuple("Gap", "nb nj emag alpha thi thj clear")
 # the second zone's walk over the midpoint samples (:func:`search_second_zone`): the gap, the region
 # coordinates of alpha, the samples' window, the bearing interval holding the top zone, how far the walk may
@@ -50,7 +50,7 @@ Gap = namedtuple("Gap", "nb nj emag alpha thi thj clear")
 _Walk = namedtuple("_Walk", "g xb xj i0 m i1 half t_lo t_hi ex ey ec_end cell")
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def overlap_at(sb, nb, sj, nj, emag, alpha, thi, thj, psi):
     """Radial overlap f(psi) = |e| cos(psi - alpha) - h_b(psi - th_b) - h_j(psi - th_j) (m) of the
     journal over the worn bearing in global direction ``psi``, with df/dpsi and d2f/dpsi2 and the
@@ -68,7 +68,7 @@ def _overlap(emag, dpsi, hb, db, d2b, hj, dj, d2j):
     return emag * c - hb - hj, -emag * s - db - dj, -emag * c - d2b - d2j, hb, hj, db, dj
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, psi):
     """:func:`overlap_at` from ``midpoints.surface_tables``, for |psi - alpha| < 2 pi; ``xb``, ``xj``:
     the region coordinates of alpha on bearing and journal (``contact.region_coordinate``), from
@@ -79,14 +79,14 @@ def _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, psi):
     return _overlap(emag, d, hb, db, d2b, hj, dj, d2j)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _off_window(tb, tj, nb, nj, emag, alpha, xb, xj, psi):
     """The overlap at a midpoint ``psi`` outside the sampled window, evaluated (a separate, not
     inlined, function: inlined, it slows the walk's loop tenfold)."""
     return _overlap_tab(tb, tj, nb, nj, emag, alpha, xb, xj, psi)[0]
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def _largest(buf, m):
     """max(buf[:m]) (-inf for m = 0); fastmath lets the reduction vectorise (a maximum is exact in
     any order)."""
@@ -96,7 +96,7 @@ def _largest(buf, m):
     return top
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def _above(buf, m, level):
     """The first and last t < m with buf[t] > level ((m, -1) if none); fastmath lets the two
     integer reductions vectorise."""
@@ -146,7 +146,7 @@ def _no_zone(psi):
     return Zone(psi=psi, overlap=-math.inf, hb=0.0, hj=0.0, slope_b=0.0, slope_j=0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def search_top_zone(tb, tj, g, curv, buf, i0, m):
     """Contact direction of a worn journal in a worn bearing (the :class:`Gap` ``g``; ``tb``, ``tj``: the
     ``midpoints.surface_tables`` of bearing and journal): where the two surfaces overlap most.
@@ -191,7 +191,7 @@ def search_top_zone(tb, tj, g, curv, buf, i0, m):
 SECOND_ZONE_RATIO = 0.5  # a second zone counts once its overlap exceeds this fraction of the first's
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _walk_side(tb, tj, buf, w, sign, psi1, f1, best):
     """One side (``sign``) of the second zone's walk from the top zone (psi1, f1) over the midpoint
     samples ``buf`` (see :func:`search_second_zone`): ``best`` = (psi, f, valley, valley's midpoint or nan)
@@ -231,7 +231,7 @@ def _walk_side(tb, tj, buf, w, sign, psi1, f1, best):
     return best_psi, best_f, best_s, best_s_at
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def search_second_zone(tb, tj, g, top, buf, i0, m):
     """The second contact zone of a worn joint (the :class:`Gap` ``g``, tables ``tb``, ``tj``): the highest
     local maximum of the overlap f (see :func:`overlap_at`) other than the top one (the :class:`Zone`
@@ -282,7 +282,7 @@ def search_second_zone(tb, tj, g, top, buf, i0, m):
     return _zone(psi, ev), min(best_s, ev[0])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def contact_zones(tb, tj, g, curv, buf):
     """Both contact zones of a worn joint (the :class:`Gap` ``g``; ``tb``, ``tj``: the
     ``midpoints.surface_tables`` of bearing and journal): (top, second, saddle), the
@@ -325,7 +325,7 @@ def second_zone(sb, nb, sj, nj, emag, alpha, thi, thj, clear, psi1, f1):
     return zone.psi, zone.overlap, saddle
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def zone_penetrations(f1, f2, sad, clear):
     """Penetrations (m) of two contact zones with peak overlaps f1 >= f2 > clear and saddle
     overlap ``sad`` between them, and the weight r in [0, 1] of the second zone's force.
