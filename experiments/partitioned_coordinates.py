@@ -527,7 +527,7 @@ def sample_states(scene, speed, revolutions: float = 1.0):
     onto the position and velocity constraints (tol 1e-13), with contact modes as the table shows them."""
     from wearbench.model import simulate
 
-    with watched_loop() as kept:
+    with watched_loop(whole_state=True) as kept:
         res = simulate(scene, revolutions=revolutions)
     n, P, W = scene.n, scene.params, scene.work()
     ts = np.ascontiguousarray(kept["t"])

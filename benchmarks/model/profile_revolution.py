@@ -77,25 +77,28 @@ def _timed_runs(revolutions: float) -> dict:
 
 
 def _part_timers():
-    """Compiled loops timing each part of one evaluation over a set of states (built on first use)."""
+    """Compiled loops timing each part of one evaluation over a set of states (built on first use), compiled
+    as the model's loop is: without numba's reference counting (``_nrt=False``, see ``model/integrators.py``)."""
     from numba import njit
     from wearbench.model import kernel as K
 
-    @njit
+    as_the_loop = njit(_nrt=False)
+
+    @as_the_loop
     def constraints(reps, ts, ys, speed, P, W):
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
                 K.constraints(ts[i], ys[i, :n], ys[i, n:], speed, P, W)
 
-    @njit
+    @as_the_loop
     def elements(reps, ts, ys, speed, P, W):
         n = ys.shape[1] // 2
         for _ in range(reps):
             for i in range(ts.shape[0]):
                 K.element_forces(ys[i, :n], ys[i, n:], P, W.g)
 
-    @njit
+    @as_the_loop
     def contacts(reps, ts, ys, speed, P, W, inc, v0i, cout):
         """The force law alone (as at a table sample: the bodies' cos/sin computed)."""
         n = ys.shape[1] // 2
@@ -103,7 +106,7 @@ def _part_timers():
             for i in range(ts.shape[0]):
                 K.clearance_arrays(ys[i, :n], ys[i, n:], P, W, inc[i], v0i[i], cout, False)
 
-    @njit
+    @as_the_loop
     def contacts_in_rhs(reps, ts, ys, speed, P, W, inc, v0i, cout, css, sns):
         """The force law as in a right-hand side: the bodies' cos/sin from the constraints (copied in)."""
         n = ys.shape[1] // 2
@@ -114,26 +117,32 @@ def _part_timers():
                     W.sn[b] = sns[i, b]
                 K.clearance_arrays(ys[i, :n], ys[i, n:], P, W, inc[i], v0i[i], cout, True)
 
-    @njit
+    @as_the_loop
     def schur(reps, ts, ys, speed, P, W, Jvs):
         for _ in range(reps):
             for i in range(ts.shape[0]):
                 K.schur(P, Jvs[i], W.S)
 
-    @njit
+    @as_the_loop
+    def _copy(dst, src):  # dst[:] = src would allocate (numba copies a source that may overlap)
+        for a in range(src.shape[0]):
+            for b in range(src.shape[1]):
+                dst[a, b] = src[a, b]
+
+    @as_the_loop
     def solve(reps, Ss, rhs, S, lam, first):
         for _ in range(reps):
             for i in range(Ss.shape[0]):
-                S[:] = Ss[i]
+                _copy(S, Ss[i])
                 K.cholesky_solve(S, rhs, lam, first)
 
-    @njit
+    @as_the_loop
     def copy_only(reps, Ss, rhs, S, lam, first):
         for _ in range(reps):
             for i in range(Ss.shape[0]):
-                S[:] = Ss[i]
+                _copy(S, Ss[i])
 
-    @njit
+    @as_the_loop
     def evaluation(reps, ts, ys, speed, P, W, inc, v0i, dy, lam, cout):
         """A right-hand side as the step evaluates it (integrators.deriv on the model record's parts)."""
         n = ys.shape[1] // 2
@@ -167,20 +176,34 @@ def clock(fn, *args, budget: float = 0.3, best_of: int = 3) -> float:
 
 
 @contextmanager
-def watched_loop():
+def watched_loop(whole_state: bool = False):
     """Patch the compiled integration loop for the runs inside: yields a dict with the CPU seconds
-    spent in it (``cpu``), its calls (``calls``) and the last call's output samples (``t``, ``y``: its
-    ``Output`` record, the eighth argument)."""
+    spent in it (``cpu``), its calls (``calls``) and the output times ``t`` of the last call's ``Output``
+    record (the eighth argument). The loop records only the state entries the table reads; with
+    ``whole_state`` it records every entry, kept as ``y`` (one row per output time; the table's own
+    entries are copied back after each call), and its time is then not the plain loop's."""
     from wearbench.model import integrators as I
 
     inner, spent = I.run_loop, {"cpu": 0.0, "calls": 0}
 
     def timed(*args):
+        out = args[7]
+        if whole_state:
+            N = args[4].shape[0]
+            if spent.get("t") is not out.t:  # a new run: its whole-state arrays
+                spent["y"], spent["a"] = np.zeros((out.t.size, N)), np.zeros((out.t.size, N // 2))
+            whole = I.Output(t=out.t, y=spent["y"], a=spent["a"], c=out.c, lam=out.lam, rec=out.rec,
+                             record=out.record, evaluate=out.evaluate, ycols=np.arange(N),
+                             acols=np.arange(N // 2))
+            args = (*args[:7], whole, *args[8:])
         t0 = time.process_time()
         status = inner(*args)
         spent["cpu"] += time.process_time() - t0
         spent["calls"] += 1
-        spent["t"], spent["y"] = args[7].t, args[7].y
+        spent["t"] = out.t
+        if whole_state:
+            out.y[:] = spent["y"][:, out.ycols]
+            out.a[:] = spent["a"][:, out.acols]
         return status
 
     I.run_loop = timed
@@ -209,10 +232,12 @@ def _profile(name: str, scene, revolutions: float) -> dict:
         t0 = time.process_time()
         res = simulate(scene, revolutions=revolutions)
         wall = time.process_time() - t0
+    with watched_loop(whole_state=True) as states:  # the same run again, for its states
+        simulate(scene, revolutions=revolutions)
     s = res.summary
-    every = max(1, spent["t"].size // 400)
-    ts = np.ascontiguousarray(spent["t"][::every])
-    ys = np.ascontiguousarray(spent["y"][::every])
+    every = max(1, states["t"].size // 400)
+    ts = np.ascontiguousarray(states["t"][::every])
+    ys = np.ascontiguousarray(states["y"][::every])
     P, W, speed = scene.params, scene.work(), scene.bench.speed
     n, m, nc = scene.n, scene.m, len(scene.clearance_joints)
     inc, v0i = contact_modes(scene, res, every)
