@@ -465,9 +465,10 @@ def _copy_rows(dst, src):
 
 @njit(cache=True, inline="always")
 def _store_sample(out_y, out_a, out_c, iout, yo, fo, csamp, peaks, sensor, ycols, acols):
-    """Output sample iout (rows of the output's y, a and c, indexed in place) from the work arrays: the recorded entries (``ycols``, ``acols``) of the state and the
-    accelerations, the contact outputs; the running peaks raised by its values. The caller takes the
-    arrays from their records once for all its samples."""
+    """Output sample iout (rows of the output's y, a and c, indexed in place) from the work arrays: the
+    recorded entries (``ycols``, ``acols``) of the state and the accelerations, the contact outputs; the
+    running peaks raised by its values. The caller takes the arrays from their records once for all its
+    samples."""
     n = yo.shape[0] // 2
     nc = csamp.shape[0]
     for j in range(ycols.shape[0]):
@@ -666,9 +667,7 @@ def run_loop(scheme, control, mdl, t, y, h, t_end, out, k, cout_old, stats, trac
 @njit(cache=True, _nrt=False)
 def _steps(L, t, y, h, t_end, k, cout_old, ynew, ytmp, lamk, cnew):
     """:func:`run_loop`'s steps, on the work arrays it made (the step's new state and stage input, the
-    stages' multipliers, the new contact outputs). Compiled without numba's reference counting (NRT), as
-    is every compiled function it calls: they allocate nothing and return no array, and a count taken and
-    given back around each use of a record's array cost about a third of a run."""
+    stages' multipliers, the new contact outputs); compiled without reference counting (module docstring)."""
     scheme, control, mdl, out, st = L.scheme, L.control, L.mdl, L.out, L.stats[0]
     end = scheme.end
     iout = int(st.out)
