@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from wearbench.bench.content import bench_key, cache_folder, canonical
 from wearbench.bench.schema import Bench, WearState
 from wearbench.compute.task_cache import cached, task_key
+from wearbench.model.digest import model_source_digest
 
 __all__ = ["Cost", "Priced", "describe", "estimate", "plan_line", "revolution_seconds", "workers_of"]
 
@@ -66,8 +67,11 @@ class Priced:
 
 
 def _pilot_key(cost: Cost) -> str:
+    """The price's key: a model source with the same outputs (``model/equivalence.toml``) may run at
+    another speed, so the source itself, not only its results, is part of it."""
     return task_key("revolution-cost", bench_key(cost.bench), canonical(cost.state), round(float(cost.speed), 9),
-                    float(cost.output_rate), platform.node(), platform.machine(), os.cpu_count())
+                    float(cost.output_rate), model_source_digest(), platform.node(), platform.machine(),
+                    os.cpu_count())
 
 
 def revolution_seconds(cost: Cost) -> float:

@@ -108,7 +108,8 @@ def test_the_wear_spread_is_priced_in_the_estimators_plan_and_checked_first(tmp_
 
 
 def test_the_pilot_prices_a_revolution_once_and_keeps_it(monkeypatch):
-    """The price of a revolution is measured (CPU clock) on the bench, state and speed, then read back."""
+    """The price of a revolution is measured (CPU clock) on the bench, state and speed, then read back;
+    another model source with the same outputs (an equivalence entry: it may run faster) is priced afresh."""
     from wearbench.bench.load import load_bench
     from wearbench.compute import cost
 
@@ -122,6 +123,9 @@ def test_the_pilot_prices_a_revolution_once_and_keeps_it(monkeypatch):
 
     monkeypatch.setattr("wearbench.model.realisation.simulate_state", no_more)
     assert cost.revolution_seconds(what) == first
+    monkeypatch.setattr("wearbench.compute.cost.model_source_digest", lambda: "0" * 64)
+    with pytest.raises(AssertionError, match="measured again"):
+        cost.revolution_seconds(what)
 
 
 @pytest.mark.parametrize(("argv", "words"), [
