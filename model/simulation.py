@@ -113,8 +113,7 @@ def _table(scene: Scene, out: I.Output) -> pd.DataFrame:
         cols[f"theta_{joint}"] = y[3 * b + 2]
     if scene.sensor is not None:
         b, (sx, sy), axis = scene.sensor
-        body = [np.ascontiguousarray(x) for x in [y[3 * b + i] for i in range(3)] + [y[n + 3 * b + i] for i in range(3)]
-                + [a[3 * b + i] for i in range(3)]]
+        body = [np.ascontiguousarray(x[first + 3 * b + i]) for x, first in ((y, 0), (y, n), (a, 0)) for i in range(3)]
         cols["slider_pos"], cols["slider_vel"], cols["slider_acc"] = K.point_along(*body, float(sx), float(sy),
                                                                                    float(axis))
     else:
